@@ -1,0 +1,16 @@
+//! The contract between imud processes and their files: MCAP topics, message schemas, and the
+//! writers and readers for them.
+//!
+//! Everything that crosses a process boundary (a shared-memory payload, an MCAP channel, a truth
+//! file written by the simulator) is defined here and nowhere else, so that a producer and its
+//! consumers cannot drift apart.
+//!
+//! - [`truth`]: the simulator's ground-truth recording (`/truth/sample`, `/truth/segment`,
+//!   metadata with the scenario and the truth error model), keyed by the device's timer ticks.
+//! - [`mcap_read`]: a tolerant streaming MCAP reader that reads a truncated file (a process killed
+//!   mid-write) up to its last good record and says where it stopped.
+
+pub mod mcap_read;
+pub mod truth;
+
+pub use mcap_read::{McapReadError, ReadReport};
