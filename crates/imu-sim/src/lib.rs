@@ -1,0 +1,312 @@
+//! imu-sim: a virtual MicroStrain 3DM-GX1 on a pseudo-terminal, driven by known physics and a
+//! known error model, that writes down the truth behind every reply.
+//!
+//! - [`scenario`]: the TOML scenario format (the paper's tests as segments).
+//! - [`motion`]: exact analytic motion (orientation, rates, specific force) over time.
+//! - [`device`]: the sans-IO device: commands in, replies and truth out.
+//! - [`link`]: the pty and the loop that paces replies in real time or as fast as the host reads.
+//!
+//! [`spawn`] runs all of it on a thread and returns once the device path exists, so the daemon
+//! (`imud --sim`) and tests can embed a simulator; the `imu-sim` binary is a thin front end.
+
+pub mod device;
+pub mod link;
+pub mod motion;
+pub mod scenario;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use imu_bus::truth::{TruthSegment, TruthWriter};
+use imu_model::Calibration;
+
+pub use device::DeviceCore;
+pub use link::{LinkReport, Pacing};
+pub use scenario::Scenario;
+
+/// Errors starting or running the simulator.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// The scenario file is unusable.
+    #[error(transparent)]
+    Scenario(#[from] scenario::ScenarioError),
+    /// The truth model file is unusable.
+    #[error(transparent)]
+    Model(#[from] imu_model::ModelError),
+    /// The pty could not be set up.
+    #[error(transparent)]
+    Link(#[from] link::LinkError),
+    /// The truth file could not be written.
+    #[error(transparent)]
+    Truth(#[from] imu_bus::truth::TruthWriteError),
+    /// I/O on the pty failed while running.
+    #[error("virtual device I/O failed")]
+    Io(#[from] std::io::Error),
+    /// A stable device link could not be made.
+    #[error("{path}: cannot create the device link: {message}")]
+    DeviceLink {
+        /// The requested link path.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+}
+
+/// Everything one simulator run needs.
+#[derive(Debug, Clone)]
+pub struct SimOptions {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// Its text (stored in the truth file so a run can be reproduced).
+    pub scenario_text: String,
+    /// The truth error model.
+    pub truth: Calibration,
+    /// Random seed for the noise and random poses.
+    pub seed: u64,
+    /// Where to write the truth MCAP file, if anywhere.
+    pub truth_out: Option<PathBuf>,
+    /// A stable symlink to the device path, if wanted (e.g. `/tmp/imu-sim0`).
+    pub link: Option<PathBuf>,
+    /// Real time or fast.
+    pub pacing: Pacing,
+    /// How long to wait at the end for the host to read the last bytes.
+    pub linger: Duration,
+}
+
+impl SimOptions {
+    /// Loads a scenario file and the truth model it names (or `truth_override`, or a perfect
+    /// sensor when neither is given).
+    pub fn from_files(
+        scenario_path: &Path,
+        truth_override: Option<&Path>,
+    ) -> Result<Self, SimError> {
+        let file = scenario_path.display().to_string();
+        let scenario_text = std::fs::read_to_string(scenario_path).map_err(|source| {
+            scenario::ScenarioError::Io {
+                file: file.clone(),
+                source,
+            }
+        })?;
+        let scenario = Scenario::from_toml_str(&scenario_text, &file)?;
+        let truth_path = match (truth_override, &scenario.truth) {
+            (Some(p), _) => Some(p.to_path_buf()),
+            (None, Some(rel)) => Some(scenario_path.parent().unwrap_or(Path::new(".")).join(rel)),
+            (None, None) => None,
+        };
+        let truth = match truth_path {
+            Some(p) => Calibration::load(&p)?,
+            None => Calibration::identity(),
+        };
+        let seed = scenario.seed;
+        Ok(Self {
+            scenario,
+            scenario_text,
+            truth,
+            seed,
+            truth_out: None,
+            link: None,
+            pacing: Pacing::RealTime,
+            linger: Duration::from_secs(5),
+        })
+    }
+}
+
+/// A running simulator.
+pub struct SimHandle {
+    device_path: PathBuf,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<LinkReport, SimError>>>,
+}
+
+impl SimHandle {
+    /// The path a host opens: the stable link if one was asked for, else the pty slave.
+    pub fn device_path(&self) -> &Path {
+        &self.device_path
+    }
+
+    /// Asks the simulator to stop (the truth file is still finished properly).
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// True once the simulator thread has ended.
+    pub fn is_finished(&self) -> bool {
+        self.thread.as_ref().is_none_or(JoinHandle::is_finished)
+    }
+
+    /// Waits for the run to end and returns what it did.
+    pub fn join(mut self) -> Result<LinkReport, SimError> {
+        self.join_inner()
+    }
+
+    fn join_inner(&mut self) -> Result<LinkReport, SimError> {
+        match self.thread.take() {
+            Some(t) => t.join().unwrap_or_else(|_| {
+                Err(SimError::Io(std::io::Error::other(
+                    "simulator thread panicked",
+                )))
+            }),
+            None => Ok(LinkReport::default()),
+        }
+    }
+}
+
+impl Drop for SimHandle {
+    fn drop(&mut self) {
+        self.stop();
+        let _ = self.join_inner();
+    }
+}
+
+fn segment_record(s: &motion::SegmentInfo) -> TruthSegment {
+    TruthSegment {
+        index: s.index,
+        kind: s.kind.clone(),
+        label: s.label.clone(),
+        start_s: s.start_s,
+        end_s: s.end_s,
+        gravity_dir_sensor: s.gravity_dir_sensor.into(),
+        axis_sensor: s.axis_sensor.map(Into::into),
+        table_rate_rad_s: s.table_rate_rad_s,
+    }
+}
+
+/// The run identity stored in the truth file.
+fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, String> {
+    let s = &opts.scenario;
+    BTreeMap::from([
+        ("scenario-name".into(), s.name.clone()),
+        ("seed".into(), opts.seed.to_string()),
+        ("rate-hz".into(), s.rate_hz.to_string()),
+        ("tick-period-s".into(), s.device.tick_period_s.to_string()),
+        (
+            "clock-drift-ppm".into(),
+            s.device.clock_drift_ppm.to_string(),
+        ),
+        ("serial-number".into(), s.device.serial_number.to_string()),
+        ("firmware".into(), s.device.firmware.to_string()),
+        (
+            "gain-scale-accel".into(),
+            s.device.gain_scale.accel.to_string(),
+        ),
+        (
+            "gain-scale-gyro".into(),
+            s.device.gain_scale.gyro.to_string(),
+        ),
+        ("gain-scale-mag".into(), s.device.gain_scale.mag.to_string()),
+        ("gravity-m-s2".into(), s.gravity_m_s2.to_string()),
+        ("latitude-deg".into(), s.latitude_deg.to_string()),
+        ("pacing".into(), format!("{:?}", opts.pacing).to_lowercase()),
+        ("device-path".into(), device_path.display().to_string()),
+        ("imu-sim-version".into(), env!("CARGO_PKG_VERSION").into()),
+    ])
+}
+
+fn make_link(link: &Path, target: &Path) -> Result<(), SimError> {
+    let err = |message: String| SimError::DeviceLink {
+        path: link.to_path_buf(),
+        message,
+    };
+    match std::fs::symlink_metadata(link) {
+        Ok(m) if m.file_type().is_symlink() => {
+            std::fs::remove_file(link)
+                .map_err(|e| err(format!("cannot replace the old link: {e}")))?;
+        }
+        Ok(_) => {
+            return Err(err(
+                "exists and is not a symlink; refusing to replace it".into()
+            ));
+        }
+        Err(_) => {}
+    }
+    std::os::unix::fs::symlink(target, link).map_err(|e| err(e.to_string()))
+}
+
+/// Starts a simulator on a new pty and returns once its device path is ready.
+pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
+    let mut pty = link::Pty::open()?;
+    let slave = pty.slave_path().to_path_buf();
+    let device_path = match &opts.link {
+        Some(l) => {
+            make_link(l, &slave)?;
+            l.clone()
+        }
+        None => slave.clone(),
+    };
+    let mut device = DeviceCore::new(opts.scenario.clone(), opts.truth.clone(), opts.seed);
+    let writer = match &opts.truth_out {
+        Some(path) => {
+            let mut w = TruthWriter::create(
+                path,
+                &run_metadata(&opts, &device_path),
+                &opts.scenario_text,
+                &opts.truth.to_toml_string(),
+            )?;
+            for s in device.timeline().segments() {
+                w.write_segment(&segment_record(s))?;
+            }
+            w.flush()?;
+            Some(w)
+        }
+        None => None,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let stop_thread = stop.clone();
+    let link_path = opts.link.clone();
+    let link_options = link::LinkOptions {
+        pacing: opts.pacing,
+        linger: opts.linger,
+    };
+    let thread = std::thread::Builder::new()
+        .name("imu-sim".into())
+        .spawn(move || {
+            let (tx, rx) = mpsc::sync_channel(8192);
+            // The truth file is written on its own thread so that disk latency never delays a
+            // reply; it is flushed at least twice a second so a killed run leaves a readable file.
+            let writer_thread = writer.map(|mut w| {
+                std::thread::spawn(move || -> Result<(), SimError> {
+                    let mut last_flush = Instant::now();
+                    loop {
+                        match rx.recv_timeout(Duration::from_millis(200)) {
+                            Ok(sample) => w.write_sample(&sample)?,
+                            Err(mpsc::RecvTimeoutError::Timeout) => {}
+                            Err(mpsc::RecvTimeoutError::Disconnected) => break,
+                        }
+                        if last_flush.elapsed() >= Duration::from_millis(500) {
+                            w.flush()?;
+                            last_flush = Instant::now();
+                        }
+                    }
+                    w.finish()?;
+                    Ok(())
+                })
+            });
+            let sender = writer_thread.as_ref().map(|_| &tx);
+            let result = link::run(&mut pty, &mut device, sender, link_options, &stop_thread);
+            drop(tx);
+            let truth_result = writer_thread
+                .map(|t| {
+                    t.join().unwrap_or_else(|_| {
+                        Err(SimError::Io(std::io::Error::other("truth writer panicked")))
+                    })
+                })
+                .unwrap_or(Ok(()));
+            if let Some(l) = &link_path {
+                let _ = std::fs::remove_file(l);
+            }
+            let report = result?;
+            truth_result?;
+            Ok(report)
+        })
+        .map_err(SimError::Io)?;
+    Ok(SimHandle {
+        device_path,
+        stop,
+        thread: Some(thread),
+    })
+}

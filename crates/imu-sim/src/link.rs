@@ -1,0 +1,442 @@
+//! The virtual serial link: a pseudo-terminal whose slave side is the device path a host opens,
+//! and the loop that paces the device's replies onto it.
+//!
+//! The simulator keeps its own handle on the slave side (in raw mode) for two reasons: the master
+//! never sees a hang-up while no host has the port open (a real device keeps talking to an
+//! unplugged cable too), and at the end of a scenario it can tell when the host has read the last
+//! byte before closing. Time runs in one of two modes:
+//! - real time: the scenario clock follows the wall clock from the first data request, samples go
+//!   out at the scenario rate and bytes are paced to the configured baud rate;
+//! - fast: a virtual clock advances one sample period per data reply and bytes go out as fast as
+//!   the host reads them, so hours of scenario run in seconds with identical content.
+
+use std::fs::File;
+use std::io::{ErrorKind, Read, Write};
+use std::os::fd::AsFd;
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::SyncSender;
+use std::time::{Duration, Instant};
+
+use imu_bus::truth::TruthSample;
+use imu_proto::decoder::{CommandDecoder, CommandEvent};
+use nix::fcntl::{FcntlArg, OFlag, fcntl};
+use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+use nix::pty::{PtyMaster, grantpt, posix_openpt, ptsname_r, unlockpt};
+use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
+
+use crate::device::DeviceCore;
+
+/// Errors setting up the virtual link.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// A pseudo-terminal call failed.
+    #[error("cannot create the pseudo-terminal ({step})")]
+    Pty {
+        /// Which call.
+        step: &'static str,
+        /// The errno.
+        #[source]
+        source: nix::Error,
+    },
+    /// Opening the slave side or creating the symlink failed.
+    #[error("{path}: cannot open")]
+    Io {
+        /// The path involved.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// A created pseudo-terminal: the master the device talks through and the slave path a host opens.
+pub struct Pty {
+    master: PtyMaster,
+    slave: File,
+    slave_path: PathBuf,
+}
+
+impl Pty {
+    /// Opens a new pty pair with the slave in raw mode (no echo, no line editing, 8-bit clean).
+    pub fn open() -> Result<Self, LinkError> {
+        let pty = |step| move |source| LinkError::Pty { step, source };
+        let master = posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY).map_err(pty("posix_openpt"))?;
+        grantpt(&master).map_err(pty("grantpt"))?;
+        unlockpt(&master).map_err(pty("unlockpt"))?;
+        let slave_path = PathBuf::from(ptsname_r(&master).map_err(pty("ptsname_r"))?);
+        let slave = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .custom_flags(nix::libc::O_NOCTTY | nix::libc::O_NONBLOCK)
+            .open(&slave_path)
+            .map_err(|source| LinkError::Io {
+                path: slave_path.clone(),
+                source,
+            })?;
+        let mut termios = tcgetattr(slave.as_fd()).map_err(pty("tcgetattr"))?;
+        cfmakeraw(&mut termios);
+        tcsetattr(slave.as_fd(), SetArg::TCSANOW, &termios).map_err(pty("tcsetattr"))?;
+        fcntl(&master, FcntlArg::F_SETFL(OFlag::O_NONBLOCK)).map_err(pty("fcntl"))?;
+        Ok(Self {
+            master,
+            slave,
+            slave_path,
+        })
+    }
+
+    /// The device path a host opens (e.g. `/dev/pts/7`).
+    pub fn slave_path(&self) -> &Path {
+        &self.slave_path
+    }
+
+    /// True while bytes the device sent are still waiting in the slave's input queue.
+    fn host_has_unread(&self) -> bool {
+        let mut fds = [PollFd::new(self.slave.as_fd(), PollFlags::POLLIN)];
+        matches!(poll(&mut fds, PollTimeout::ZERO), Ok(n) if n > 0)
+            && fds[0]
+                .revents()
+                .is_some_and(|r| r.contains(PollFlags::POLLIN))
+    }
+}
+
+/// How the loop keeps time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pacing {
+    /// Wall-clock scenario time, bytes paced to the baud rate.
+    RealTime,
+    /// Virtual time, as fast as the host reads.
+    Fast,
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LinkReport {
+    /// Bytes written to the host.
+    pub bytes_out: u64,
+    /// Bytes received from the host.
+    pub bytes_in: u64,
+    /// Data replies sent (equals the number of truth samples).
+    pub data_replies: u64,
+    /// Host bytes that did not form a valid command.
+    pub rejected_command_bytes: u64,
+    /// Continuous-mode samples the device could not send because the link was still busy
+    /// (real-time mode only: the data rate exceeds what the baud rate carries).
+    pub samples_skipped_link_busy: u64,
+    /// Scenario time reached, seconds.
+    pub scenario_time_s: f64,
+    /// True if the scenario ran to its end (false: stopped from outside).
+    pub completed: bool,
+}
+
+/// Settings of the loop.
+#[derive(Debug, Clone, Copy)]
+pub struct LinkOptions {
+    /// Real time or fast.
+    pub pacing: Pacing,
+    /// How long to wait at the end of the scenario for the host to read what was sent.
+    pub linger: Duration,
+}
+
+/// Runs the device on the pty until the scenario ends or `stop` is set. Truth samples go to
+/// `truth` in the order their replies were queued.
+pub fn run(
+    pty: &mut Pty,
+    device: &mut DeviceCore,
+    truth: Option<&SyncSender<TruthSample>>,
+    options: LinkOptions,
+    stop: &Arc<AtomicBool>,
+) -> std::io::Result<LinkReport> {
+    Loop {
+        device,
+        truth,
+        options,
+        decoder: CommandDecoder::new(),
+        out: Vec::with_capacity(64 * 1024),
+        origin: None,
+        virtual_t_s: 0.0,
+        next_sample_t_s: None,
+        delayed: Vec::new(),
+        baud_tokens: 0.0,
+        last_refill: Instant::now(),
+        last_input: Instant::now(),
+        report: LinkReport::default(),
+    }
+    .run(pty, stop)
+}
+
+struct Loop<'a> {
+    device: &'a mut DeviceCore,
+    truth: Option<&'a SyncSender<TruthSample>>,
+    options: LinkOptions,
+    decoder: CommandDecoder,
+    out: Vec<u8>,
+    /// Wall-clock instant of scenario time zero (real-time mode; set by the first data request).
+    origin: Option<Instant>,
+    /// Scenario time in fast mode.
+    virtual_t_s: f64,
+    /// Scenario time of the next continuous-mode sample.
+    next_sample_t_s: Option<f64>,
+    /// Replies the device sends later (capture gyro bias), with their due time.
+    delayed: Vec<(Instant, Vec<u8>)>,
+    baud_tokens: f64,
+    last_refill: Instant,
+    /// When the host last sent a byte (to time out half-received commands).
+    last_input: Instant,
+    report: LinkReport,
+}
+
+/// A command whose argument bytes stop arriving for this long is dropped, as a device would.
+const COMMAND_TIMEOUT: Duration = Duration::from_millis(100);
+
+/// Output backlog above which a real-time device cannot queue another sample.
+const BACKLOG_LIMIT_BYTES: usize = 256;
+/// Output kept queued ahead in fast mode.
+const FAST_AHEAD_BYTES: usize = 16 * 1024;
+
+impl Loop<'_> {
+    fn now_s(&mut self, start_clock: bool) -> f64 {
+        match self.options.pacing {
+            Pacing::Fast => self.virtual_t_s,
+            Pacing::RealTime => {
+                if self.origin.is_none() && start_clock {
+                    self.origin = Some(Instant::now());
+                }
+                self.origin.map_or(0.0, |o| o.elapsed().as_secs_f64())
+            }
+        }
+    }
+
+    fn finished(&self, t_s: f64) -> bool {
+        t_s >= self.device.timeline().duration_s()
+    }
+
+    fn emit_truth(&mut self, sample: TruthSample) -> std::io::Result<()> {
+        self.report.data_replies += 1;
+        if let Some(tx) = self.truth {
+            tx.send(sample)
+                .map_err(|_| std::io::Error::other("truth writer stopped"))?;
+        }
+        Ok(())
+    }
+
+    fn handle_commands(&mut self) -> std::io::Result<()> {
+        if self.decoder.pending_len() > 0
+            && self.last_input.elapsed() >= COMMAND_TIMEOUT
+            && let Some(CommandEvent::Rejected { bytes, .. }) = self.decoder.expire_partial()
+        {
+            self.report.rejected_command_bytes += bytes.len() as u64;
+        }
+        while let Some(ev) = self.decoder.next_event() {
+            let cmd = match ev {
+                CommandEvent::Command(cmd) => cmd,
+                CommandEvent::Rejected { bytes, .. } => {
+                    self.report.rejected_command_bytes += bytes.len() as u64;
+                    continue;
+                }
+            };
+            let t_s = self.now_s(cmd.is_data());
+            if cmd.is_data() && self.finished(t_s) {
+                continue;
+            }
+            let was_streaming = self.device.streaming().is_some();
+            let response = self.device.handle(cmd, t_s);
+            if cmd.is_data() && self.options.pacing == Pacing::Fast {
+                self.virtual_t_s += self.device.sample_period_s();
+            }
+            if let Some(truth) = response.truth {
+                self.emit_truth(truth)?;
+            }
+            if let Some(reply) = response.reply {
+                let bytes = reply.to_bytes();
+                if response.delay_s > 0.0 && self.options.pacing == Pacing::RealTime {
+                    self.delayed.push((
+                        Instant::now() + Duration::from_secs_f64(response.delay_s),
+                        bytes,
+                    ));
+                } else {
+                    self.out.extend_from_slice(&bytes);
+                }
+            }
+            match (was_streaming, self.device.streaming().is_some()) {
+                (false, true) => {
+                    // The first sample follows the acknowledgement one period later.
+                    let t = self.now_s(true);
+                    self.next_sample_t_s = Some(t + self.device.sample_period_s());
+                }
+                (true, false) => self.next_sample_t_s = None,
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Queues every continuous-mode sample that is due.
+    fn stream(&mut self) -> std::io::Result<()> {
+        let Some(cmd) = self.device.streaming() else {
+            return Ok(());
+        };
+        let period = self.device.sample_period_s();
+        while let Some(t) = self.next_sample_t_s {
+            if self.finished(t) {
+                break;
+            }
+            match self.options.pacing {
+                Pacing::Fast => {
+                    if self.out.len() >= FAST_AHEAD_BYTES {
+                        break;
+                    }
+                    self.virtual_t_s = t;
+                }
+                Pacing::RealTime => {
+                    if t > self.now_s(true) {
+                        break;
+                    }
+                    if self.out.len() > BACKLOG_LIMIT_BYTES {
+                        self.report.samples_skipped_link_busy += 1;
+                        self.next_sample_t_s = Some(t + period);
+                        continue;
+                    }
+                }
+            }
+            let (reply, truth) = self.device.data_reply(cmd, t);
+            reply.encode(&mut self.out);
+            self.emit_truth(truth)?;
+            self.next_sample_t_s = Some(t + period);
+            self.report.scenario_time_s = t;
+        }
+        Ok(())
+    }
+
+    fn refill_baud(&mut self) {
+        let now = Instant::now();
+        let bytes_per_s = self.device.scenario().device.baud as f64 / 10.0;
+        self.baud_tokens = (self.baud_tokens
+            + now.duration_since(self.last_refill).as_secs_f64() * bytes_per_s)
+            .min(64.0);
+        self.last_refill = now;
+    }
+
+    fn write_out(&mut self, pty: &mut Pty) -> std::io::Result<()> {
+        let now = Instant::now();
+        let (due, later): (Vec<_>, Vec<_>) = std::mem::take(&mut self.delayed)
+            .into_iter()
+            .partition(|(at, _)| *at <= now);
+        self.delayed = later;
+        for (_, bytes) in due {
+            self.out.extend_from_slice(&bytes);
+        }
+        if self.out.is_empty() {
+            return Ok(());
+        }
+        let allowed = match self.options.pacing {
+            Pacing::Fast => self.out.len(),
+            Pacing::RealTime => {
+                self.refill_baud();
+                (self.baud_tokens as usize).min(self.out.len())
+            }
+        };
+        if allowed == 0 {
+            return Ok(());
+        }
+        match pty.master.write(&self.out[..allowed]) {
+            Ok(n) => {
+                self.out.drain(..n);
+                self.report.bytes_out += n as u64;
+                if self.options.pacing == Pacing::RealTime {
+                    self.baud_tokens -= n as f64;
+                }
+                Ok(())
+            }
+            Err(e) if e.kind() == ErrorKind::WouldBlock => Ok(()),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn read_in(&mut self, pty: &mut Pty) -> std::io::Result<()> {
+        let mut buf = [0u8; 4096];
+        loop {
+            match pty.master.read(&mut buf) {
+                Ok(0) => return Ok(()),
+                Ok(n) => {
+                    self.report.bytes_in += n as u64;
+                    self.decoder.push(&buf[..n]);
+                    self.last_input = Instant::now();
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
+                // EIO: no slave open right now; we hold one, so this is transient.
+                Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => return Ok(()),
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// How long poll may sleep before the loop has something to do.
+    fn poll_timeout(&mut self) -> Duration {
+        let mut wait = Duration::from_millis(50);
+        if !self.out.is_empty() && self.options.pacing == Pacing::RealTime {
+            wait = wait.min(Duration::from_millis(2));
+        }
+        if let Some(t) = self.next_sample_t_s {
+            match self.options.pacing {
+                Pacing::Fast if self.out.len() < FAST_AHEAD_BYTES => wait = Duration::ZERO,
+                Pacing::Fast => {}
+                Pacing::RealTime => {
+                    let dt = (t - self.now_s(true)).max(0.0);
+                    wait = wait.min(Duration::from_secs_f64(dt));
+                }
+            }
+        }
+        if self.decoder.pending_len() > 0 {
+            wait = wait.min(COMMAND_TIMEOUT.saturating_sub(self.last_input.elapsed()));
+        }
+        if let Some(at) = self.delayed.iter().map(|(at, _)| *at).min() {
+            wait = wait.min(at.saturating_duration_since(Instant::now()));
+        }
+        wait
+    }
+
+    fn run(mut self, pty: &mut Pty, stop: &Arc<AtomicBool>) -> std::io::Result<LinkReport> {
+        let mut end_at: Option<Instant> = None;
+        while !stop.load(Ordering::Relaxed) {
+            self.read_in(pty)?;
+            self.handle_commands()?;
+            self.stream()?;
+            self.write_out(pty)?;
+
+            let t = self.next_sample_t_s.unwrap_or_else(|| self.now_s(false));
+            // The scenario clock starts with the first data request; before it nothing can end.
+            let started = self.origin.is_some() || self.report.data_replies > 0;
+            if started && self.finished(t) && self.delayed.is_empty() && self.out.is_empty() {
+                let deadline = *end_at.get_or_insert_with(|| Instant::now() + self.options.linger);
+                if !pty.host_has_unread() || Instant::now() >= deadline {
+                    self.report.completed = true;
+                    break;
+                }
+            }
+
+            let timeout = self.poll_timeout();
+            let mut flags = PollFlags::POLLIN;
+            if !self.out.is_empty() {
+                flags |= PollFlags::POLLOUT;
+            }
+            let mut fds = [PollFd::new(pty.master.as_fd(), flags)];
+            let ms = timeout.as_millis().min(50) as u16;
+            match poll(&mut fds, PollTimeout::from(ms)) {
+                Ok(_) | Err(nix::Error::EINTR) => {}
+                Err(e) => return Err(std::io::Error::from(e)),
+            }
+            if fds[0]
+                .revents()
+                .is_some_and(|r| r.contains(PollFlags::POLLHUP))
+            {
+                // Nobody else has the slave open; avoid spinning while we wait for a host.
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+        self.report.scenario_time_s = self.report.scenario_time_s.max(self.now_s(false));
+        Ok(self.report)
+    }
+}

@@ -1,0 +1,162 @@
+//! `imu-sim`: run a virtual MicroStrain 3DM-GX1 on a pseudo-terminal.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Parser;
+use imu_sim::{Pacing, SimOptions};
+
+/// A virtual MicroStrain 3DM-GX1 IMU on a pseudo-terminal, driven by known physics and a known
+/// error model.
+///
+/// The first line on stdout is the device path (e.g. /dev/pts/7); open it with imud, a serial
+/// terminal or any 3DM-GX1 driver and speak the documented protocol. The device starts idle, like
+/// a real one after power-on: the scenario clock starts at the first data request (a poll such as
+/// 0x01 or 0x07, or continuous mode 10 00 <cmd>). The program exits 0 when the scenario ends.
+///
+/// The scenario (TOML, see config/scenarios/) says how the sensor moves: static positions,
+/// index-table steps, rate-table plateaus, rotations, impacts, random poses; the latitude (Earth
+/// rate), gravity, magnetic field, temperature profile, and the device's identity, GainScales,
+/// tick period and clock drift. The truth model (an imu-model calibration file, see
+/// config/models/) says which errors the sensor has: any effect of the library can be hidden in
+/// the data. The truth file (--truth-out, MCAP) records for every data reply the true specific
+/// force, angular rate, temperature, orientation, table angle, segment and the pre-quantization
+/// measurement, keyed by the reply's timer ticks, plus the scenario, seed and truth model.
+#[derive(Debug, Parser)]
+#[command(name = "imu-sim", version)]
+struct Args {
+    /// Scenario file (TOML).
+    #[arg(long, value_name = "FILE")]
+    scenario: PathBuf,
+    /// Truth error model (imu-model calibration TOML); overrides the scenario's `truth` key.
+    /// Without either the sensor is perfect apart from 16-bit quantization.
+    #[arg(long, value_name = "MODEL.toml")]
+    truth: Option<PathBuf>,
+    /// Random seed for noise and random poses (default: the scenario's `seed`).
+    #[arg(long, value_name = "N")]
+    seed: Option<u64>,
+    /// Write the ground truth of every data reply to this MCAP file.
+    #[arg(long, value_name = "FILE")]
+    truth_out: Option<PathBuf>,
+    /// Also expose the device at this stable path (a symlink to the pty, replaced if it exists).
+    #[arg(long, value_name = "PATH")]
+    link: Option<PathBuf>,
+    /// Run on a virtual clock as fast as the host reads (tests), instead of in real time at the
+    /// scenario rate and baud rate.
+    #[arg(long)]
+    fast: bool,
+    /// Seconds to wait at the end of the scenario for the host to read the last bytes.
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    linger_s: f64,
+    /// Print the scenario's segments and duration and exit without opening a device.
+    #[arg(long)]
+    describe: bool,
+}
+
+fn main() -> std::process::ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("imu-sim: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: Args) -> anyhow::Result<()> {
+    let mut opts = SimOptions::from_files(&args.scenario, args.truth.as_deref())?;
+    if let Some(seed) = args.seed {
+        opts.seed = seed;
+    }
+    if args.describe {
+        return describe(&opts);
+    }
+    opts.truth_out = args.truth_out;
+    opts.link = args.link;
+    opts.pacing = if args.fast {
+        Pacing::Fast
+    } else {
+        Pacing::RealTime
+    };
+    opts.linger = Duration::try_from_secs_f64(args.linger_s)
+        .context("--linger-s must be a non-negative number of seconds")?;
+    let s = &opts.scenario;
+    let frame_bytes_per_s = s.rate_hz * 23.0 * 10.0;
+    if !args.fast && frame_bytes_per_s > s.device.baud as f64 {
+        eprintln!(
+            "imu-sim: warning: {} Hz of 23-byte frames needs {:.0} baud but the device is set to {}; \
+             samples the link cannot carry are skipped",
+            s.rate_hz, frame_bytes_per_s, s.device.baud
+        );
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
+    }
+    let handle = imu_sim::spawn(opts)?;
+    {
+        let mut out = std::io::stdout().lock();
+        // A closed stdout must not stop the device: scripts often read only this first line.
+        let _ = writeln!(out, "{}", handle.device_path().display());
+        let _ = out.flush();
+    }
+    while !handle.is_finished() {
+        if stop.load(Ordering::Relaxed) {
+            handle.stop();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let report = handle.join()?;
+    eprintln!(
+        "imu-sim: {} data replies, {} bytes out, {} bytes in ({} rejected), scenario time {:.3} s{}",
+        report.data_replies,
+        report.bytes_out,
+        report.bytes_in,
+        report.rejected_command_bytes,
+        report.scenario_time_s,
+        if report.samples_skipped_link_busy > 0 {
+            format!(
+                ", {} samples skipped (link busy)",
+                report.samples_skipped_link_busy
+            )
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}
+
+fn describe(opts: &SimOptions) -> anyhow::Result<()> {
+    let timeline = opts.scenario.compile(opts.seed);
+    let mut out = std::io::stdout().lock();
+    let s = &opts.scenario;
+    let _ = writeln!(out, "scenario {}: {}", s.name, s.description.trim());
+    let _ = writeln!(
+        out,
+        "rate {} Hz, latitude {} deg, seed {}, duration {:.3} s",
+        s.rate_hz,
+        s.latitude_deg,
+        opts.seed,
+        timeline.duration_s()
+    );
+    for seg in timeline.segments() {
+        let g = seg.gravity_dir_sensor;
+        let _ = writeln!(
+            out,
+            "{:>5} {:>9.3} s .. {:>9} {:<8} gravity [{:+.3} {:+.3} {:+.3}]  {}",
+            seg.index,
+            seg.start_s,
+            seg.end_s.map_or("end".into(), |e| format!("{e:.3} s")),
+            seg.kind,
+            g.x,
+            g.y,
+            g.z,
+            seg.label
+        );
+    }
+    Ok(())
+}
