@@ -17,7 +17,7 @@ pub mod scenario;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -120,6 +120,7 @@ impl SimOptions {
 pub struct SimHandle {
     device_path: PathBuf,
     stop: Arc<AtomicBool>,
+    unplug_ms: Arc<AtomicU64>,
     thread: Option<JoinHandle<Result<LinkReport, SimError>>>,
 }
 
@@ -132,6 +133,13 @@ impl SimHandle {
     /// Asks the simulator to stop (the truth file is still finished properly).
     pub fn stop(&self) {
         self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Simulates pulling the device's cable for `off`: the pty closes, then a new one appears
+    /// (at the same `link` path, if the simulator has one).
+    pub fn unplug(&self, off: Duration) {
+        self.unplug_ms
+            .store(off.as_millis().max(1) as u64, Ordering::Relaxed);
     }
 
     /// True once the simulator thread has ended.
@@ -207,33 +215,16 @@ fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, Strin
     ])
 }
 
-fn make_link(link: &Path, target: &Path) -> Result<(), SimError> {
-    let err = |message: String| SimError::DeviceLink {
-        path: link.to_path_buf(),
-        message,
-    };
-    match std::fs::symlink_metadata(link) {
-        Ok(m) if m.file_type().is_symlink() => {
-            std::fs::remove_file(link)
-                .map_err(|e| err(format!("cannot replace the old link: {e}")))?;
-        }
-        Ok(_) => {
-            return Err(err(
-                "exists and is not a symlink; refusing to replace it".into()
-            ));
-        }
-        Err(_) => {}
-    }
-    std::os::unix::fs::symlink(target, link).map_err(|e| err(e.to_string()))
-}
-
 /// Starts a simulator on a new pty and returns once its device path is ready.
 pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
     let mut pty = link::Pty::open()?;
     let slave = pty.slave_path().to_path_buf();
     let device_path = match &opts.link {
         Some(l) => {
-            make_link(l, &slave)?;
+            link::make_link(l, &slave).map_err(|e| SimError::DeviceLink {
+                path: l.clone(),
+                message: e.to_string(),
+            })?;
             l.clone()
         }
         None => slave.clone(),
@@ -258,9 +249,12 @@ pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
     let stop = Arc::new(AtomicBool::new(false));
     let stop_thread = stop.clone();
     let link_path = opts.link.clone();
+    let unplug_ms = Arc::new(AtomicU64::new(0));
     let link_options = link::LinkOptions {
         pacing: opts.pacing,
         linger: opts.linger,
+        link: opts.link.clone(),
+        unplug_ms: unplug_ms.clone(),
     };
     let thread = std::thread::Builder::new()
         .name("imu-sim".into())
@@ -307,6 +301,7 @@ pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
     Ok(SimHandle {
         device_path,
         stop,
+        unplug_ms,
         thread: Some(thread),
     })
 }

@@ -16,7 +16,7 @@ use std::os::fd::AsFd;
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::SyncSender;
 use std::time::{Duration, Instant};
 
@@ -129,15 +129,41 @@ pub struct LinkReport {
     pub scenario_time_s: f64,
     /// True if the scenario ran to its end (false: stopped from outside).
     pub completed: bool,
+    /// Simulated unplugs.
+    pub unplugs: u64,
 }
 
 /// Settings of the loop.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct LinkOptions {
     /// Real time or fast.
     pub pacing: Pacing,
     /// How long to wait at the end of the scenario for the host to read what was sent.
     pub linger: Duration,
+    /// A stable symlink to re-point at the new pty after a simulated unplug.
+    pub link: Option<PathBuf>,
+    /// Set to a duration in ms to simulate unplugging the device for that long (the pty is
+    /// closed, then a new one appears, at the same link path if there is one).
+    pub unplug_ms: Arc<AtomicU64>,
+}
+
+/// Points `link` at `target`, replacing an older symlink (never a regular file).
+pub fn make_link(link: &Path, target: &Path) -> Result<(), LinkError> {
+    let err = |source| LinkError::Io {
+        path: link.to_path_buf(),
+        source,
+    };
+    match std::fs::symlink_metadata(link) {
+        Ok(m) if m.file_type().is_symlink() => std::fs::remove_file(link).map_err(err)?,
+        Ok(_) => {
+            return Err(err(std::io::Error::new(
+                ErrorKind::AlreadyExists,
+                "exists and is not a symlink; refusing to replace it",
+            )));
+        }
+        Err(_) => {}
+    }
+    std::os::unix::fs::symlink(target, link).map_err(err)
 }
 
 /// Runs the device on the pty until the scenario ends or `stop` is set. Truth samples go to
@@ -398,9 +424,33 @@ impl Loop<'_> {
         wait
     }
 
+    /// Closes the pty (the host sees a hang-up), waits, and opens a new one; the device keeps
+    /// its state and the scenario clock keeps running, like an IMU whose USB cable was pulled.
+    fn replug(&mut self, pty: &mut Pty, off: Duration, stop: &Arc<AtomicBool>) -> std::io::Result<()> {
+        let fresh = Pty::open().map_err(std::io::Error::other)?;
+        // Dropping the old pair closes both ends: the host's reads fail from here on.
+        let old = std::mem::replace(pty, fresh);
+        drop(old);
+        self.out.clear();
+        self.decoder = CommandDecoder::new();
+        let until = Instant::now() + off;
+        while Instant::now() < until && !stop.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        if let Some(link) = &self.options.link {
+            make_link(link, pty.slave_path()).map_err(std::io::Error::other)?;
+        }
+        self.report.unplugs += 1;
+        Ok(())
+    }
+
     fn run(mut self, pty: &mut Pty, stop: &Arc<AtomicBool>) -> std::io::Result<LinkReport> {
         let mut end_at: Option<Instant> = None;
         while !stop.load(Ordering::Relaxed) {
+            let unplug_ms = self.options.unplug_ms.swap(0, Ordering::Relaxed);
+            if unplug_ms > 0 {
+                self.replug(pty, Duration::from_millis(unplug_ms), stop)?;
+            }
             self.read_in(pty)?;
             self.handle_commands()?;
             self.stream()?;

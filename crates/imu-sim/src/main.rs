@@ -26,6 +26,9 @@ use imu_sim::{Pacing, SimOptions};
 /// the data. The truth file (--truth-out, MCAP) records for every data reply the true specific
 /// force, angular rate, temperature, orientation, table angle, segment and the pre-quantization
 /// measurement, keyed by the reply's timer ticks, plus the scenario, seed and truth model.
+///
+/// Signals: SIGTERM/SIGINT stop and finish the truth file; SIGUSR1 simulates unplugging the
+/// device for 2 s (the pty closes, a new one appears at the same --link path).
 #[derive(Debug, Parser)]
 #[command(name = "imu-sim", version)]
 struct Args {
@@ -97,6 +100,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
         signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
     }
+    // SIGUSR1 simulates pulling the cable for two seconds (reconnect testing by hand).
+    let unplug = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGUSR1, unplug.clone())
+        .context("installing signal handlers")?;
     let handle = imu_sim::spawn(opts)?;
     {
         let mut out = std::io::stdout().lock();
@@ -107,6 +114,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     while !handle.is_finished() {
         if stop.load(Ordering::Relaxed) {
             handle.stop();
+        }
+        if unplug.swap(false, Ordering::Relaxed) {
+            eprintln!("imu-sim: SIGUSR1: unplugging the device for 2 s");
+            handle.unplug(Duration::from_secs(2));
         }
         std::thread::sleep(Duration::from_millis(20));
     }
