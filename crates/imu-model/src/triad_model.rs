@@ -7,16 +7,18 @@ use crate::{Conditions, EffectKind, Triad, TriadModel, Vec3};
 impl TriadModel {
     /// Truth -> measurement (no noise): apply the present effects in canonical order.
     pub fn forward(&self, true_input: Vec3, c: &Conditions) -> Vec3 {
-        self.effects()
-            .iter()
+        self.effect_slots()
+            .into_iter()
+            .flatten()
             .fold(true_input, |v, e| e.forward(v, c))
     }
 
     /// Measurement -> truth: undo the present effects in reverse canonical order.
     pub fn inverse(&self, measured: Vec3, c: &Conditions) -> Vec3 {
-        self.effects()
-            .iter()
+        self.effect_slots()
+            .into_iter()
             .rev()
+            .flatten()
             .fold(measured, |v, e| e.inverse(v, c))
     }
 

@@ -43,7 +43,7 @@ pub fn stored_checksum(frame: &[u8]) -> Option<u16> {
 /// Returns `false` for anything that cannot be a frame: shorter than header + checksum (3 bytes),
 /// or an even total length (frames are header + whole words + checksum, so always odd).
 pub fn verify(frame: &[u8]) -> bool {
-    if frame.len() < 3 || frame.len() % 2 == 0 {
+    if frame.len() < 3 || frame.len().is_multiple_of(2) {
         return false;
     }
     let (body, _) = frame.split_at(frame.len() - 2);

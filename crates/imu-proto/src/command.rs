@@ -244,15 +244,15 @@ impl Command {
             });
         }
         for (offset, &found) in bytes.iter().enumerate().skip(1) {
-            if let Some(want) = fixed_command_byte(code, offset) {
-                if found != want {
-                    return Err(FrameError::BadArgument {
-                        code,
-                        offset,
-                        expected: want,
-                        found,
-                    });
-                }
+            if let Some(want) = fixed_command_byte(code, offset)
+                && found != want
+            {
+                return Err(FrameError::BadArgument {
+                    code,
+                    offset,
+                    expected: want,
+                    found,
+                });
             }
         }
         let word = |at: usize| u16::from_be_bytes([bytes[at], bytes[at + 1]]);

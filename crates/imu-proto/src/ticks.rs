@@ -45,10 +45,10 @@ impl TickUnwrapper {
 
     /// Feeds the next reading and returns the unwrapped tick count.
     pub fn unwrap(&mut self, ticks: u16) -> u64 {
-        if let Some(last) = self.last_ticks {
-            if ticks < last {
-                self.wraps += 1;
-            }
+        if let Some(last) = self.last_ticks
+            && ticks < last
+        {
+            self.wraps += 1;
         }
         self.last_ticks = Some(ticks);
         self.wraps * TICKS_PER_WRAP + u64::from(ticks)

@@ -90,6 +90,12 @@ macro_rules! register_effects {
                 v
             }
 
+            /// Every effect slot in canonical order (`None` where absent). Allocation-free, so the
+            /// daemon's per-sample inverse never touches the heap.
+            pub fn effect_slots(&self) -> [Option<&dyn Effect>; EffectKind::ALL.len()] {
+                [$( self.$module.as_ref().map(|e| e as &dyn Effect), )+]
+            }
+
             /// The present effects, mutable, in canonical order.
             pub fn effects_mut(&mut self) -> Vec<&mut dyn Effect> {
                 let mut v: Vec<&mut dyn Effect> = Vec::new();
