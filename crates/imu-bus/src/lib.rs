@@ -11,6 +11,11 @@
 //!   mid-write) up to its last good record and says where it stopped.
 
 pub mod mcap_read;
+pub mod recording;
+pub mod ros2;
+pub mod sample;
+pub mod shm;
 pub mod truth;
 
 pub use mcap_read::{McapReadError, ReadReport};
+pub use sample::{CorrectedSample, DaemonStatus, RawSample};
