@@ -121,6 +121,7 @@ pub struct SimHandle {
     device_path: PathBuf,
     stop: Arc<AtomicBool>,
     unplug_ms: Arc<AtomicU64>,
+    inject: Arc<std::sync::Mutex<Vec<u8>>>,
     thread: Option<JoinHandle<Result<LinkReport, SimError>>>,
 }
 
@@ -140,6 +141,14 @@ impl SimHandle {
     pub fn unplug(&self, off: Duration) {
         self.unplug_ms
             .store(off.as_millis().max(1) as u64, Ordering::Relaxed);
+    }
+
+    /// Puts `bytes` on the line before the next streamed reply (line noise); the host's decoder
+    /// must skip and count them.
+    pub fn inject(&self, bytes: &[u8]) {
+        if let Ok(mut q) = self.inject.lock() {
+            q.extend_from_slice(bytes);
+        }
     }
 
     /// True once the simulator thread has ended.
@@ -250,11 +259,13 @@ pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
     let stop_thread = stop.clone();
     let link_path = opts.link.clone();
     let unplug_ms = Arc::new(AtomicU64::new(0));
+    let inject = Arc::new(std::sync::Mutex::new(Vec::new()));
     let link_options = link::LinkOptions {
         pacing: opts.pacing,
         linger: opts.linger,
         link: opts.link.clone(),
         unplug_ms: unplug_ms.clone(),
+        inject: inject.clone(),
     };
     let thread = std::thread::Builder::new()
         .name("imu-sim".into())
@@ -302,6 +313,7 @@ pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
         device_path,
         stop,
         unplug_ms,
+        inject,
         thread: Some(thread),
     })
 }

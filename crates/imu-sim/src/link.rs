@@ -131,6 +131,8 @@ pub struct LinkReport {
     pub completed: bool,
     /// Simulated unplugs.
     pub unplugs: u64,
+    /// Garbage bytes injected on the line.
+    pub bytes_injected: u64,
 }
 
 /// Settings of the loop.
@@ -145,6 +147,8 @@ pub struct LinkOptions {
     /// Set to a duration in ms to simulate unplugging the device for that long (the pty is
     /// closed, then a new one appears, at the same link path if there is one).
     pub unplug_ms: Arc<AtomicU64>,
+    /// Bytes to put on the line between two replies (line-noise testing); taken once.
+    pub inject: Arc<std::sync::Mutex<Vec<u8>>>,
 }
 
 /// Points `link` at `target`, replacing an older symlink (never a regular file).
@@ -328,12 +332,23 @@ impl Loop<'_> {
                 }
             }
             let (reply, truth) = self.device.data_reply(cmd, t);
+            self.take_injected();
             reply.encode(&mut self.out);
             self.emit_truth(truth)?;
             self.next_sample_t_s = Some(t + period);
             self.report.scenario_time_s = t;
         }
         Ok(())
+    }
+
+    /// Appends bytes queued for injection (between frames, never inside one).
+    fn take_injected(&mut self) {
+        if let Ok(mut q) = self.options.inject.try_lock()
+            && !q.is_empty()
+        {
+            self.report.bytes_injected += q.len() as u64;
+            self.out.append(&mut q);
+        }
     }
 
     fn refill_baud(&mut self) {
@@ -426,7 +441,12 @@ impl Loop<'_> {
 
     /// Closes the pty (the host sees a hang-up), waits, and opens a new one; the device keeps
     /// its state and the scenario clock keeps running, like an IMU whose USB cable was pulled.
-    fn replug(&mut self, pty: &mut Pty, off: Duration, stop: &Arc<AtomicBool>) -> std::io::Result<()> {
+    fn replug(
+        &mut self,
+        pty: &mut Pty,
+        off: Duration,
+        stop: &Arc<AtomicBool>,
+    ) -> std::io::Result<()> {
         let fresh = Pty::open().map_err(std::io::Error::other)?;
         // Dropping the old pair closes both ends: the host's reads fail from here on.
         let old = std::mem::replace(pty, fresh);
