@@ -1,0 +1,232 @@
+#!/usr/bin/env python3
+"""Print the samples a running imud publishes over iceoryx2 shared memory.
+
+A minimal subscriber in Python, using the `iceoryx2` package from PyPI (the version must match
+the iceoryx2 crate imud is built with, see requirements-dev.txt). It opens the same services as
+`imu-echo`:
+
+    imud/<name>/corrected   CorrectedSample  (type name "imud::CorrectedSample.v1")
+    imud/<name>/raw         RawSample        (type name "imud::RawSample.v1"), with --raw
+    imud/<name>/event       wakes subscribers when the daemon has published
+
+The ctypes Structures below mirror the `#[repr(C)]` layouts documented in
+crates/imu-bus/src/sample.rs field for field; iceoryx2 refuses to connect when the type name,
+size or alignment differ, so a layout change on the Rust side shows up as an error here.
+
+Usage:
+    python3 examples/python/imu_subscriber.py [--name default] [--raw] [--count N]
+                                              [--format text|jsonl] [--timeout SECONDS]
+
+With --format jsonl every sample is one JSON object with the Rust field names (units included,
+e.g. "accel_m_s2") plus "stream"; NaN and infinities are printed as null.
+"""
+
+import argparse
+import ctypes
+import json
+import math
+import os
+import sys
+import time
+
+import iceoryx2 as iox2
+
+
+class RawSample(ctypes.Structure):
+    """One decoded data frame as the device sent it (imud::RawSample.v1, 104 bytes)."""
+
+    _fields_ = [
+        ("seq", ctypes.c_uint64),
+        ("t_device_ns", ctypes.c_uint64),
+        ("t_host_monotonic_ns", ctypes.c_uint64),
+        ("t_host_wall_ns", ctypes.c_uint64),
+        ("t_sample_ns", ctypes.c_uint64),
+        ("ticks_unwrapped", ctypes.c_uint64),
+        ("accel_counts", ctypes.c_int32 * 3),
+        ("gyro_counts", ctypes.c_int32 * 3),
+        ("mag_counts", ctypes.c_int32 * 3),
+        # 4 bytes of padding here (offset 84), inserted by ctypes exactly as by the C compiler.
+        ("temp_c", ctypes.c_double),
+        ("ticks", ctypes.c_uint16),
+        ("command", ctypes.c_uint8),
+        ("reserved", ctypes.c_uint8),
+        ("flags", ctypes.c_uint32),
+    ]
+
+    @classmethod
+    def type_name(cls) -> str:
+        """The iceoryx2 type name shared with the Rust side."""
+        return "imud::RawSample.v1"
+
+
+class CorrectedSample(ctypes.Structure):
+    """One sample in SI units with the calibration applied (imud::CorrectedSample.v1, 128 bytes)."""
+
+    _fields_ = [
+        ("seq", ctypes.c_uint64),
+        ("t_sample_ns", ctypes.c_uint64),
+        ("t_wall_ns", ctypes.c_uint64),
+        ("t_device_ns", ctypes.c_uint64),
+        ("accel_m_s2", ctypes.c_double * 3),
+        ("gyro_rad_s", ctypes.c_double * 3),
+        ("mag_gauss", ctypes.c_double * 3),
+        ("temp_c", ctypes.c_double),
+        ("calibration_id", ctypes.c_uint64),
+        ("flags", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+    ]
+
+    @classmethod
+    def type_name(cls) -> str:
+        """The iceoryx2 type name shared with the Rust side."""
+        return "imud::CorrectedSample.v1"
+
+
+# The same layout guards as the Rust side: a mismatch here is a bug in this file.
+assert ctypes.sizeof(RawSample) == 104 and ctypes.alignment(RawSample) == 8
+assert RawSample.temp_c.offset == 88 and RawSample.flags.offset == 100
+assert ctypes.sizeof(CorrectedSample) == 128 and ctypes.alignment(CorrectedSample) == 8
+assert CorrectedSample.temp_c.offset == 104 and CorrectedSample.reserved.offset == 124
+
+# Open errors that mean "not there yet": keep retrying until --timeout.
+NOT_YET = {"DoesNotExist", "IsMarkedForDestruction", "HangsInCreation"}
+
+
+def to_dict(sample: ctypes.Structure) -> dict:
+    """The sample's fields by their Rust names; arrays become lists, non-finite floats None."""
+
+    def plain(value):
+        if isinstance(value, ctypes.Array):
+            return [plain(v) for v in value]
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        return value
+
+    return {name: plain(getattr(sample, name)) for name, _ in sample._fields_}
+
+
+def num(value: float, decimals: int) -> str:
+    """Fixed-point with a sign, or an exponent for values too large or small for it."""
+    tiny = 0.5 * 10.0**-decimals
+    if math.isfinite(value) and value != 0.0 and not tiny <= abs(value) < 1e7:
+        return f"{value:+.3e}"
+    return f"{value:+.{decimals}f}"
+
+
+def as_text(stream: str, s) -> str:
+    """One human-readable line."""
+    if stream == "corrected":
+        acc = " ".join(num(v, 4) for v in s.accel_m_s2)
+        gyr = " ".join(num(v, 5) for v in s.gyro_rad_s)
+        return (
+            f"corrected seq={s.seq} t={s.t_sample_ns / 1e9:.6f}s accel[m/s^2]={acc} "
+            f"gyro[rad/s]={gyr} temp={s.temp_c:.2f}C flags={s.flags:#x}"
+        )
+    acc = " ".join(f"{v:6d}" for v in s.accel_counts)
+    gyr = " ".join(f"{v:6d}" for v in s.gyro_counts)
+    return (
+        f"raw       seq={s.seq} t={s.t_sample_ns / 1e9:.6f}s accel[counts]={acc} "
+        f"gyro[counts]={gyr} ticks={s.ticks} flags={s.flags:#x}"
+    )
+
+
+def open_with_retry(open_fn, service: str, name: str, deadline: float):
+    """Calls open_fn until the service exists or the deadline passes."""
+    while True:
+        try:
+            return open_fn()
+        except (iox2.PublishSubscribeOpenError, iox2.EventOpenError) as e:
+            reason = e.args[0] if e.args else str(e)
+            if reason not in NOT_YET:
+                raise SystemExit(f"imu_subscriber: cannot open {service}: {reason}")
+            if time.monotonic() >= deadline:
+                raise SystemExit(
+                    f"imu_subscriber: no imud instance named {name!r} is running "
+                    f"({service} did not appear); start imud or pass its --name"
+                )
+            time.sleep(0.05)
+
+
+def main() -> int:
+    """Subscribes and prints until --count samples were printed (or forever)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--name", default="default", help="imud instance name")
+    parser.add_argument("--raw", action="store_true", help="also print raw samples")
+    parser.add_argument("--count", type=int, default=0, help="exit after N samples (0: never)")
+    parser.add_argument("--format", choices=["text", "jsonl"], default="text")
+    parser.add_argument(
+        "--timeout", type=float, default=10.0, help="seconds to wait for the daemon"
+    )
+    args = parser.parse_args()
+
+    iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
+    node = (
+        iox2.NodeBuilder.new()
+        .signal_handling_mode(iox2.SignalHandlingMode.Disabled)  # keep Ctrl-C for Python
+        .create(iox2.ServiceType.Ipc)
+    )
+    deadline = time.monotonic() + args.timeout
+
+    streams = [("corrected", CorrectedSample)]
+    if args.raw:
+        streams.insert(0, ("raw", RawSample))  # the daemon publishes raw before corrected
+    subscribers = []
+    for stream, payload in streams:
+        service = f"imud/{args.name}/{stream}"
+        factory = open_with_retry(
+            lambda: node.service_builder(iox2.ServiceName.new(service))
+            .publish_subscribe(payload)
+            .open(),
+            service,
+            args.name,
+            deadline,
+        )
+        subscribers.append((stream, factory, factory.subscriber_builder().create()))
+    event_service = f"imud/{args.name}/event"
+    event = open_with_retry(
+        lambda: node.service_builder(iox2.ServiceName.new(event_service)).event().open(),
+        event_service,
+        args.name,
+        deadline,
+    )
+    listener = event.listener_builder().create()
+
+    printed = 0
+    while args.count == 0 or printed < args.count:
+        for stream, _factory, subscriber in subscribers:
+            while args.count == 0 or printed < args.count:
+                sample = subscriber.receive()
+                if sample is None:
+                    break
+                s = sample.payload().contents
+                if args.format == "jsonl":
+                    line = json.dumps({"stream": stream, **to_dict(s)})
+                else:
+                    line = as_text(stream, s)
+                del sample  # return the shared-memory slot to the daemon promptly
+                print(line)
+                printed += 1
+        sys.stdout.flush()
+        if args.count and printed >= args.count:
+            break
+        # Sleep until the daemon announces new samples (no polling); the timeout only bounds
+        # how late Ctrl-C is noticed.
+        try:
+            listener.timed_wait(iox2.Duration.from_millis(500))
+        except iox2.ListenerWaitError as e:
+            # A signal interrupted the wait; Python raises KeyboardInterrupt for SIGINT next.
+            if not e.args or e.args[0] != "InterruptSignal":
+                raise
+    return 0
+
+
+if __name__ == "__main__":
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except BrokenPipeError:
+        # `| head` closed the pipe: not an error. Point stdout at /dev/null so the
+        # interpreter's final flush does not complain again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(0)
