@@ -1,0 +1,199 @@
+//! Whole-system benchmarks through a real pseudo-terminal: imu-sim -> the imud binary -> an
+//! iceoryx2 subscriber and the MCAP file.
+//!
+//! 1. Sustained throughput: the simulator streams as fast as the link allows; reports frames/s
+//!    and checks that every frame sent is in the MCAP file (and how many the subscriber saw).
+//! 2. Latency from the daemon reading a frame's last byte to a subscriber's receipt (p50, p99,
+//!    p99.9), both on CLOCK_MONOTONIC, with event wake-ups.
+//! 3. CPU use of the imud process at 100 Hz and at 1 kHz.
+//!
+//! Run: `cargo bench -p imud --bench link`. Numbers go to BENCHMARKS.md.
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use imu_bus::RawSample;
+use imu_bus::recording::read_recording;
+use imu_bus::shm::Subscription;
+use imu_model::Calibration;
+use imu_sim::{Pacing, Scenario, SimOptions};
+
+fn scenario(rate_hz: f64, duration_s: f64, baud: u32) -> String {
+    format!(
+        "name = \"bench\"\nrate-hz = {rate_hz}\n[device]\nbaud = {baud}\n[[segment]]\nkind = \"static\"\nduration-s = {duration_s}\n"
+    )
+}
+
+fn sim(dir: &Path, text: &str, pacing: Pacing) -> imu_sim::SimHandle {
+    let model = Calibration::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../config/models/example-3dm-gx1.toml"
+    )))
+    .expect("example model");
+    imu_sim::spawn(SimOptions {
+        scenario: Scenario::from_toml_str(text, "bench").expect("scenario"),
+        scenario_text: text.to_string(),
+        truth: model,
+        seed: 1,
+        truth_out: None,
+        link: Some(dir.join("imu0")),
+        pacing,
+        linger: Duration::from_secs(3),
+    })
+    .expect("simulator")
+}
+
+fn imud(dir: &Path, name: &str, baud: u32) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_imud"))
+        .args(["--name", name, "--baud", &baud.to_string()])
+        .arg("--device")
+        .arg(dir.join("imu0"))
+        .arg("--log-dir")
+        .arg(dir.join("logs"))
+        .env("IMUD_LOG", "warn")
+        .env_remove("IMUD_CONFIG")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("imud")
+}
+
+fn stop(mut child: Child) {
+    let _ = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status();
+    let _ = child.wait();
+}
+
+fn cpu_ticks(pid: u32) -> u64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+    let after = stat.rsplit_once(')').map_or("", |(_, a)| a);
+    let f: Vec<&str> = after.split_whitespace().collect();
+    // Fields 14 and 15 (utime, stime) are at 11 and 12 after the command name.
+    f.get(11).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0)
+        + f.get(12).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0)
+}
+
+fn recorded_raw(dir: &Path) -> usize {
+    let mut n = 0;
+    for e in std::fs::read_dir(dir.join("logs")).expect("logs") {
+        let p = e.expect("entry").path();
+        if p.extension().is_some_and(|x| x == "mcap") {
+            n += read_recording(&p).expect("recording").raw.len();
+        }
+    }
+    n
+}
+
+fn throughput() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let name = format!("bench-tp-{}", std::process::id());
+    let n_frames = 300_000u64;
+    let rate = 1000.0;
+    let text = scenario(rate, n_frames as f64 / rate, 4_000_000);
+    let daemon = imud(dir.path(), &name, 4_000_000);
+    let mut sub =
+        Subscription::<RawSample>::open(&name, Duration::from_secs(10)).expect("subscriber");
+    let sim = sim(dir.path(), &text, Pacing::Fast);
+    let mut received = 0usize;
+    let mut first: Option<Instant> = None;
+    let mut last = Instant::now();
+    let mut buf = Vec::new();
+    while !sim.is_finished() {
+        buf.clear();
+        if sub
+            .wait_into(Duration::from_millis(50), &mut buf)
+            .unwrap_or(0)
+            > 0
+        {
+            first.get_or_insert_with(Instant::now);
+            last = Instant::now();
+            received += buf.len();
+        }
+    }
+    let report = sim.join().expect("sim");
+    let t0 = first.unwrap_or(last);
+    std::thread::sleep(Duration::from_millis(500));
+    stop(daemon);
+    let logged = recorded_raw(dir.path());
+    let secs = (last - t0).as_secs_f64();
+    println!(
+        "throughput: {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
+        report.data_replies - 1,
+        secs,
+        (report.data_replies - 1) as f64 / secs,
+        logged,
+        if logged as u64 == report.data_replies - 1 {
+            "zero loss"
+        } else {
+            "LOSS"
+        },
+        received
+    );
+}
+
+fn latency() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let name = format!("bench-lat-{}", std::process::id());
+    let text = scenario(500.0, 40.0, 115_200);
+    let daemon = imud(dir.path(), &name, 115_200);
+    let mut sub =
+        Subscription::<RawSample>::open(&name, Duration::from_secs(10)).expect("subscriber");
+    let sim = sim(dir.path(), &text, Pacing::RealTime);
+    let mut lat_us = Vec::new();
+    let mut buf = Vec::new();
+    while !sim.is_finished() {
+        buf.clear();
+        if sub
+            .wait_into(Duration::from_millis(50), &mut buf)
+            .unwrap_or(0)
+            > 0
+        {
+            let now = nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC).expect("clock");
+            let now_ns = now.tv_sec() as u64 * 1_000_000_000 + now.tv_nsec() as u64;
+            for s in &buf {
+                lat_us.push(now_ns.saturating_sub(s.t_host_monotonic_ns) as f64 * 1e-3);
+            }
+        }
+    }
+    drop(sim);
+    stop(daemon);
+    lat_us.sort_by(f64::total_cmp);
+    let q = |p: f64| lat_us[((lat_us.len() - 1) as f64 * p) as usize];
+    println!(
+        "latency (last byte read by imud -> subscriber receipt, {} samples at 500 Hz): p50 {:.0} us, p99 {:.0} us, p99.9 {:.0} us, max {:.0} us",
+        lat_us.len(),
+        q(0.5),
+        q(0.99),
+        q(0.999),
+        lat_us.last().copied().unwrap_or(f64::NAN)
+    );
+}
+
+fn cpu(rate_hz: f64) {
+    let dir = tempfile::tempdir().expect("tmp");
+    let name = format!("bench-cpu-{}-{}", rate_hz as u64, std::process::id());
+    let baud = if rate_hz > 300.0 { 460_800 } else { 115_200 };
+    let text = scenario(rate_hz, 25.0, baud);
+    let daemon = imud(dir.path(), &name, baud);
+    let sim = sim(dir.path(), &text, Pacing::RealTime);
+    std::thread::sleep(Duration::from_secs(3));
+    let (t0, c0) = (Instant::now(), cpu_ticks(daemon.id()));
+    std::thread::sleep(Duration::from_secs(15));
+    let (t1, c1) = (Instant::now(), cpu_ticks(daemon.id()));
+    // USER_HZ is 100 on Linux.
+    let cpu_pct = (c1 - c0) as f64 / 100.0 / (t1 - t0).as_secs_f64() * 100.0;
+    drop(sim);
+    stop(daemon);
+    println!(
+        "cpu: imud at {rate_hz} Hz uses {cpu_pct:.1} % of one core (user+system, 15 s window, logging and publishing on)"
+    );
+}
+
+fn main() {
+    throughput();
+    latency();
+    cpu(100.0);
+    cpu(1000.0);
+}

@@ -1,0 +1,492 @@
+//! imud's configuration: a strict TOML file layered over built-in defaults, then command-line
+//! flags on top.
+//!
+//! Which file: `--config FILE`, else `$IMUD_CONFIG`, else `/etc/imud/imud.toml` if it exists, else
+//! none (built-in defaults). Every key is kebab-case; an unknown key, a wrong type or an
+//! impossible value is an error naming the file, the line and the key. `config/imud.toml` in the
+//! repository documents every key with its default and is parsed by a test.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// Errors loading the configuration.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("{file}: cannot read the configuration")]
+    Io {
+        /// The file.
+        file: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not valid for this schema.
+    #[error("{file}:{line}:{column}: {message}")]
+    Parse {
+        /// The file.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("{file}:{line}: `{key}`: {message}")]
+    Invalid {
+        /// The file (or `command line`).
+        file: String,
+        /// 1-based line of the key (0 when it came from the command line or a default).
+        line: usize,
+        /// The dotted key, e.g. `device.baud`.
+        key: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
+}
+
+/// The whole configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Config {
+    /// Instance name: shared-memory services are `imud/<name>/...`, log files start with it.
+    pub name: String,
+    /// The serial device and how to talk to it.
+    pub device: DeviceConfig,
+    /// The calibration applied in real time.
+    pub calibration: CalibrationConfig,
+    /// MCAP logging.
+    pub log: LogConfig,
+    /// Shared-memory publishing.
+    pub publish: PublishConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            name: "default".into(),
+            device: DeviceConfig::default(),
+            calibration: CalibrationConfig::default(),
+            log: LogConfig::default(),
+            publish: PublishConfig::default(),
+        }
+    }
+}
+
+/// How samples are requested from the device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AcquisitionMode {
+    /// Continuous mode (`10 00 <cmd>`): the device streams at its own rate; temperature is read
+    /// at start-up only (the device sends nothing else while streaming).
+    Continuous,
+    /// The host polls each sample at `poll-rate-hz` and interleaves temperature reads at
+    /// `temperature-rate-hz` (needed for thermal tests).
+    Polled,
+}
+
+/// Which data reply to acquire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SampleCommand {
+    /// 0x01 raw ADC bits: what the paper calibrates from.
+    RawBits,
+    /// 0x02 gyro-stabilized vectors (scaled).
+    StabilizedVectors,
+    /// 0x03 instantaneous vectors (scaled).
+    InstantaneousVectors,
+}
+
+impl SampleCommand {
+    /// The protocol command.
+    pub fn command(self) -> imu_proto::Command {
+        match self {
+            Self::RawBits => imu_proto::Command::RawSensorBits,
+            Self::StabilizedVectors => imu_proto::Command::StabilizedVectors,
+            Self::InstantaneousVectors => imu_proto::Command::InstantaneousVectors,
+        }
+    }
+}
+
+/// GainScale words used when the device does not answer the EEPROM read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct GainConfig {
+    /// Accelerometer GainScale.
+    pub accel: u16,
+    /// Gyro GainScale.
+    pub gyro: u16,
+    /// Magnetometer GainScale.
+    pub mag: u16,
+}
+
+/// The serial device.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct DeviceConfig {
+    /// Device path, e.g. `/dev/ttyUSB0` or a udev link `/dev/imu0`.
+    pub path: PathBuf,
+    /// Serial line rate, bits/s (38400 is the factory default).
+    pub baud: u32,
+    /// Continuous or polled acquisition.
+    pub mode: AcquisitionMode,
+    /// Which data reply to acquire.
+    pub command: SampleCommand,
+    /// Poll rate in polled mode, Hz.
+    pub poll_rate_hz: f64,
+    /// Temperature reads per second in polled mode (at least 1 for thermal tests).
+    pub temperature_rate_hz: f64,
+    /// Nominal timer tick period, s (6.5536 ms on most units; 10 ms on reprogrammed ones).
+    pub tick_period_s: f64,
+    /// GainScales used only if the device's EEPROM cannot be read (always reported loudly).
+    pub fallback_gains: GainConfig,
+    /// How long to wait for each start-up reply, s.
+    pub reply_timeout_s: f64,
+    /// First reconnect delay after the device is lost, s (doubles up to `reconnect-max-s`).
+    pub reconnect_min_s: f64,
+    /// Longest reconnect delay, s.
+    pub reconnect_max_s: f64,
+    /// No data for this long while streaming means the device is lost, s.
+    pub silence_timeout_s: f64,
+}
+
+impl Default for DeviceConfig {
+    fn default() -> Self {
+        let fb = imu_proto::GainScales::DEFAULT_FALLBACK;
+        Self {
+            path: PathBuf::from("/dev/ttyUSB0"),
+            baud: 38_400,
+            mode: AcquisitionMode::Continuous,
+            command: SampleCommand::RawBits,
+            poll_rate_hz: 100.0,
+            temperature_rate_hz: 1.0,
+            tick_period_s: imu_proto::ticks::DEFAULT_TICK_PERIOD_S,
+            fallback_gains: GainConfig {
+                accel: fb.accel,
+                gyro: fb.gyro,
+                mag: fb.mag,
+            },
+            reply_timeout_s: 1.0,
+            reconnect_min_s: 0.5,
+            reconnect_max_s: 10.0,
+            silence_timeout_s: 2.0,
+        }
+    }
+}
+
+/// The calibration applied in real time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct CalibrationConfig {
+    /// Calibration file (imu-model TOML). Without one the corrected stream uses the device's
+    /// GainScales only and says so in its flags.
+    pub path: Option<PathBuf>,
+    /// Reload when the file changes (it is always reloaded on SIGHUP).
+    pub watch: bool,
+}
+
+impl Default for CalibrationConfig {
+    fn default() -> Self {
+        Self {
+            path: None,
+            watch: true,
+        }
+    }
+}
+
+/// MCAP logging.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct LogConfig {
+    /// Log every frame to MCAP.
+    pub enabled: bool,
+    /// Directory for the MCAP files (created if missing).
+    pub dir: PathBuf,
+    /// Start a new file after this many MiB (0: never).
+    pub rotate_size_mib: u64,
+    /// Start a new file after this many seconds (0: never).
+    pub rotate_interval_s: f64,
+    /// Records queued for the writer thread before new ones are dropped (and counted).
+    pub queue_capacity: usize,
+    /// `frame_id` of the ROS messages.
+    pub frame_id: String,
+}
+
+impl Default for LogConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            dir: PathBuf::from("imud-logs"),
+            rotate_size_mib: 512,
+            rotate_interval_s: 3600.0,
+            queue_capacity: 65_536,
+            frame_id: "imu_link".into(),
+        }
+    }
+}
+
+/// Shared-memory publishing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct PublishConfig {
+    /// Publish over iceoryx2.
+    pub enabled: bool,
+    /// Samples buffered per subscriber (older ones are overwritten for a slow subscriber).
+    pub subscriber_buffer: usize,
+    /// Samples a late subscriber receives on connecting.
+    pub history: usize,
+    /// Most subscribers per service.
+    pub max_subscribers: usize,
+    /// Status publication interval, s.
+    pub status_interval_s: f64,
+}
+
+impl Default for PublishConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            subscriber_buffer: 256,
+            history: 1,
+            max_subscribers: 16,
+            status_interval_s: 1.0,
+        }
+    }
+}
+
+/// Where a configuration came from (for messages).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Source {
+    /// The file name, or `built-in defaults`.
+    pub file: String,
+    /// Its text (empty for defaults).
+    pub text: String,
+}
+
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, column)
+}
+
+/// The 1-based line where `dotted` (e.g. `device.baud`) is set in `text`, or 0.
+fn key_line(text: &str, dotted: &str) -> usize {
+    let (table, key) = dotted.rsplit_once('.').unwrap_or(("", dotted));
+    let mut current = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if let Some(h) = t.strip_prefix('[') {
+            current = h.trim_end_matches(']').trim().to_string();
+            continue;
+        }
+        let k = t.split('=').next().unwrap_or("").trim();
+        if current == table && k == key {
+            return i + 1;
+        }
+        // Dotted keys and inline tables: `device.baud = ...` at top level.
+        if current.is_empty() && k == dotted {
+            return i + 1;
+        }
+    }
+    0
+}
+
+impl Config {
+    /// Parses a configuration file's text over the built-in defaults.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let config: Config = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((1, 1), |s| line_col(text, s.start));
+            ConfigError::Parse {
+                file: file.to_string(),
+                line,
+                column,
+                message: e.message().to_string(),
+            }
+        })?;
+        config.validate(&Source {
+            file: file.to_string(),
+            text: text.to_string(),
+        })?;
+        Ok(config)
+    }
+
+    /// Finds and loads the configuration file (see the module docs), or the defaults.
+    pub fn load(explicit: Option<&Path>) -> Result<(Self, Source), ConfigError> {
+        let env = std::env::var_os("IMUD_CONFIG").map(PathBuf::from);
+        let etc = PathBuf::from("/etc/imud/imud.toml");
+        let path = match (explicit, env) {
+            (Some(p), _) => Some(p.to_path_buf()),
+            (None, Some(p)) => Some(p),
+            (None, None) => etc.exists().then_some(etc),
+        };
+        let Some(path) = path else {
+            return Ok((
+                Self::default(),
+                Source {
+                    file: "built-in defaults".into(),
+                    text: String::new(),
+                },
+            ));
+        };
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(&path).map_err(|source| ConfigError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        let config = Self::from_toml_str(&text, &file)?;
+        Ok((config, Source { file, text }))
+    }
+
+    /// Checks values that parse but make no sense.
+    pub fn validate(&self, source: &Source) -> Result<(), ConfigError> {
+        let invalid = |key: &str, message: String| ConfigError::Invalid {
+            file: source.file.clone(),
+            line: key_line(&source.text, key),
+            key: key.to_string(),
+            message,
+        };
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if self.name.is_empty()
+            || !self
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(invalid(
+                "name",
+                format!(
+                    "`{}` must be non-empty letters, digits, `-` or `_` (it names shared-memory services and files)",
+                    self.name
+                ),
+            ));
+        }
+        let d = &self.device;
+        if !(300..=4_000_000).contains(&d.baud) {
+            return Err(invalid(
+                "device.baud",
+                format!(
+                    "{} is not a serial line rate (38400 is the 3DM-GX1 default)",
+                    d.baud
+                ),
+            ));
+        }
+        if !positive(d.poll_rate_hz) || d.poll_rate_hz > 10_000.0 {
+            return Err(invalid(
+                "device.poll-rate-hz",
+                format!("{} Hz must be in (0, 10000]", d.poll_rate_hz),
+            ));
+        }
+        if !(d.temperature_rate_hz.is_finite() && d.temperature_rate_hz >= 0.0)
+            || d.temperature_rate_hz > d.poll_rate_hz
+        {
+            return Err(invalid(
+                "device.temperature-rate-hz",
+                format!(
+                    "{} Hz must be >= 0 and at most poll-rate-hz",
+                    d.temperature_rate_hz
+                ),
+            ));
+        }
+        for (key, v) in [
+            ("device.tick-period-s", d.tick_period_s),
+            ("device.reply-timeout-s", d.reply_timeout_s),
+            ("device.reconnect-min-s", d.reconnect_min_s),
+            ("device.reconnect-max-s", d.reconnect_max_s),
+            ("device.silence-timeout-s", d.silence_timeout_s),
+            ("publish.status-interval-s", self.publish.status_interval_s),
+        ] {
+            if !positive(v) {
+                return Err(invalid(
+                    key,
+                    format!("{v} must be a positive number of seconds"),
+                ));
+            }
+        }
+        if d.reconnect_max_s < d.reconnect_min_s {
+            return Err(invalid(
+                "device.reconnect-max-s",
+                "must be at least reconnect-min-s".into(),
+            ));
+        }
+        let g = d.fallback_gains;
+        if g.accel == 0 || g.gyro == 0 || g.mag == 0 {
+            return Err(invalid(
+                "device.fallback-gains",
+                "GainScale words must be non-zero".into(),
+            ));
+        }
+        if self.log.queue_capacity == 0 {
+            return Err(invalid("log.queue-capacity", "must be at least 1".into()));
+        }
+        if !(self.log.rotate_interval_s.is_finite() && self.log.rotate_interval_s >= 0.0) {
+            return Err(invalid(
+                "log.rotate-interval-s",
+                "must be >= 0 (0: never)".into(),
+            ));
+        }
+        if self.publish.subscriber_buffer == 0 || self.publish.max_subscribers == 0 {
+            return Err(invalid(
+                "publish.subscriber-buffer",
+                "buffers and subscriber counts must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The effective configuration as TOML (for `imud --print-config`).
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("the configuration always serializes")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn documented_default_file_equals_the_built_in_defaults() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/imud.toml");
+        let text = std::fs::read_to_string(path).unwrap();
+        let parsed = Config::from_toml_str(&text, path).unwrap();
+        assert_eq!(
+            parsed,
+            Config::default(),
+            "config/imud.toml must document the real defaults"
+        );
+    }
+
+    #[test]
+    fn unknown_key_names_file_line_and_key() {
+        let e = Config::from_toml_str("name = \"a\"\n[device]\nbaud = 38400\nbuad = 1\n", "x.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("x.toml:4:"), "{e}");
+        assert!(e.contains("buad"), "{e}");
+    }
+
+    #[test]
+    fn bad_value_names_file_line_and_key() {
+        let e = Config::from_toml_str("[device]\npath = \"/dev/x\"\nbaud = 12\n", "y.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e.split(':').take(2).collect::<Vec<_>>(),
+            ["y.toml", "3"],
+            "{e}"
+        );
+        assert!(e.contains("device.baud"), "{e}");
+        let e = Config::from_toml_str("[device]\nmode = \"sometimes\"\n", "z.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("z.toml:2:"), "{e}");
+    }
+
+    #[test]
+    fn print_config_round_trips() {
+        let c = Config::default();
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "printed").unwrap(), c);
+    }
+}

@@ -1,0 +1,304 @@
+//! `imud`: the acquisition daemon. Reads a 3DM-GX1 over serial, applies the calibration in real
+//! time, publishes raw and corrected samples over iceoryx2 and logs every frame to MCAP.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Parser;
+use imu_bus::recording::{Recorder, RecordingConfig};
+use imu_bus::shm::{Publishers, ShmOptions};
+use tracing::{info, warn};
+
+use imud::config::{self, Config};
+use imud::pipeline::{Gains, Pipeline, Sinks};
+use imud::session::{CalibrationSource, Daemon, DeviceIdentity, Signals};
+
+/// The default `--sim` scenario and truth model, built in so `imud --sim` works from anywhere.
+const DEMO_SCENARIO: &str = include_str!("../../config/scenarios/demo.toml");
+const DEMO_TRUTH: &str = include_str!("../../config/models/example-3dm-gx1.toml");
+
+/// imud: MEMS IMU acquisition daemon (MicroStrain 3DM-GX1).
+///
+/// Reads the device over a serial port, applies the loaded calibration to every sample, publishes
+/// raw and corrected samples over iceoryx2 shared memory (services imud/<name>/...; see imu-echo)
+/// and logs every frame to MCAP (ros2 profile: /imu/data is sensor_msgs/msg/Imu). Configuration:
+/// --config FILE, else $IMUD_CONFIG, else /etc/imud/imud.toml, else built-in defaults (documented
+/// in config/imud.toml); the flags below override the file. SIGHUP reloads the calibration;
+/// SIGTERM finishes the MCAP file and exits.
+#[derive(Debug, Parser)]
+#[command(name = "imud", version)]
+struct Args {
+    /// Configuration file (TOML).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Serial device path (overrides device.path).
+    #[arg(long, value_name = "PATH")]
+    device: Option<PathBuf>,
+    /// Baud rate (overrides device.baud).
+    #[arg(long, value_name = "N")]
+    baud: Option<u32>,
+    /// Calibration file (overrides calibration.path).
+    #[arg(long, value_name = "FILE")]
+    calibration: Option<PathBuf>,
+    /// MCAP log directory (overrides log.dir).
+    #[arg(long, value_name = "DIR")]
+    log_dir: Option<PathBuf>,
+    /// Instance name (overrides name).
+    #[arg(long, value_name = "NAME")]
+    name: Option<String>,
+    /// Run against a built-in virtual 3DM-GX1 on a pty instead of a real device; optionally with
+    /// a scenario file (default: a built-in demo tour, then still forever). The simulator's
+    /// ground truth is written next to the recordings.
+    #[arg(long, value_name = "SCENARIO", num_args = 0..=1)]
+    #[allow(clippy::option_option)]
+    sim: Option<Option<PathBuf>>,
+    /// With --sim: run the scenario through the real decode, calibration and logging path as fast
+    /// as possible (no pty, no shared memory, synthetic timestamps), write the recording and the
+    /// truth to the log directory, and exit. Hours of scenario take seconds.
+    #[arg(long, requires = "sim")]
+    offline: bool,
+    /// Seed for --sim (default: the scenario's).
+    #[arg(long, value_name = "N", requires = "sim")]
+    seed: Option<u64>,
+    /// Print the effective configuration and exit.
+    #[arg(long)]
+    print_config: bool,
+}
+
+fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("IMUD_LOG")
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+    imu_bus::shm::quiet_iceoryx2_logs();
+    let args = Args::parse();
+    let runtime = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("imud: error: cannot start the runtime: {e}");
+            return std::process::ExitCode::FAILURE;
+        }
+    };
+    match runtime.block_on(run(args)) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("imud: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn effective_config(args: &Args) -> anyhow::Result<Config> {
+    let (mut config, source) = Config::load(args.config.as_deref())?;
+    if let Some(d) = &args.device {
+        config.device.path = d.clone();
+    }
+    if let Some(b) = args.baud {
+        config.device.baud = b;
+    }
+    if let Some(c) = &args.calibration {
+        config.calibration.path = Some(c.clone());
+    }
+    if let Some(l) = &args.log_dir {
+        config.log.dir = l.clone();
+    }
+    if let Some(n) = &args.name {
+        config.name = n.clone();
+    }
+    config.validate(&config::Source {
+        file: format!("{} with command-line flags", source.file),
+        text: source.text.clone(),
+    })?;
+    info!("configuration from {}", source.file);
+    Ok(config)
+}
+
+fn sim_options(
+    scenario: Option<&std::path::Path>,
+    seed: Option<u64>,
+) -> anyhow::Result<imu_sim::SimOptions> {
+    let mut opts = if let Some(path) = scenario {
+        imu_sim::SimOptions::from_files(path, None)?
+    } else {
+        let scenario = imu_sim::Scenario::from_toml_str(DEMO_SCENARIO, "built-in demo scenario")?;
+        let truth =
+            imu_model::Calibration::from_toml_str(DEMO_TRUTH, "built-in example truth model")?;
+        let seed = scenario.seed;
+        imu_sim::SimOptions {
+            scenario,
+            scenario_text: DEMO_SCENARIO.into(),
+            truth,
+            seed,
+            truth_out: None,
+            link: None,
+            pacing: imu_sim::Pacing::RealTime,
+            linger: Duration::from_secs(1),
+        }
+    };
+    if let Some(seed) = seed {
+        opts.seed = seed;
+    }
+    Ok(opts)
+}
+
+fn start_sim(mut opts: imu_sim::SimOptions, config: &Config) -> anyhow::Result<imu_sim::SimHandle> {
+    if config.log.enabled {
+        std::fs::create_dir_all(&config.log.dir)
+            .with_context(|| format!("creating the log directory {}", config.log.dir.display()))?;
+        let stamp = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        opts.truth_out = Some(
+            config
+                .log
+                .dir
+                .join(format!("{}-sim-truth-{stamp}.mcap", config.name)),
+        );
+    }
+    let handle = imu_sim::spawn(opts)?;
+    info!(
+        "simulated 3DM-GX1 on {} (truth: {})",
+        handle.device_path().display(),
+        config.log.dir.display()
+    );
+    Ok(handle)
+}
+
+async fn run(args: Args) -> anyhow::Result<()> {
+    let mut config = effective_config(&args)?;
+    if args.print_config {
+        print!("{}", config.to_toml());
+        return Ok(());
+    }
+    if args.offline {
+        let mut opts = sim_options(args.sim.as_ref().and_then(|s| s.as_deref()), args.seed)?;
+        opts.truth_out = Some(config.log.dir.join(format!("{}-truth.mcap", config.name)));
+        let report = imud::offline::record(opts, &config)?;
+        for f in &report.files {
+            println!("{}", f.display());
+        }
+        if let Some(t) = &report.truth {
+            println!("{}", t.display());
+        }
+        info!(
+            "offline: {} samples and {} temperatures recorded",
+            report.samples, report.temperatures
+        );
+        return Ok(());
+    }
+    let _sim = match &args.sim {
+        Some(scenario) => {
+            let h = start_sim(sim_options(scenario.as_deref(), args.seed)?, &config)?;
+            config.device.path = h.device_path().to_path_buf();
+            Some(h)
+        }
+        None => None,
+    };
+    let mut signals = Signals::install()?;
+
+    let publishers = if config.publish.enabled {
+        let options = ShmOptions {
+            subscriber_buffer_size: config.publish.subscriber_buffer,
+            history_size: config.publish.history,
+            max_subscribers: config.publish.max_subscribers,
+        };
+        Some(
+            Publishers::open(&config.name, &options)
+                .context("opening the shared-memory services")?,
+        )
+    } else {
+        None
+    };
+    let recorder = if config.log.enabled {
+        let rc = RecordingConfig {
+            dir: config.log.dir.clone(),
+            prefix: config.name.clone(),
+            rotate_size_bytes: config.log.rotate_size_mib * 1024 * 1024,
+            rotate_interval_s: config.log.rotate_interval_s,
+            queue_capacity: config.log.queue_capacity,
+            frame_id: config.log.frame_id.clone(),
+            ..RecordingConfig::default()
+        };
+        let metadata = vec![(
+            "imud.config".to_string(),
+            BTreeMap::from([("toml".to_string(), config.to_toml())]),
+        )];
+        Some(Recorder::start(rc, metadata).context("starting the MCAP recorder")?)
+    } else {
+        None
+    };
+    let sinks = Sinks {
+        publishers,
+        recorder,
+    };
+    let fallback = config.device.fallback_gains;
+    let pipeline = Pipeline::new(
+        Gains {
+            accel: fallback.accel,
+            gyro: fallback.gyro,
+            mag: fallback.mag,
+            fallback: true,
+        },
+        config.device.tick_period_s,
+        None,
+    );
+    let device_path = config.device.path.clone();
+    let mut daemon = Daemon {
+        calibration: CalibrationSource::new(
+            config.calibration.path.clone(),
+            config.calibration.watch,
+        ),
+        config,
+        sinks,
+        pipeline,
+        decoder: imu_proto::decoder::ReplyDecoder::new(),
+        reconnects: 0,
+        notified_ready: false,
+        on_identity: Box::new(move |id: &DeviceIdentity, sinks: &Sinks| {
+            if let Some(r) = &sinks.recorder {
+                r.update_metadata(
+                    "imud.device",
+                    BTreeMap::from([
+                        ("path".to_string(), device_path.display().to_string()),
+                        (
+                            "firmware".to_string(),
+                            imu_proto::scale::format_firmware_version(id.firmware),
+                        ),
+                        ("serial-number".to_string(), id.serial.to_string()),
+                        ("gain-scale-accel".to_string(), id.gains.accel.to_string()),
+                        ("gain-scale-gyro".to_string(), id.gains.gyro.to_string()),
+                        ("gain-scale-mag".to_string(), id.gains.mag.to_string()),
+                        (
+                            "gains-are-fallback".to_string(),
+                            id.gains.fallback.to_string(),
+                        ),
+                    ]),
+                );
+            }
+        }),
+        calibration_noise_pending: false,
+    };
+    daemon.load_initial_calibration()?;
+    let result = daemon.run(&mut signals).await;
+    info!("shutting down");
+    if let Some(r) = daemon.sinks.recorder.take() {
+        match r.finish() {
+            Ok(stats) => info!(
+                "MCAP log finished: {} records written, {} dropped",
+                stats.written,
+                stats.dropped_queue_full + stats.dropped_not_logging
+            ),
+            Err(e) => warn!("finishing the MCAP log failed: {e:#}"),
+        }
+    }
+    result
+}

@@ -1,0 +1,261 @@
+//! Offline recording: run a simulator scenario through the daemon's real decode, calibration and
+//! logging path as fast as the CPU allows, without a pty, shared memory or wall-clock pacing.
+//!
+//! The bytes are the simulator's replies, encoded and decoded by the same codec as on a serial
+//! line, and the recording is written by the same `Recorder`, so a file made here is exactly what
+//! `imud` would have logged for the same scenario, seed and truth model (host timestamps are
+//! synthetic: the scenario clock plus a fixed offset). This is how hours of data for the offline
+//! tools' accuracy tests are produced in seconds: `imud --sim SCENARIO --offline`.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use anyhow::Context;
+use imu_bus::recording::{Recorder, RecordingConfig};
+use imu_bus::truth::{TruthSegment, TruthWriter};
+use imu_proto::command::Command;
+use imu_proto::decoder::ReplyDecoder;
+use imu_proto::reply::Reply;
+use imu_sim::{DeviceCore, SimOptions};
+
+use crate::config::Config;
+use crate::pipeline::{ActiveCalibration, Gains, Pipeline, Sinks};
+
+/// What an offline run produced.
+#[derive(Debug, Clone)]
+pub struct OfflineReport {
+    /// Data samples recorded.
+    pub samples: u64,
+    /// Temperature readings recorded.
+    pub temperatures: u64,
+    /// The recording files written.
+    pub files: Vec<PathBuf>,
+    /// The truth file, if one was asked for.
+    pub truth: Option<PathBuf>,
+}
+
+/// Host wall-clock time the synthetic timestamps start at (2026-01-01T00:00:00Z), ns.
+const WALL_ORIGIN_NS: u64 = 1_767_225_600_000_000_000;
+/// Synthetic host monotonic time at scenario start, ns.
+const MONO_ORIGIN_NS: u64 = 1_000_000_000_000;
+
+/// Runs `sim` through the daemon's pipeline into `config.log.dir`. Temperature is polled at
+/// `config.device.temperature-rate-hz` (as in polled mode) so thermal analyses have it.
+pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport> {
+    std::fs::create_dir_all(&config.log.dir)
+        .with_context(|| format!("creating {}", config.log.dir.display()))?;
+    let mut device = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
+    let mut truth = match &sim.truth_out {
+        Some(path) => {
+            let run = BTreeMap::from([
+                ("scenario-name".to_string(), sim.scenario.name.clone()),
+                ("seed".to_string(), sim.seed.to_string()),
+                ("rate-hz".to_string(), sim.scenario.rate_hz.to_string()),
+                ("pacing".to_string(), "offline".to_string()),
+            ]);
+            let mut w =
+                TruthWriter::create(path, &run, &sim.scenario_text, &sim.truth.to_toml_string())?;
+            for s in device.timeline().segments() {
+                w.write_segment(&TruthSegment {
+                    index: s.index,
+                    kind: s.kind.clone(),
+                    label: s.label.clone(),
+                    start_s: s.start_s,
+                    end_s: s.end_s,
+                    gravity_dir_sensor: s.gravity_dir_sensor.into(),
+                    axis_sensor: s.axis_sensor.map(Into::into),
+                    table_rate_rad_s: s.table_rate_rad_s,
+                })?;
+            }
+            Some(w)
+        }
+        None => None,
+    };
+    let recorder = Recorder::start(
+        RecordingConfig {
+            dir: config.log.dir.clone(),
+            prefix: config.name.clone(),
+            rotate_size_bytes: config.log.rotate_size_mib * 1024 * 1024,
+            // Rotation by time follows the synthetic clock poorly; offline files rotate by size.
+            rotate_interval_s: 0.0,
+            queue_capacity: config.log.queue_capacity,
+            frame_id: config.log.frame_id.clone(),
+            ..RecordingConfig::default()
+        },
+        vec![
+            (
+                "imud.config".to_string(),
+                BTreeMap::from([("toml".to_string(), config.to_toml())]),
+            ),
+            (
+                "imud.offline".to_string(),
+                BTreeMap::from([
+                    ("scenario-name".to_string(), sim.scenario.name.clone()),
+                    ("seed".to_string(), sim.seed.to_string()),
+                ]),
+            ),
+        ],
+    )
+    .context("starting the MCAP recorder")?;
+    let mut sinks = Sinks {
+        publishers: None,
+        recorder: Some(recorder),
+    };
+    let mut decoder = ReplyDecoder::new();
+    let cmd = config.device.command.command();
+    let period_s = device.sample_period_s();
+    let duration_s = device.timeline().duration_s();
+    anyhow::ensure!(
+        duration_s.is_finite(),
+        "offline recording needs a scenario that ends (the last segment has no duration-s)"
+    );
+
+    // The start-up exchange, through the codec, as on a line.
+    let ask = |device: &mut DeviceCore, c: Command, t_s: f64| -> Option<Reply> {
+        let bytes = device.handle(c, t_s).reply?.to_bytes();
+        Reply::decode(&bytes).ok()
+    };
+    let gain = |r: Option<Reply>, fallback: u16| match r {
+        Some(Reply::EepromRead { value, .. }) if value != 0 => (value, false),
+        _ => (fallback, true),
+    };
+    let fb = config.device.fallback_gains;
+    let (accel, fa) = gain(
+        ask(
+            &mut device,
+            Command::ReadEeprom {
+                address: imu_proto::device::ACCEL_GAIN_SCALE_ADDR,
+            },
+            0.0,
+        ),
+        fb.accel,
+    );
+    let (gyro, fg) = gain(
+        ask(
+            &mut device,
+            Command::ReadEeprom {
+                address: imu_proto::device::GYRO_GAIN_SCALE_ADDR,
+            },
+            0.0,
+        ),
+        fb.gyro,
+    );
+    let (mag, fm) = gain(
+        ask(
+            &mut device,
+            Command::ReadEeprom {
+                address: imu_proto::device::MAG_GAIN_SCALE_ADDR,
+            },
+            0.0,
+        ),
+        fb.mag,
+    );
+    let gains = Gains {
+        accel,
+        gyro,
+        mag,
+        fallback: fa || fg || fm,
+    };
+    let calibration = match &config.calibration.path {
+        Some(p) => Some(std::sync::Arc::new(ActiveCalibration::new(
+            imu_model::Calibration::load(p)?,
+        ))),
+        None => None,
+    };
+    let mut pipeline = Pipeline::new(gains, config.device.tick_period_s, None);
+    pipeline.new_session(gains);
+    if let Some(cal) = calibration {
+        pipeline.set_calibration(Some(cal.clone()));
+        sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));
+    }
+    if let Some(r) = &sinks.recorder {
+        r.update_metadata(
+            "imud.device",
+            BTreeMap::from([
+                ("path".to_string(), "offline simulation".to_string()),
+                (
+                    "serial-number".to_string(),
+                    sim.scenario.device.serial_number.to_string(),
+                ),
+                ("gain-scale-accel".to_string(), accel.to_string()),
+                ("gain-scale-gyro".to_string(), gyro.to_string()),
+                ("gain-scale-mag".to_string(), mag.to_string()),
+                ("gains-are-fallback".to_string(), gains.fallback.to_string()),
+            ]),
+        );
+    }
+    let temp_every = if config.device.temperature_rate_hz > 0.0 {
+        ((1.0 / period_s) / config.device.temperature_rate_hz)
+            .round()
+            .max(1.0) as u64
+    } else {
+        u64::MAX
+    };
+    let mut report = OfflineReport {
+        samples: 0,
+        temperatures: 0,
+        files: Vec::new(),
+        truth: sim.truth_out.clone(),
+    };
+    let mut bytes = Vec::with_capacity(64);
+    let mut k: u64 = 0;
+    loop {
+        let t_s = k as f64 * period_s;
+        if t_s >= duration_s {
+            break;
+        }
+        bytes.clear();
+        let mut truths = Vec::with_capacity(2);
+        if k.is_multiple_of(temp_every) {
+            let (reply, t) = device.data_reply(Command::Temperature, t_s);
+            reply.encode(&mut bytes);
+            truths.push(t);
+            report.temperatures += 1;
+        }
+        let (reply, t) = device.data_reply(cmd, t_s);
+        reply.encode(&mut bytes);
+        truths.push(t);
+        report.samples += 1;
+        decoder.push(&bytes);
+        let t_ns = (t_s * 1e9) as u64;
+        while let Some(ev) = decoder.next_event() {
+            pipeline.on_event(ev, MONO_ORIGIN_NS + t_ns, WALL_ORIGIN_NS + t_ns, &mut sinks);
+        }
+        if let Some(w) = &mut truth {
+            for t in &truths {
+                w.write_sample(t)?;
+            }
+        }
+        // Offline there is no reason to drop: wait for the writer when its queue fills.
+        if let Some(r) = &sinks.recorder
+            && k.is_multiple_of(1024)
+        {
+            let logged = 3 * report.samples + 2 * report.temperatures;
+            while {
+                let s = r.stats();
+                logged.saturating_sub(s.written + s.dropped_queue_full + s.dropped_not_logging)
+                    > (config.log.queue_capacity as u64) / 2
+            } {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+        k += 1;
+    }
+    if let Some(w) = truth {
+        w.finish()?;
+    }
+    let recorder = sinks.recorder.take().expect("recorder");
+    let stats = recorder.finish().context("finishing the recording")?;
+    anyhow::ensure!(
+        stats.dropped_queue_full + stats.dropped_not_logging == 0,
+        "the recorder dropped {} records: {:?}",
+        stats.dropped_queue_full + stats.dropped_not_logging,
+        stats.last_error
+    );
+    report.files = imu_bus::recording::list_recordings(&config.log.dir, &config.name)
+        .with_context(|| format!("listing {}", config.log.dir.display()))?
+        .into_iter()
+        .filter(|f| Some(f) != report.truth.as_ref())
+        .collect();
+    Ok(report)
+}
