@@ -128,8 +128,13 @@ pub struct Pipeline {
     clock: ClockFit,
     calibration: Option<Arc<ActiveCalibration>>,
     temp_c: f64,
-    /// Expected ticks between consecutive samples in continuous mode (for gap detection).
+    /// Expected ticks between consecutive samples in continuous mode (for gap detection),
+    /// learned from the first samples of a session.
     expected_tick_step: Option<f64>,
+    /// Whether to learn `expected_tick_step` (continuous mode only: polls are irregular).
+    detect_gaps: bool,
+    /// Sum and count of tick steps while learning.
+    step_stats: (u64, u64),
     last_ticks: Option<u64>,
     last_gyro: Option<(u64, Vector3<f64>)>,
     /// First sample time of the session and samples since (for the sample-rate estimate).
@@ -154,6 +159,8 @@ impl Pipeline {
             calibration,
             temp_c: f64::NAN,
             expected_tick_step: None,
+            detect_gaps: false,
+            step_stats: (0, 0),
             last_ticks: None,
             last_gyro: None,
             rate_origin: None,
@@ -183,9 +190,12 @@ impl Pipeline {
         (span_s >= 2.0).then(|| (n1 - n0 - 1) as f64 / span_s)
     }
 
-    /// Sets the expected sample interval in continuous mode (None in polled mode).
-    pub fn set_sample_interval(&mut self, interval_s: Option<f64>) {
-        self.expected_tick_step = interval_s.map(|s| s / self.tick_period_s);
+    /// Turns on gap detection for a continuous stream (the device's sample interval is learned
+    /// from the first samples' tick steps); off for polling, whose intervals are the host's.
+    pub fn set_continuous(&mut self, continuous: bool) {
+        self.detect_gaps = continuous;
+        self.expected_tick_step = None;
+        self.step_stats = (0, 0);
     }
 
     /// Puts a calibration in force from the next sample on (returns that sample's seq).
@@ -288,11 +298,27 @@ impl Pipeline {
         let ticks = reply.ticks().unwrap_or(0);
         let ticks_unwrapped = self.unwrapper.unwrap(ticks);
         let mut flags = if scaled { raw_flags::SCALED_COUNTS } else { 0 };
-        if let (Some(step), Some(last)) = (self.expected_tick_step, self.last_ticks) {
-            let lost = ((ticks_unwrapped.saturating_sub(last)) as f64 / step).round() as u64;
-            if lost > 1 {
-                self.counters.samples_lost += lost - 1;
-                flags |= raw_flags::GAP_BEFORE;
+        if let Some(last) = self.last_ticks
+            && self.detect_gaps
+        {
+            let step = ticks_unwrapped.saturating_sub(last);
+            match self.expected_tick_step {
+                Some(expected) => {
+                    let intervals = (step as f64 / expected).round() as u64;
+                    if intervals > 1 {
+                        self.counters.samples_lost += intervals - 1;
+                        flags |= raw_flags::GAP_BEFORE;
+                    }
+                }
+                None => {
+                    // Ticks are coarser than some sample intervals (6.5536 ms vs 10 ms at
+                    // 100 Hz), so learn the mean step over the first samples.
+                    self.step_stats.0 += step;
+                    self.step_stats.1 += 1;
+                    if self.step_stats.1 == 128 && self.step_stats.0 > 0 {
+                        self.expected_tick_step = Some(self.step_stats.0 as f64 / 128.0);
+                    }
+                }
             }
         }
         self.last_ticks = Some(ticks_unwrapped);
@@ -450,5 +476,68 @@ impl Pipeline {
             logging: u8::from(logging),
             reserved: [0; 6],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn raw(ticks: u16) -> Reply {
+        Reply::RawSensorBits {
+            mag: [32_768; 3],
+            accel: [32_768, 32_768, 32_768 + 4681],
+            rate: [32_768; 3],
+            ticks,
+        }
+    }
+
+    #[test]
+    fn continuous_gaps_are_counted_and_flagged() {
+        let gains = Gains {
+            accel: 7000,
+            gyro: 10000,
+            mag: 2000,
+            fallback: false,
+        };
+        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        p.set_continuous(true);
+        let mut sinks = Sinks::default();
+        let lost = [300u64, 301, 302, 500];
+        for k in 0..1000u64 {
+            if lost.contains(&k) {
+                continue;
+            }
+            // 100 Hz on 6.5536 ms ticks: steps of 1 and 2 ticks, and a wrap past 65535.
+            let ticks = ((k as f64 * 0.01 / 6.5536e-3).floor() as u64 + 65_000) % 65_536;
+            p.on_reply(
+                &raw(ticks as u16),
+                k * 10_000_000,
+                k * 10_000_000,
+                &mut sinks,
+            );
+        }
+        assert_eq!(p.counters().samples, 996);
+        assert_eq!(p.counters().samples_lost, 4);
+        // Without a calibration the corrected stream is the GainScale conversion: z = +1 g.
+        assert!(p.calibration().is_none());
+    }
+
+    #[test]
+    fn polled_streams_do_not_count_gaps() {
+        let gains = Gains {
+            accel: 7000,
+            gyro: 10000,
+            mag: 2000,
+            fallback: true,
+        };
+        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        p.set_continuous(false);
+        let mut sinks = Sinks::default();
+        for k in 0..300u64 {
+            let ticks = (k * k) % 65_536; // irregular polls
+            p.on_reply(&raw(ticks as u16), k, k, &mut sinks);
+        }
+        assert_eq!(p.counters().samples_lost, 0);
     }
 }

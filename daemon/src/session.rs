@@ -410,7 +410,8 @@ impl Daemon {
                 bail!("the device did not confirm continuous mode: {ack:?}");
             }
         }
-        self.pipeline.set_sample_interval(None);
+        self.pipeline
+            .set_continuous(cfg.mode == AcquisitionMode::Continuous);
         Ok((port, identity))
     }
 
