@@ -265,40 +265,13 @@ pub struct Source {
     pub text: String,
 }
 
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-    (line, column)
-}
-
-/// The 1-based line where `dotted` (e.g. `device.baud`) is set in `text`, or 0.
-fn key_line(text: &str, dotted: &str) -> usize {
-    let (table, key) = dotted.rsplit_once('.').unwrap_or(("", dotted));
-    let mut current = String::new();
-    for (i, line) in text.lines().enumerate() {
-        let t = line.trim();
-        if let Some(h) = t.strip_prefix('[') {
-            current = h.trim_end_matches(']').trim().to_string();
-            continue;
-        }
-        let k = t.split('=').next().unwrap_or("").trim();
-        if current == table && k == key {
-            return i + 1;
-        }
-        // Dotted keys and inline tables: `device.baud = ...` at top level.
-        if current.is_empty() && k == dotted {
-            return i + 1;
-        }
-    }
-    0
-}
-
 impl Config {
     /// Parses a configuration file's text over the built-in defaults.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, ConfigError> {
         let config: Config = toml::from_str(text).map_err(|e| {
-            let (line, column) = e.span().map_or((1, 1), |s| line_col(text, s.start));
+            let (line, column) = e
+                .span()
+                .map_or((1, 1), |s| imu_model::line_col(text, s.start));
             ConfigError::Parse {
                 file: file.to_string(),
                 line,
@@ -344,7 +317,7 @@ impl Config {
     pub fn validate(&self, source: &Source) -> Result<(), ConfigError> {
         let invalid = |key: &str, message: String| ConfigError::Invalid {
             file: source.file.clone(),
-            line: key_line(&source.text, key),
+            line: imu_model::line_of_key(&source.text, key).unwrap_or(0),
             key: key.to_string(),
             message,
         };

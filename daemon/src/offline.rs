@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use imu_bus::recording::{Recorder, RecordingConfig};
-use imu_bus::truth::{TruthSegment, TruthWriter};
+use imu_bus::truth::TruthWriter;
 use imu_proto::command::Command;
 use imu_proto::decoder::ReplyDecoder;
 use imu_proto::reply::Reply;
@@ -56,16 +56,7 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
             let mut w =
                 TruthWriter::create(path, &run, &sim.scenario_text, &sim.truth.to_toml_string())?;
             for s in device.timeline().segments() {
-                w.write_segment(&TruthSegment {
-                    index: s.index,
-                    kind: s.kind.clone(),
-                    label: s.label.clone(),
-                    start_s: s.start_s,
-                    end_s: s.end_s,
-                    gravity_dir_sensor: s.gravity_dir_sensor.into(),
-                    axis_sensor: s.axis_sensor.map(Into::into),
-                    table_rate_rad_s: s.table_rate_rad_s,
-                })?;
+                w.write_segment(&imu_sim::segment_record(s))?;
             }
             Some(w)
         }

@@ -89,8 +89,9 @@ pub(crate) fn parse_path(key: &str) -> Vec<Seg> {
     out
 }
 
-/// 1-based (line, column) of a byte offset; the column counts characters.
-pub(crate) fn line_col(source: &str, offset: usize) -> (usize, usize) {
+/// 1-based (line, column) of a byte offset; the column counts characters. Shared by every
+/// strict TOML reader of the project (calibrations, scenarios, the daemon's configuration).
+pub fn line_col(source: &str, offset: usize) -> (usize, usize) {
     let offset = offset.min(source.len());
     let before = source.get(..offset).unwrap_or(source);
     let line = before.matches('\n').count() + 1;
@@ -137,6 +138,12 @@ pub(crate) fn key_path_at(source: &str, offset: usize) -> Option<Vec<Seg>> {
     let doc = DeTable::parse(source).ok()?;
     let mut path = Vec::new();
     find_in_table(doc.get_ref(), offset, &mut path).then_some(path)
+}
+
+/// 1-based line where the dotted key (e.g. `device.baud` or `gyro.scale.value[1]`) is set in
+/// TOML `source`, or of its closest existing parent; `None` if the text does not parse.
+pub fn line_of_key(source: &str, dotted_key: &str) -> Option<usize> {
+    line_of_path(source, &parse_path(dotted_key))
 }
 
 /// 1-based line of the deepest part of `path` found in `source` (the key itself if present,

@@ -136,7 +136,7 @@ pub use effects::{
     AsymmetricScale, Bias, EffectKind, GSensitivity, LeverArm, Misalignment, Scale,
     ScaleNonlinearity, TempBias, TempScale, TriadModel, Warmup,
 };
-pub use error::ModelError;
+pub use error::{ModelError, line_col, line_of_key};
 pub use noise::{
     BIAS_INSTABILITY_ADEV_FACTOR, DEFAULT_BIAS_INSTABILITY_TAU_MAX_S, NoiseGenerator, NoiseModel,
 };

@@ -180,7 +180,8 @@ impl Drop for SimHandle {
     }
 }
 
-fn segment_record(s: &motion::SegmentInfo) -> TruthSegment {
+/// The truth-file record of a scenario segment.
+pub fn segment_record(s: &motion::SegmentInfo) -> TruthSegment {
     TruthSegment {
         index: s.index,
         kind: s.kind.clone(),

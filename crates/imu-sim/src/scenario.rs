@@ -516,20 +516,13 @@ pub(crate) fn toml_error(file: &str, text: &str, e: &toml::de::Error) -> Scenari
             pos += line.len();
         }
     }
-    let (line, column) = line_col(text, offset);
+    let (line, column) = imu_model::line_col(text, offset);
     ScenarioError::Parse {
         file: file.to_string(),
         line,
         column,
         message: e.message().to_string(),
     }
-}
-
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-    (line, column)
 }
 
 impl Scenario {
