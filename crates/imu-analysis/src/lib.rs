@@ -1,8 +1,16 @@
 //! Offline analyses of IMU recordings, shared by the client binaries: reading inputs (imud
-//! recordings, rosbag2 MCAP with `sensor_msgs/msg/Imu`, CSV) into SI time series.
+//! recordings, rosbag2 MCAP with `sensor_msgs/msg/Imu`, CSV) into SI time series; Allan-family
+//! deviations and IEEE noise terms; small SVG charts.
 //!
 //! No device I/O and no tokio here: these are pure computations over files.
 
+pub mod allan;
+pub mod dynamic;
+pub mod impact;
 pub mod input;
+pub mod noise;
+pub mod plot;
+pub mod report;
+pub mod thermal;
 
 pub use input::{ImuSeries, InputError, Source};

@@ -1,0 +1,405 @@
+//! imu-analyze: the thermal, impact and dynamic tests of Aslan & Saranli (3.1.3/3.2.3, 3.3,
+//! 3.4) on a recording, printed as text or JSON, with optional SVG plots and an HTML section.
+
+use std::io::{self, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+
+use imu_analysis::input::{CsvOptions, ImuSeries, InputError, Source, read_any};
+use imu_analysis::plot::{Chart, write_svg};
+use imu_analysis::report::{self, Section};
+use imu_analysis::{dynamic, impact, thermal};
+
+/// Offline thermal, impact and dynamic tests of IMU recordings.
+#[derive(Debug, Parser)]
+#[command(name = "imu-analyze", version, about)]
+struct Args {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// Output options shared by every analysis.
+#[derive(Debug, clap::Args)]
+struct Output {
+    /// Print the full result as JSON on stdout instead of a text summary.
+    #[arg(long)]
+    json: bool,
+    /// Write SVG charts into this directory (created if missing).
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
+    /// Write a self-contained HTML page with the report section (inline SVG).
+    #[arg(long, value_name = "FILE")]
+    html: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum SourceArg {
+    /// The calibrated stream.
+    Corrected,
+    /// The raw counts scaled by the GainScales only.
+    Raw,
+}
+
+impl From<SourceArg> for Source {
+    fn from(s: SourceArg) -> Self {
+        match s {
+            SourceArg::Corrected => Source::Corrected,
+            SourceArg::Raw => Source::Raw,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum DynamicSource {
+    /// Raw and calibrated side by side (the calibration's effect on the drift).
+    Both,
+    /// The calibrated stream only.
+    Corrected,
+    /// The raw stream only.
+    Raw,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Warm-up test: output vs temperature and time, warm-up time constant, temperature
+    /// coefficients and whether a thermal model is warranted (paper 3.1.3 / 3.2.3).
+    Thermal {
+        /// The recording (imud MCAP, rosbag2 MCAP with sensor_msgs/msg/Imu, or CSV).
+        recording: PathBuf,
+        /// Which stream of an imud recording to analyse.
+        #[arg(long, value_enum, default_value = "raw")]
+        source: SourceArg,
+        /// Time bin width, s.
+        #[arg(long, default_value_t = 60.0)]
+        bin_s: f64,
+        #[command(flatten)]
+        output: Output,
+    },
+    /// Impact test: detect shocks, peak responses, cross-axis coupling and settling times
+    /// (paper 3.3, Figures 10-11).
+    Impact {
+        /// The recording.
+        recording: PathBuf,
+        /// Which stream of an imud recording to analyse.
+        #[arg(long, value_enum, default_value = "raw")]
+        source: SourceArg,
+        /// Detection threshold in robust standard deviations of the accel magnitude.
+        #[arg(long, default_value_t = 10.0)]
+        threshold_sigmas: f64,
+        #[command(flatten)]
+        output: Output,
+    },
+    /// Dynamic test: integrate the gyro about the rotation axis and compare with the table
+    /// angle, after removing the timing offset (paper 3.4, Figures 12-13).
+    Dynamic {
+        /// The recording.
+        recording: PathBuf,
+        /// The reference: an imu-sim truth file (.mcap) or a CSV of `time_s, angle_deg`.
+        #[arg(long, value_name = "TRUTH.mcap|ANGLE.csv")]
+        reference: PathBuf,
+        /// Rotation axis in sensor axes.
+        #[arg(long, value_enum, default_value = "z")]
+        axis: Axis,
+        /// Which streams to compare with the reference.
+        #[arg(long, value_enum, default_value = "both")]
+        source: DynamicSource,
+        /// Largest timing offset searched, s.
+        #[arg(long, default_value_t = 1.0)]
+        max_offset_s: f64,
+        #[command(flatten)]
+        output: Output,
+    },
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("imu-analyze: error: {e:#}");
+            ExitCode::from(exit_code(&e))
+        }
+    }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| {
+        cause
+            .downcast_ref::<io::Error>()
+            .is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// sysexits-style codes: 66 an input could not be opened, 65 its data are unusable, 1 otherwise.
+fn exit_code(e: &anyhow::Error) -> u8 {
+    for cause in e.chain() {
+        if let Some(ie) = cause.downcast_ref::<InputError>() {
+            return match ie {
+                InputError::Io { .. } => 66,
+                _ => 65,
+            };
+        }
+        if cause.downcast_ref::<thermal::ThermalError>().is_some()
+            || cause.downcast_ref::<impact::ImpactError>().is_some()
+            || cause.downcast_ref::<dynamic::DynamicError>().is_some()
+        {
+            return 65;
+        }
+    }
+    1
+}
+
+/// A status line on stderr while a file is read; silent when stderr is not a terminal.
+struct Progress {
+    on: bool,
+}
+
+impl Progress {
+    fn start(what: &str, path: &Path) -> Self {
+        let on = io::stderr().is_terminal();
+        if on {
+            let mib = std::fs::metadata(path).map_or(0.0, |m| m.len() as f64 / 1048576.0);
+            eprint!("\r{what} {} ({mib:.1} MiB) ...", path.display());
+        }
+        Self { on }
+    }
+
+    fn done(self, message: &str) {
+        if self.on {
+            eprintln!(" {message}");
+        }
+    }
+}
+
+fn read(path: &Path, source: Source) -> Result<ImuSeries> {
+    let p = Progress::start("reading", path);
+    let s = read_any(path, source, &CsvOptions::default())
+        .with_context(|| format!("reading {} ({source:?} stream)", path.display()))?;
+    p.done(&format!(
+        "{} samples, {} temperature readings",
+        s.len(),
+        s.temp.len()
+    ));
+    if let Some(why) = &s.stopped_early {
+        eprintln!(
+            "imu-analyze: warning: {}: read up to the last good record: {why}",
+            path.display()
+        );
+    }
+    Ok(s)
+}
+
+fn emit(
+    output: &Output,
+    json: &impl serde::Serialize,
+    text: &str,
+    section: Section,
+    charts: &[Chart],
+    stem: &str,
+) -> Result<()> {
+    if let Some(dir) = &output.plot {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (i, c) in charts.iter().enumerate() {
+            let path = dir.join(format!("{stem}-{:02}.svg", i + 1));
+            write_svg(c, &path).with_context(|| format!("writing {}", path.display()))?;
+        }
+    }
+    if let Some(path) = &output.html {
+        let page = report::page(&section.title, std::slice::from_ref(&section));
+        std::fs::write(path, page).with_context(|| format!("writing {}", path.display()))?;
+    }
+    let mut out = io::stdout().lock();
+    if output.json {
+        serde_json::to_writer_pretty(&mut out, json).context("writing JSON to stdout")?;
+        writeln!(out).context("writing to stdout")?;
+    } else {
+        out.write_all(text.as_bytes())
+            .context("writing to stdout")?;
+    }
+    out.flush().context("writing to stdout")?;
+    Ok(())
+}
+
+fn run(args: &Args) -> Result<()> {
+    match &args.command {
+        Command::Thermal {
+            recording,
+            source,
+            bin_s,
+            output,
+        } => {
+            if !(bin_s.is_finite() && *bin_s > 0.0) {
+                bail!("--bin-s must be a positive number of seconds, got {bin_s}");
+            }
+            let series = read(recording, (*source).into())?;
+            let r = thermal::analyze(
+                &series,
+                &thermal::ThermalOptions {
+                    bin_s: *bin_s,
+                    ..Default::default()
+                },
+            )
+            .context("thermal analysis")?;
+            let mut text = format!(
+                "{}\n{} .. {} deg C over {:.0} s",
+                r.recommendation, r.temp_range_c[0], r.temp_range_c[1], r.duration_s
+            );
+            if let Some(w) = &r.warmup {
+                text.push_str(&format!(
+                    ", warm-up tau {:.0} +/- {:.0} s",
+                    w.tau_s, w.tau_std_s
+                ));
+            }
+            text.push('\n');
+            for a in &r.axes {
+                text.push_str(&format!(
+                    "{:5} {}: {:+.3e} +/- {:.1e} {}/K (t {:+.2}, p {:.2e}), change over range {:.2e} vs bin scatter {:.2e}{}{}\n",
+                    a.sensor,
+                    a.axis,
+                    a.bias_coeff_per_k,
+                    a.bias_coeff_std_per_k,
+                    a.unit,
+                    a.linear.t_stats[1],
+                    a.linear.p_values[1],
+                    a.predicted_change,
+                    a.bin_noise,
+                    a.scale_coeff_per_k
+                        .map_or(String::new(), |s| format!(", as scale {:+.1} ppm/K", s * 1e6)),
+                    if a.model_warranted { "  MODEL WARRANTED" } else { "" }
+                ));
+            }
+            text.push_str(&r.confounding.note);
+            text.push('\n');
+            let charts = thermal::charts(&r);
+            let section = report::thermal_section(&r, &charts);
+            emit(output, &r, &text, section, &charts, "thermal")
+        }
+        Command::Impact {
+            recording,
+            source,
+            threshold_sigmas,
+            output,
+        } => {
+            let series = read(recording, (*source).into())?;
+            let r = impact::analyze(
+                &series,
+                &impact::ImpactOptions {
+                    threshold_sigmas: *threshold_sigmas,
+                    ..Default::default()
+                },
+            )
+            .context("impact analysis")?;
+            let mut text = format!(
+                "{} impacts, struck axis {}\n",
+                r.events.len(),
+                r.struck_axis.map_or("-", |a| ["x", "y", "z"][a])
+            );
+            for i in 0..3 {
+                let s = &r.summary;
+                text.push_str(&format!(
+                    "{}: accel peak {:+.3} +/- {:.3} m/s^2, coupling {:+.3e} +/- {:.1e}, settling {:.3} s; gyro peak {:+.2e} rad/s, coupling {:+.2e} (rad/s)/(m/s^2), settling {:.3} s\n",
+                    ["x", "y", "z"][i],
+                    s.accel_peak_m_s2[i].mean,
+                    s.accel_peak_m_s2[i].std,
+                    r.pooled_accel_coupling[i].value,
+                    r.pooled_accel_coupling[i].std_error,
+                    s.accel_settling_s[i].mean,
+                    s.gyro_peak_rad_s[i].mean,
+                    r.pooled_gyro_coupling_rad_s_per_m_s2[i].value,
+                    s.gyro_settling_s[i].mean,
+                ));
+            }
+            let charts = impact::charts(&series, &r);
+            let section = report::impact_section(&r, &charts);
+            emit(output, &r, &text, section, &charts, "impact")
+        }
+        Command::Dynamic {
+            recording,
+            reference,
+            axis,
+            source,
+            max_offset_s,
+            output,
+        } => {
+            let reference = read_reference(reference)?;
+            let options = dynamic::DynamicOptions {
+                axis: *axis as usize,
+                max_offset_s: *max_offset_s,
+                ..Default::default()
+            };
+            let want = |s: DynamicSource| *source == DynamicSource::Both || *source == s;
+            let mut runs = [None, None];
+            for (k, (flag, src)) in [
+                (DynamicSource::Raw, Source::Raw),
+                (DynamicSource::Corrected, Source::Corrected),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                if !want(flag) {
+                    continue;
+                }
+                match read(recording, src) {
+                    Ok(series) => {
+                        runs[k] = Some(
+                            dynamic::analyze(&series, &reference, &options).with_context(|| {
+                                format!("dynamic analysis of the {src:?} stream")
+                            })?,
+                        );
+                    }
+                    Err(e) if *source == DynamicSource::Both => {
+                        eprintln!("imu-analyze: warning: skipping the {src:?} stream: {e:#}");
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            let [raw, corrected] = runs;
+            if raw.is_none() && corrected.is_none() {
+                bail!(
+                    "{}: neither the raw nor the corrected stream could be read",
+                    recording.display()
+                );
+            }
+            let r = dynamic::compare(&reference, raw, corrected);
+            let text = format!("{}\n", r.summary);
+            let charts = dynamic::charts(&r);
+            let section = report::dynamic_section(&r, &charts);
+            emit(output, &r, &text, section, &charts, "dynamic")
+        }
+    }
+}
+
+fn read_reference(path: &Path) -> Result<dynamic::Reference> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("csv") | Some("txt") => dynamic::Reference::read_csv(path)
+            .with_context(|| format!("reading the reference angle CSV {}", path.display())),
+        _ => {
+            let p = Progress::start("reading truth", path);
+            let truth = imu_bus::truth::read_truth(path).with_context(|| {
+                format!(
+                    "reading the reference truth file {} (a CSV must end in .csv)",
+                    path.display()
+                )
+            })?;
+            p.done(&format!("{} samples", truth.samples.len()));
+            if truth.samples.is_empty() {
+                bail!("{}: the truth file has no samples", path.display());
+            }
+            Ok(dynamic::Reference::from_truth(
+                &truth,
+                &path.display().to_string(),
+            ))
+        }
+    }
+}
