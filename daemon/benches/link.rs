@@ -86,16 +86,26 @@ fn recorded_raw(dir: &Path) -> usize {
     n
 }
 
-fn throughput() {
+/// Streams `n_frames` through the pty, either as fast as the link allows (`rate_hz` = None) or
+/// paced at `rate_hz` in real time (the simulated baud rate is set high enough not to limit it).
+fn throughput(n_frames: u64, rate_hz: Option<f64>) {
     let dir = tempfile::tempdir().expect("tmp");
-    let name = format!("bench-tp-{}", std::process::id());
-    let n_frames = 300_000u64;
-    let rate = 1000.0;
-    let text = scenario(rate, n_frames as f64 / rate, 4_000_000);
+    let name = format!(
+        "bench-tp-{}-{}",
+        rate_hz.unwrap_or(0.0) as u64,
+        std::process::id()
+    );
+    let rate = rate_hz.unwrap_or(1000.0);
+    let text = scenario(rate, n_frames as f64 / rate, 100_000_000);
     let daemon = imud(dir.path(), &name, 4_000_000);
     let mut sub =
         Subscription::<RawSample>::open(&name, Duration::from_secs(10)).expect("subscriber");
-    let sim = sim(dir.path(), &text, Pacing::Fast);
+    let pacing = if rate_hz.is_some() {
+        Pacing::RealTime
+    } else {
+        Pacing::Fast
+    };
+    let sim = sim(dir.path(), &text, pacing);
     let mut received = 0usize;
     let mut first: Option<Instant> = None;
     let mut last = Instant::now();
@@ -119,7 +129,10 @@ fn throughput() {
     let logged = recorded_raw(dir.path());
     let secs = (last - t0).as_secs_f64();
     println!(
-        "throughput: {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
+        "throughput ({}): {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
+        rate_hz.map_or("as fast as the pty allows".to_string(), |r| format!(
+            "paced at {r} Hz"
+        )),
         report.data_replies - 1,
         secs,
         (report.data_replies - 1) as f64 / secs,
@@ -192,7 +205,8 @@ fn cpu(rate_hz: f64) {
 }
 
 fn main() {
-    throughput();
+    throughput(600_000, Some(60_000.0));
+    throughput(300_000, None);
     latency();
     cpu(100.0);
     cpu(1000.0);
