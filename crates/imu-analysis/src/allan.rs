@@ -231,13 +231,28 @@ const PARALLEL_MIN_PHASE_POINTS: usize = 1 << 20;
 
 /// Integrates rate data into phase: `x[0] = 0`, `x[i+1] = tau0 * (y[0] + ... + y[i])`.
 pub fn phase_from_rate(y: &[f64], tau0_s: f64) -> Vec<f64> {
-    let mut x = Vec::with_capacity(y.len() + 1);
-    x.push(0.0);
-    let mut sum = 0.0;
-    for &v in y {
-        sum += v;
-        x.push(sum * tau0_s);
+    let mut x = vec![0.0; y.len() + 1];
+    // A running sum is one long dependency chain: for long series scan the two halves on two
+    // threads, the second starting from the first half's total. That total is summed in the
+    // same order as the serial scan would have, so the result is bit-identical to it.
+    let scan = |out: &mut [f64], ys: &[f64], start: f64| {
+        let mut sum = start;
+        for (o, &v) in out.iter_mut().zip(ys) {
+            sum += v;
+            *o = sum * tau0_s;
+        }
+    };
+    if y.len() < PARALLEL_MIN_PHASE_POINTS {
+        scan(&mut x[1..], y, 0.0);
+        return x;
     }
+    let mid = y.len() / 2;
+    let (first, second) = x[1..].split_at_mut(mid);
+    std::thread::scope(|scope| {
+        scope.spawn(|| scan(first, &y[..mid], 0.0));
+        let offset: f64 = y[..mid].iter().sum();
+        scan(second, &y[mid..], offset);
+    });
     x
 }
 
@@ -252,13 +267,23 @@ fn sum_by(idx: impl Iterator<Item = usize>, f: impl Fn(usize) -> f64) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
-/// Sum over all i of (x[i+2m] - 2 x[i+m] + x[i])^2: the overlapping Allan hot loop, written
-/// over zipped slices in blocks of four so it compiles to bounds-check-free SIMD.
+/// Sum over all i of (x[i+2m] - 2 x[i+m] + x[i])^2: the overlapping Allan hot loop.
 fn second_difference_sum_sq(x: &[f64], m: usize) -> f64 {
-    let len = x.len() - 2 * m;
-    let (x0, x1, x2) = (&x[..len], &x[m..m + len], &x[2 * m..2 * m + len]);
-    let mut acc = [0.0f64; 4];
-    let (c0, c1, c2) = (x0.chunks_exact(4), x1.chunks_exact(4), x2.chunks_exact(4));
+    second_difference_sum_sq_range(x, m, 0, x.len() - 2 * m)
+}
+
+/// The same sum for `i` in `lo..hi`, written over zipped slices in blocks of four so it compiles
+/// to bounds-check-free SIMD.
+fn second_difference_sum_sq_range(x: &[f64], m: usize, lo: usize, hi: usize) -> f64 {
+    let len = hi - lo;
+    let (x0, x1, x2) = (
+        &x[lo..lo + len],
+        &x[lo + m..lo + m + len],
+        &x[lo + 2 * m..lo + 2 * m + len],
+    );
+    // Eight independent accumulators: enough parallel add chains to hide the FP add latency.
+    let mut acc = [0.0f64; 8];
+    let (c0, c1, c2) = (x0.chunks_exact(8), x1.chunks_exact(8), x2.chunks_exact(8));
     let tail: f64 = c0
         .remainder()
         .iter()
@@ -270,12 +295,56 @@ fn second_difference_sum_sq(x: &[f64], m: usize) -> f64 {
         })
         .sum();
     for ((a, b), c) in c0.zip(c1).zip(c2) {
-        for k in 0..4 {
+        for k in 0..8 {
             let d = c[k] - 2.0 * b[k] + a[k];
             acc[k] += d * d;
         }
     }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + tail
+}
+
+/// Overlapping second-difference sums for every `m` in `ms` at once, over `i` in `range`, in one
+/// blocked pass: a block of `x` and its blocks at offsets m and 2m stay in cache while all taus
+/// use them, and with octave taus the offset 2m of one tau is the offset m of the next, so memory
+/// is read about once per distinct offset instead of three times per tau.
+fn second_difference_sums_blocked(
+    x: &[f64],
+    ms: &[usize],
+    range: std::ops::Range<usize>,
+) -> Vec<f64> {
+    const BLOCK: usize = 16384;
+    let mut sums = vec![0.0; ms.len()];
+    let mut i0 = range.start;
+    while i0 < range.end {
+        let i1 = (i0 + BLOCK).min(range.end);
+        for (sum, &m) in sums.iter_mut().zip(ms) {
+            let hi = i1.min(x.len() - 2 * m);
+            if hi > i0 {
+                *sum += second_difference_sum_sq_range(x, m, i0, hi);
+            }
+        }
+        i0 = i1;
+    }
+    sums
+}
+
+/// All OADEV second-difference sums for `ms` (each `m <= (x.len() - 1) / 2`), on two threads for
+/// long series (split by `i`, so both threads stream the same amount of memory).
+fn oadev_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
+    let Some(&m_min) = ms.iter().min() else {
+        return Vec::new();
+    };
+    let end = x.len() - 2 * m_min;
+    if x.len() < PARALLEL_MIN_PHASE_POINTS {
+        return second_difference_sums_blocked(x, ms, 0..end);
+    }
+    let mid = end / 2;
+    let (a, b) = std::thread::scope(|scope| {
+        let other = scope.spawn(|| second_difference_sums_blocked(x, ms, mid..end));
+        let mine = second_difference_sums_blocked(x, ms, 0..mid);
+        (mine, other.join().expect("deviation worker panicked"))
+    });
+    a.iter().zip(&b).map(|(p, q)| p + q).collect()
 }
 
 fn check(n_y: usize, tau0_s: f64) -> Result<(), AllanError> {
@@ -463,8 +532,26 @@ pub fn deviation_from_phase(
             },
         });
     }
+    // OADEV: every tau in one blocked pass (see `oadev_sums`).
+    let fused: Vec<(usize, f64)> = if kind == Kind::Oadev {
+        let ms: Vec<usize> = factors
+            .iter()
+            .copied()
+            .filter(|&m| m <= kind.max_m(n))
+            .collect();
+        ms.iter().copied().zip(oadev_sums(x, &ms)).collect()
+    } else {
+        Vec::new()
+    };
     let point = |m: usize| {
-        let (var, n_terms) = variance_at(kind, x, &cx, m, tau0_s)?;
+        let (var, n_terms) = match fused.iter().find(|(fm, _)| *fm == m) {
+            Some(&(_, sum)) => {
+                let terms = n - 2 * m;
+                let tau = m as f64 * tau0_s;
+                (sum / (2.0 * terms as f64 * tau * tau), terms)
+            }
+            None => variance_at(kind, x, &cx, m, tau0_s)?,
+        };
         Some(DevPoint {
             m,
             tau_s: m as f64 * tau0_s,
@@ -477,29 +564,30 @@ pub fn deviation_from_phase(
     };
     // Long series: the taus are independent passes over memory; split them over two threads
     // (interleaved, so both get short and long taus). Results do not depend on the split.
-    let mut points: Vec<DevPoint> = if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 {
-        let (mut a, b) = std::thread::scope(|scope| {
-            let other = scope.spawn(|| {
-                factors
+    let mut points: Vec<DevPoint> =
+        if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && kind != Kind::Oadev {
+            let (mut a, b) = std::thread::scope(|scope| {
+                let other = scope.spawn(|| {
+                    factors
+                        .iter()
+                        .skip(1)
+                        .step_by(2)
+                        .filter_map(|&m| point(m))
+                        .collect::<Vec<_>>()
+                });
+                let mine: Vec<DevPoint> = factors
                     .iter()
-                    .skip(1)
                     .step_by(2)
                     .filter_map(|&m| point(m))
-                    .collect::<Vec<_>>()
+                    .collect();
+                (mine, other.join().expect("deviation worker panicked"))
             });
-            let mine: Vec<DevPoint> = factors
-                .iter()
-                .step_by(2)
-                .filter_map(|&m| point(m))
-                .collect();
-            (mine, other.join().expect("deviation worker panicked"))
-        });
-        a.extend(b);
-        a.sort_by_key(|p| p.m);
-        a
-    } else {
-        factors.iter().filter_map(|&m| point(m)).collect()
-    };
+            a.extend(b);
+            a.sort_by_key(|p| p.m);
+            a
+        } else {
+            factors.iter().filter_map(|&m| point(m)).collect()
+        };
     // EDF: noise type per tau from the local slope of this curve (or the given type).
     let slopes: Vec<f64> = (0..points.len())
         .map(|i| {
