@@ -243,6 +243,11 @@ fn run(args: &Args) -> Result<()> {
                 bail!("--bin-s must be a positive number of seconds, got {bin_s}");
             }
             let series = read(recording, (*source).into())?;
+            // The thermal analysis reads output drift as temperature dependence: motion would
+            // masquerade as a thermal effect.
+            if let Some(w) = series.motion_warning() {
+                eprintln!("imu-analyze: warning: {}: {w}", recording.display());
+            }
             let r = thermal::analyze(
                 &series,
                 &thermal::ThermalOptions {

@@ -330,6 +330,9 @@ fn run(cli: &Cli) -> Result<()> {
     }
     let series = read_any(&cli.recording, source, &csv)
         .with_context(|| format!("reading {}", cli.recording.display()))?;
+    if let Some(w) = series.motion_warning() {
+        eprintln!("imu-noise: warning: {}: {w}", cli.recording.display());
+    }
     let reports = analyse(&series, cli.taus)?;
     if let Some(dir) = &cli.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -117,6 +117,52 @@ impl ImuSeries {
     }
 }
 
+impl ImuSeries {
+    /// Says whether the sensor moved: means over 10-second windows that differ by more than
+    /// 0.5 m/s^2 (about 50 mg: a tilt of ~3 degrees) on an accelerometer axis or 0.02 rad/s on a
+    /// gyro axis cannot be noise or drift of a still MEMS unit. `None` when the data look static.
+    /// Noise analyses of moving data measure the motion, so their tools warn with this text.
+    pub fn motion_warning(&self) -> Option<String> {
+        let rate = self.sample_rate_hz();
+        if !rate.is_finite() {
+            return None;
+        }
+        let window = ((10.0 * rate) as usize).max(1);
+        let spans = |data: &[[f64; 3]]| -> [f64; 3] {
+            std::array::from_fn(|axis| {
+                let means: Vec<f64> = data
+                    .chunks(window)
+                    .filter(|c| c.len() == window)
+                    .map(|c| c.iter().map(|v| v[axis]).sum::<f64>() / window as f64)
+                    .collect();
+                let (lo, hi) = means
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &m| {
+                        (lo.min(m), hi.max(m))
+                    });
+                if means.len() < 2 { 0.0 } else { hi - lo }
+            })
+        };
+        let (accel, gyro) = (spans(&self.accel_m_s2), spans(&self.gyro_rad_s));
+        let names = ["x", "y", "z"];
+        for i in 0..3 {
+            if accel[i] > 0.5 {
+                return Some(format!(
+                    "the sensor moved: 10 s means of accel {} span {:.3} m/s^2; an Allan analysis of moving data measures the motion, not the noise (record with the IMU still)",
+                    names[i], accel[i]
+                ));
+            }
+            if gyro[i] > 0.02 {
+                return Some(format!(
+                    "the sensor moved: 10 s means of gyro {} span {:.4} rad/s; an Allan analysis of moving data measures the motion, not the noise (record with the IMU still)",
+                    names[i], gyro[i]
+                ));
+            }
+        }
+        None
+    }
+}
+
 fn vec3(v: &imu_bus::ros2::Vector3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
@@ -365,6 +411,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("a.csv:3:"), "{e}");
+    }
+
+    #[test]
+    fn motion_is_told_from_noise() {
+        let n = 10_000;
+        let still = ImuSeries {
+            t_s: (0..n).map(|i| i as f64 * 0.01).collect(),
+            accel_m_s2: (0..n)
+                .map(|i| [0.01 * ((i * 7919) % 13) as f64, 0.0, 9.8])
+                .collect(),
+            gyro_rad_s: vec![[1e-3, 0.0, 0.0]; n],
+            ..ImuSeries::default()
+        };
+        assert_eq!(still.motion_warning(), None);
+        let mut tilted = still.clone();
+        for v in &mut tilted.accel_m_s2[n / 2..] {
+            v[0] += 1.7; // a 10-degree tilt halfway through
+        }
+        let w = tilted.motion_warning().expect("a tilt is motion");
+        assert!(w.contains("accel x"), "{w}");
     }
 
     #[test]
