@@ -291,6 +291,13 @@ pub fn quiet_iceoryx2_logs() {
     iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
 }
 
+/// Applies [`quiet_iceoryx2_logs`] once per process, before the first node is created (so
+/// every program using these services gets it without having to remember).
+fn quiet_once() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(quiet_iceoryx2_logs);
+}
+
 /// Event ids sent on `imud/<instance>/event`. Every listener wakes on every id; the id tells
 /// what changed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -527,6 +534,7 @@ impl Publishers {
     /// Fails with [`ShmError::AlreadyPublishing`] when a live process publishes on the same
     /// instance.
     pub fn open(instance: &str, options: &ShmOptions) -> Result<Publishers, ShmError> {
+        quiet_once();
         validate_instance_name(instance)?;
         let names = ServiceNames::for_instance(instance);
         let stale_nodes_removed = remove_dead_nodes(Config::global_config())?;
@@ -702,6 +710,7 @@ impl<T: ShmPayload> Subscription<T> {
     /// Fails with [`ShmError::NotRunning`] when the services do not appear in time and with
     /// [`ShmError::IncompatibleType`] when the daemon publishes another layout version.
     pub fn open(instance: &str, open_timeout: Duration) -> Result<Self, ShmError> {
+        quiet_once();
         validate_instance_name(instance)?;
         let names = ServiceNames::for_instance(instance);
         let name = names.of(T::STREAM).to_owned();
