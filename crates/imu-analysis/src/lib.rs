@@ -6,11 +6,13 @@
 
 pub mod allan;
 pub mod dynamic;
+pub mod fit;
 pub mod impact;
 pub mod input;
 pub mod noise;
 pub mod plot;
 pub mod report;
+pub mod segment;
 pub mod thermal;
 
 pub use input::{ImuSeries, InputError, Source};

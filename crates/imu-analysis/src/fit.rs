@@ -1,0 +1,947 @@
+//! Weighted Levenberg-Marquardt fit of a [`TriadModel`]'s parameters to segment means (Aslan &
+//! Saranli 3.1.2 and 3.2.2-3.2.3: multi-position static and rate-table calibration).
+//!
+//! Each observation is a segment: the TRUE input over it (specific force or angular rate, from a
+//! reference), the MEASURED mean and the standard error of that mean. The residual is
+//! `forward(true) - measured`, weighted by the standard error; the Jacobian is numeric (central
+//! differences), so any effect of the model library can be fitted. Parameter standard errors
+//! come from `(J^T W J)^-1` scaled by the reduced chi-square (the segment means carry drift and
+//! unmodelled effects that their white-noise standard errors do not show). Parameters the data
+//! cannot separate (a zero or collinear column of the normalised normal matrix) are held at
+//! their starting values and reported as unobservable instead of being given a meaningless
+//! number.
+
+use imu_model::nalgebra::{DMatrix, DVector, SymmetricEigen};
+use imu_model::{Conditions, EffectKind, Triad, TriadModel, Vec3};
+
+/// One observation: a segment's true input and measured mean.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitPoint {
+    /// True input of the triad over the segment (m/s^2 or rad/s).
+    pub true_input: Vec3,
+    /// Measured mean over the segment (same unit).
+    pub measured: Vec3,
+    /// Standard error of the measured mean per axis (same unit, > 0).
+    pub std_error: Vec3,
+    /// Conditions of the segment (temperature, true specific force for g-sensitivity, ...).
+    pub conditions: Conditions,
+    /// Time of the segment (its middle), s; orders the segments for the drift model.
+    pub t_s: f64,
+}
+
+/// Settings of [`fit_triad`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Iteration budget.
+    pub max_iterations: usize,
+    /// Stop when the relative cost change falls below this.
+    pub tolerance: f64,
+    /// Smallest eigenvalue of the normalised normal matrix (unit diagonal) still counted as
+    /// observable: 1 - (multiple correlation) of the weakest parameter combination.
+    pub min_eigenvalue: f64,
+    /// Parameters to hold at their starting values (layout of [`TriadModel::params`]); empty =
+    /// all free.
+    pub fixed: Vec<bool>,
+    /// Standard deviation of the bias's wander over the recording per axis (triad unit), added
+    /// in quadrature to the standard errors of `bias.*`. A drift common to every segment looks
+    /// exactly like bias, so no residual shows it: it must come from a noise characterisation
+    /// (see [`bias_drift_from_noise`]).
+    pub bias_drift: Option<[f64; 3]>,
+    /// Model excess scatter of the segment means as a random-walk drift in time (so contrasts
+    /// between early and late segments get the larger uncertainty they have) instead of white
+    /// scatter; the drift rate is estimated per axis from the residuals. Off by default: on
+    /// the simulated 3DM-GX1 (flicker-dominated drift, 12-24 segments) the estimated rate is
+    /// too noisy and the standard errors came out worse than with white scatter scaled by the
+    /// reduced chi-square.
+    pub drift_model: bool,
+}
+
+/// Bias wander over a recording of `duration_s` from a noise model: bias instability `B` and
+/// rate random walk `K` over the span, `sqrt(B^2 + K^2 T / 3)` per axis (the variance of a
+/// random walk's deviation from its mean over `T` is `K^2 T / 3`).
+pub fn bias_drift_from_noise(noise: &imu_model::NoiseModel, duration_s: f64) -> [f64; 3] {
+    std::array::from_fn(|a| {
+        (noise.bias_instability[a].powi(2) + noise.random_walk[a].powi(2) * duration_s / 3.0).sqrt()
+    })
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            max_iterations: 100,
+            tolerance: 1e-12,
+            min_eigenvalue: 1e-8,
+            fixed: Vec::new(),
+            bias_drift: None,
+            drift_model: false,
+        }
+    }
+}
+
+/// Why a parameter was not fitted.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Unobservable {
+    /// Parameter name (`<effect>.<name>`).
+    pub name: String,
+    /// Why (zero column, or collinear with which parameters).
+    pub reason: String,
+}
+
+/// Result of [`fit_triad`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FitResult {
+    /// Which triad.
+    pub triad: Triad,
+    /// The fitted model, with standard errors and residual RMS set (an effect with a held
+    /// parameter carries no standard errors).
+    #[serde(skip)]
+    pub model: TriadModel,
+    /// Parameter names, layout of [`TriadModel::params`].
+    pub names: Vec<String>,
+    /// Parameter units.
+    pub units: Vec<String>,
+    /// Fitted values.
+    pub params: Vec<f64>,
+    /// Standard errors; `None` for parameters held fixed or unobservable.
+    pub std_errors: Vec<Option<f64>>,
+    /// Correlation matrix of the free parameters (rows/cols in the order of `free`).
+    pub correlation: Vec<Vec<f64>>,
+    /// Indices of the fitted parameters.
+    pub free: Vec<usize>,
+    /// Parameters the data could not determine (held at their starting values).
+    pub unobservable: Vec<Unobservable>,
+    /// Per-axis RMS of `forward(true) - measured` over the observations (triad unit).
+    pub residual_rms: [f64; 3],
+    /// Per-observation residuals (triad unit).
+    pub residuals: Vec<[f64; 3]>,
+    /// Weighted sum of squared residuals.
+    pub chi2: f64,
+    /// Degrees of freedom (observations - free parameters).
+    pub dof: usize,
+    /// chi2 / dof (the covariance is scaled by it when above 1).
+    pub reduced_chi2: f64,
+    /// Random-walk drift estimated from the excess scatter of the segment means per axis,
+    /// unit/sqrt(s) (0 where the white errors explain the scatter, or with the drift model off).
+    pub drift_random_walk: [f64; 3],
+    /// Iterations taken.
+    pub iterations: usize,
+    /// True if the cost settled within the budget.
+    pub converged: bool,
+    /// Human-readable notes (poor conditioning, high correlations, held parameters).
+    pub warnings: Vec<String>,
+}
+
+/// Failures of [`fit_triad`].
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// Fewer residuals than free parameters.
+    #[error(
+        "{triad}: {n_obs} residuals ({n_points} segments x 3 axes) cannot determine {n_free} \
+         parameters with any degrees of freedom left; record more positions"
+    )]
+    TooFewObservations {
+        /// Triad.
+        triad: Triad,
+        /// Segments.
+        n_points: usize,
+        /// Residuals.
+        n_obs: usize,
+        /// Free parameters.
+        n_free: usize,
+    },
+    /// Nothing to fit.
+    #[error("{triad}: the model has no free observable parameters")]
+    NothingToFit {
+        /// Triad.
+        triad: Triad,
+    },
+    /// A standard error or value was not finite and positive.
+    #[error("{triad}: observation {index} has a non-finite value or a standard error <= 0")]
+    BadObservation {
+        /// Triad.
+        triad: Triad,
+        /// Index of the observation.
+        index: usize,
+    },
+    /// The `fixed` mask does not match the model.
+    #[error("{triad}: fixed mask has {got} entries, the model {expected} parameters")]
+    MaskLength {
+        /// Triad.
+        triad: Triad,
+        /// Given.
+        got: usize,
+        /// Model parameter count.
+        expected: usize,
+    },
+}
+
+/// Per-axis whitening of the residuals: `L_a^-1` of the covariance of the segment means on
+/// axis `a`, `C_kl = se_k^2 delta_kl + q_a min(t_k, t_l)` (white error of each mean plus a
+/// random-walk drift of rate variance `q_a` shared by all segments of that axis).
+#[derive(Clone, Debug)]
+struct Whitener {
+    l_inv: [DMatrix<f64>; 3],
+}
+
+impl Whitener {
+    fn new(points: &[FitPoint], q: [f64; 3]) -> Whitener {
+        let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+        let n = points.len();
+        let l_inv = std::array::from_fn(|a| {
+            let c = DMatrix::from_fn(n, n, |k, l| {
+                let white = if k == l {
+                    points[k].std_error[a].powi(2)
+                } else {
+                    0.0
+                };
+                white + q[a] * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0)
+            });
+            let l = c.cholesky().expect("diagonal > 0 plus a PSD term").l();
+            l.try_inverse()
+                .expect("triangular with a positive diagonal")
+        });
+        Whitener { l_inv }
+    }
+
+    /// Whitened residuals (layout `3 k + axis`) from raw ones.
+    fn apply(&self, raw: &DVector<f64>) -> DVector<f64> {
+        let n = raw.len() / 3;
+        let mut out = DVector::zeros(raw.len());
+        for a in 0..3 {
+            let ra = DVector::from_fn(n, |k, _| raw[3 * k + a]);
+            let wa = &self.l_inv[a] * ra;
+            for k in 0..n {
+                out[3 * k + a] = wa[k];
+            }
+        }
+        out
+    }
+
+    /// Whitened sum of squares of one axis of raw residuals.
+    fn axis_chi2(&self, raw: &DVector<f64>, a: usize) -> f64 {
+        let n = raw.len() / 3;
+        let ra = DVector::from_fn(n, |k, _| raw[3 * k + a]);
+        (&self.l_inv[a] * ra).norm_squared()
+    }
+}
+
+/// Raw residuals `forward(true) - measured` at parameter vector `p` (layout `3 k + axis`).
+fn raw_residuals(model: &mut TriadModel, p: &[f64], points: &[FitPoint]) -> DVector<f64> {
+    model.set_params(p);
+    let mut r = DVector::zeros(3 * points.len());
+    for (k, pt) in points.iter().enumerate() {
+        let y = model.forward(pt.true_input, &pt.conditions);
+        for a in 0..3 {
+            r[3 * k + a] = y[a] - pt.measured[a];
+        }
+    }
+    r
+}
+
+/// Numeric Jacobian of the whitened residuals with respect to the free parameters.
+fn jacobian(
+    model: &mut TriadModel,
+    p: &[f64],
+    free: &[usize],
+    points: &[FitPoint],
+    w: &Whitener,
+) -> DMatrix<f64> {
+    let mut j = DMatrix::zeros(3 * points.len(), free.len());
+    let mut q = p.to_vec();
+    for (c, &i) in free.iter().enumerate() {
+        let h = 1e-6 * p[i].abs().max(1e-3);
+        q[i] = p[i] + h;
+        let up = raw_residuals(model, &q, points);
+        q[i] = p[i] - h;
+        let down = raw_residuals(model, &q, points);
+        q[i] = p[i];
+        j.set_column(c, &w.apply(&((up - down) / (2.0 * h))));
+    }
+    model.set_params(p);
+    j
+}
+
+/// Levenberg-Marquardt with Marquardt's diagonal scaling from `p`; returns the whitened cost,
+/// the iterations and whether it converged.
+fn solve(
+    m: &mut TriadModel,
+    p: &mut Vec<f64>,
+    free: &[usize],
+    points: &[FitPoint],
+    w: &Whitener,
+    opts: &FitOptions,
+) -> (f64, usize, bool) {
+    let mut r = w.apply(&raw_residuals(m, p, points));
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    while iterations < opts.max_iterations {
+        iterations += 1;
+        let j = jacobian(m, p, free, points, w);
+        let a = j.transpose() * &j;
+        let g = j.transpose() * &r;
+        let mut improved = false;
+        for _ in 0..20 {
+            let mut damped = a.clone();
+            for d in 0..free.len() {
+                damped[(d, d)] += lambda * a[(d, d)].max(1e-30);
+            }
+            let Some(step) = damped.cholesky().map(|c| c.solve(&(-&g))) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut q = p.clone();
+            for (c, &i) in free.iter().enumerate() {
+                q[i] += step[c];
+            }
+            let rq = w.apply(&raw_residuals(m, &q, points));
+            let cq = rq.norm_squared();
+            if cq.is_finite() && cq <= cost {
+                let change = (cost - cq) / cost.max(1e-300);
+                *p = q;
+                r = rq;
+                cost = cq;
+                lambda = (lambda / 10.0).max(1e-12);
+                improved = true;
+                if change < opts.tolerance {
+                    m.set_params(p);
+                    return (cost, iterations, true);
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            // No downhill step at any damping: at the minimum to machine precision.
+            m.set_params(p);
+            return (cost, iterations, true);
+        }
+    }
+    m.set_params(p);
+    (cost, iterations, false)
+}
+
+/// The drift rate variance `q` of one axis that brings its whitened chi-square down to `dof`
+/// (0 if the white errors already explain the scatter), by bisection in log q.
+fn drift_q(points: &[FitPoint], raw: &DVector<f64>, mut q: [f64; 3], a: usize, dof: f64) -> f64 {
+    let mut chi2 = |qa: f64| {
+        q[a] = qa;
+        Whitener::new(points, q).axis_chi2(raw, a)
+    };
+    if chi2(0.0) <= dof {
+        return 0.0;
+    }
+    let span_s = points
+        .iter()
+        .map(|p| p.t_s)
+        .fold(f64::NEG_INFINITY, f64::max)
+        - points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+    let scale = (0..points.len())
+        .map(|k| raw[3 * k + a].powi(2))
+        .fold(0.0, f64::max)
+        / span_s.max(1e-9);
+    let (mut lo, mut hi) = (scale * 1e-12, scale);
+    while chi2(hi) > dof && hi < scale * 1e12 {
+        hi *= 10.0;
+    }
+    for _ in 0..60 {
+        let mid = (lo * hi).sqrt();
+        if chi2(mid) > dof {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Find the free parameters the data cannot determine. Zero columns go first; then, while the
+/// normalised normal matrix has an eigenvalue below `min_eig`, the parameter with a large share
+/// in that eigenvector that comes LAST in canonical order is dropped (secondary effects such as
+/// g-sensitivity follow the bias, so a g-sensitivity column collinear with a bias goes, not the
+/// bias).
+fn find_unobservable(
+    model: &mut TriadModel,
+    p: &[f64],
+    free: &mut Vec<usize>,
+    points: &[FitPoint],
+    names: &[String],
+    min_eig: f64,
+) -> Vec<Unobservable> {
+    let mut out = Vec::new();
+    let w = Whitener::new(points, [0.0; 3]);
+    loop {
+        if free.is_empty() {
+            return out;
+        }
+        let j = jacobian(model, p, free, points, &w);
+        let norms: Vec<f64> = (0..free.len()).map(|c| j.column(c).norm()).collect();
+        let max_norm = norms.iter().copied().fold(0.0, f64::max);
+        if let Some(c) = norms
+            .iter()
+            .position(|n| *n <= 1e-12 * max_norm.max(1e-300))
+        {
+            out.push(Unobservable {
+                name: names[free[c]].clone(),
+                reason: "the data do not excite it (zero Jacobian column)".into(),
+            });
+            free.remove(c);
+            continue;
+        }
+        let mut jn = j.clone();
+        for (c, n) in norms.iter().enumerate() {
+            jn.column_mut(c).unscale_mut(*n);
+        }
+        let eig = SymmetricEigen::new(jn.transpose() * &jn);
+        let (k, lam) = eig
+            .eigenvalues
+            .iter()
+            .copied()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .expect("non-empty");
+        if lam >= min_eig {
+            return out;
+        }
+        let v = eig.eigenvectors.column(k);
+        let involved: Vec<usize> = (0..free.len()).filter(|&c| v[c].abs() > 0.1).collect();
+        let drop = *involved.last().unwrap_or(&(free.len() - 1));
+        let others: Vec<&str> = involved
+            .iter()
+            .filter(|&&c| c != drop)
+            .map(|&c| names[free[c]].as_str())
+            .collect();
+        out.push(Unobservable {
+            name: names[free[drop]].clone(),
+            reason: format!(
+                "collinear with {} in these data (eigenvalue {lam:.1e} of the normalised normal \
+                 matrix); vary the input (e.g. gravity direction) to separate them",
+                if others.is_empty() {
+                    "other parameters".to_string()
+                } else {
+                    others.join(", ")
+                }
+            ),
+        });
+        free.remove(drop);
+    }
+}
+
+/// Fit the parameters of `model` (its current values are the starting point; the effects
+/// present define what is fitted) to `points`.
+pub fn fit_triad(
+    model: &TriadModel,
+    triad: Triad,
+    points: &[FitPoint],
+    opts: &FitOptions,
+) -> Result<FitResult, FitError> {
+    for (index, pt) in points.iter().enumerate() {
+        let ok = (0..3).all(|a| {
+            pt.true_input[a].is_finite()
+                && pt.measured[a].is_finite()
+                && pt.std_error[a].is_finite()
+                && pt.std_error[a] > 0.0
+        });
+        if !ok {
+            return Err(FitError::BadObservation { triad, index });
+        }
+    }
+    let mut m = model.clone();
+    let names = m.param_names(triad);
+    let units = m.param_units(triad);
+    let np = m.n_params();
+    if !opts.fixed.is_empty() && opts.fixed.len() != np {
+        return Err(FitError::MaskLength {
+            triad,
+            got: opts.fixed.len(),
+            expected: np,
+        });
+    }
+    let mut p = m.params();
+    let mut free: Vec<usize> = (0..np)
+        .filter(|&i| !opts.fixed.get(i).copied().unwrap_or(false))
+        .collect();
+    let unobservable =
+        find_unobservable(&mut m, &p, &mut free, points, &names, opts.min_eigenvalue);
+    if free.is_empty() {
+        return Err(FitError::NothingToFit { triad });
+    }
+    let n_obs = 3 * points.len();
+    if n_obs <= free.len() {
+        return Err(FitError::TooFewObservations {
+            triad,
+            n_points: points.len(),
+            n_obs,
+            n_free: free.len(),
+        });
+    }
+
+    // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
+    // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
+    let mut q = [0.0; 3];
+    let mut w = Whitener::new(points, q);
+    let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
+    if opts.drift_model {
+        let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
+        for _ in 0..8 {
+            let raw = raw_residuals(&mut m, &p, points);
+            let next: [f64; 3] = std::array::from_fn(|a| drift_q(points, &raw, q, a, dof_axis));
+            let settled = (0..3).all(|a| (next[a] - q[a]).abs() <= 1e-3 * next[a].max(1e-300));
+            q = next;
+            w = Whitener::new(points, q);
+            let (c, it, conv) = solve(&mut m, &mut p, &free, points, &w, opts);
+            cost = c;
+            iterations += it;
+            converged = conv;
+            if settled {
+                break;
+            }
+        }
+    }
+
+    let dof = n_obs - free.len();
+    let reduced_chi2 = cost / dof as f64;
+    let j = jacobian(&mut m, &p, &free, points, &w);
+    let a = j.transpose() * &j;
+    let mut warnings = Vec::new();
+    // Scale by the reduced chi-square only upwards: below 1 the white errors are trusted.
+    let mut cov = match a.clone().try_inverse() {
+        Some(inv) => inv * reduced_chi2.max(1.0),
+        None => {
+            warnings.push("normal matrix not invertible: no standard errors".into());
+            DMatrix::from_element(free.len(), free.len(), f64::NAN)
+        }
+    };
+    if let Some(drift) = opts.bias_drift {
+        for (c, &i) in free.iter().enumerate() {
+            let axis = ["bias.x", "bias.y", "bias.z"]
+                .iter()
+                .position(|n| *n == names[i]);
+            if let Some(axis) = axis {
+                cov[(c, c)] += drift[axis].powi(2);
+            }
+        }
+    }
+    let mut std_errors = vec![None; np];
+    for (c, &i) in free.iter().enumerate() {
+        std_errors[i] = Some(cov[(c, c)].max(0.0).sqrt());
+    }
+    let nf = free.len();
+    let mut correlation = vec![vec![0.0; nf]; nf];
+    for a_ in 0..nf {
+        for b in 0..nf {
+            correlation[a_][b] = cov[(a_, b)] / (cov[(a_, a_)] * cov[(b, b)]).sqrt();
+            if a_ < b && correlation[a_][b].abs() > 0.99 {
+                warnings.push(format!(
+                    "{} and {} are correlated {:.3}: poorly separated by these data",
+                    names[free[a_]], names[free[b]], correlation[a_][b]
+                ));
+            }
+        }
+    }
+    for u in &unobservable {
+        warnings.push(format!("{} not fitted: {}", u.name, u.reason));
+    }
+    if !converged {
+        warnings.push(format!("not converged after {iterations} iterations"));
+    }
+
+    let mut residuals_u = Vec::with_capacity(points.len());
+    let mut sq = [0.0; 3];
+    for pt in points {
+        let d = m.forward(pt.true_input, &pt.conditions) - pt.measured;
+        for a_ in 0..3 {
+            sq[a_] += d[a_] * d[a_];
+        }
+        residuals_u.push([d[0], d[1], d[2]]);
+    }
+    let residual_rms = sq.map(|s| (s / points.len() as f64).sqrt());
+    // Standard errors go into the model per effect; an effect with a held parameter gets none
+    // (a 0 would claim the held value is exact).
+    let mut rest = std_errors.as_slice();
+    for e in m.effects_mut() {
+        let (mine, tail) = rest.split_at(e.n_params().min(rest.len()));
+        rest = tail;
+        e.set_std_errors(mine.iter().copied().collect::<Option<Vec<f64>>>());
+    }
+    m.residual_rms = Some(residual_rms);
+
+    Ok(FitResult {
+        triad,
+        model: m,
+        names,
+        units,
+        params: p,
+        std_errors,
+        correlation,
+        free,
+        unobservable,
+        residual_rms,
+        residuals: residuals_u,
+        chi2: cost,
+        dof,
+        reduced_chi2,
+        drift_random_walk: q.map(f64::sqrt),
+        iterations,
+        converged,
+        warnings,
+    })
+}
+
+// ------------------------------------------------------------------ calibration from segments
+
+/// The true input over one segment, from a reference (sensor frame).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SegmentTruth {
+    /// Mean true specific force, m/s^2.
+    pub specific_force_m_s2: [f64; 3],
+    /// Mean true angular rate (including Earth rate), rad/s.
+    pub angular_rate_rad_s: [f64; 3],
+    /// Mean true temperature, deg C.
+    pub temp_c: f64,
+    /// Mean time since power-on, s.
+    pub time_since_power_on_s: f64,
+}
+
+/// Failures of the reference alignment.
+#[derive(Debug, thiserror::Error)]
+pub enum ReferenceError {
+    /// The truth file holds fewer data samples than the recording.
+    #[error(
+        "the reference has {truth_samples} data samples (command 0x01) but the recording \
+         {series_samples}: it is not the truth of this recording (or was cut short)"
+    )]
+    TooShort {
+        /// Data samples in the truth.
+        truth_samples: usize,
+        /// Samples in the series.
+        series_samples: usize,
+    },
+}
+
+/// Mean truth over each segment's samples. In an offline recording the k-th data sample is the
+/// k-th truth sample with command 0x01 (same order, no gaps), so the truth is averaged over
+/// exactly the samples of the segment.
+pub fn truth_for_segments(
+    series: &crate::ImuSeries,
+    segments: &[crate::segment::Segment],
+    truth: &imu_bus::truth::Truth,
+) -> Result<Vec<SegmentTruth>, ReferenceError> {
+    let data: Vec<&imu_bus::truth::TruthSample> =
+        truth.samples.iter().filter(|s| s.command == 0x01).collect();
+    if data.len() < series.len() {
+        return Err(ReferenceError::TooShort {
+            truth_samples: data.len(),
+            series_samples: series.len(),
+        });
+    }
+    Ok(segments
+        .iter()
+        .map(|seg| {
+            let n = seg.n as f64;
+            let mut out = SegmentTruth {
+                specific_force_m_s2: [0.0; 3],
+                angular_rate_rad_s: [0.0; 3],
+                temp_c: 0.0,
+                time_since_power_on_s: 0.0,
+            };
+            for s in &data[seg.range()] {
+                for a in 0..3 {
+                    out.specific_force_m_s2[a] += s.specific_force_m_s2[a] / n;
+                    out.angular_rate_rad_s[a] += s.angular_rate_rad_s[a] / n;
+                }
+                out.temp_c += s.temp_c / n;
+                out.time_since_power_on_s += s.time_since_power_on_s / n;
+            }
+            out
+        })
+        .collect())
+}
+
+/// What [`calibrate`] fits and how.
+#[derive(Clone, Debug)]
+pub struct CalibrateOptions {
+    /// Accel model to fit (its effects and starting values).
+    pub accel: TriadModel,
+    /// Gyro model to fit.
+    pub gyro: TriadModel,
+    /// Segmentation settings.
+    pub segment: crate::segment::SegmentOptions,
+    /// Fit settings (the `fixed` mask and `bias_drift` are ignored here).
+    pub fit: FitOptions,
+    /// Accel bias wander over the recording (m/s^2), see [`FitOptions::bias_drift`].
+    pub accel_bias_drift_m_s2: Option<[f64; 3]>,
+    /// Gyro bias wander over the recording (rad/s), see [`FitOptions::bias_drift`].
+    pub gyro_bias_drift_rad_s: Option<[f64; 3]>,
+}
+
+impl Default for CalibrateOptions {
+    /// Accel and gyro: bias + scale + misalignment.
+    fn default() -> Self {
+        let mut accel = TriadModel::default();
+        for k in [
+            EffectKind::Bias,
+            EffectKind::Scale,
+            EffectKind::Misalignment,
+        ] {
+            accel.add(k);
+        }
+        CalibrateOptions {
+            gyro: accel.clone(),
+            accel,
+            segment: Default::default(),
+            fit: FitOptions::default(),
+            accel_bias_drift_m_s2: None,
+            gyro_bias_drift_rad_s: None,
+        }
+    }
+}
+
+/// Result of [`calibrate`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CalibrationFit {
+    /// The detected segments and thresholds.
+    pub segmentation: crate::segment::Segmentation,
+    /// Truth per segment (parallel to `segmentation.segments`).
+    pub segment_truth: Vec<SegmentTruth>,
+    /// The accel fit (static segments).
+    pub accel: FitResult,
+    /// The gyro fit (static segments and rate plateaus).
+    pub gyro: FitResult,
+    /// The fitted calibration (accel and gyro; no provenance yet).
+    #[serde(skip)]
+    pub calibration: imu_model::Calibration,
+    /// Decisions taken (held parameters, ...).
+    pub notes: Vec<String>,
+}
+
+/// Failures of [`calibrate`].
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrateError {
+    /// Segmentation failed.
+    #[error(transparent)]
+    Segment(#[from] crate::segment::SegmentError),
+    /// Too few segments.
+    #[error(transparent)]
+    TooFew(#[from] crate::segment::TooFewSegments),
+    /// Reference alignment failed.
+    #[error(transparent)]
+    Reference(#[from] ReferenceError),
+    /// A fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+}
+
+/// Effects whose parameters only a large input excites (held without rate plateaus).
+const GAIN_KINDS: [EffectKind; 4] = [
+    EffectKind::Misalignment,
+    EffectKind::Scale,
+    EffectKind::AsymmetricScale,
+    EffectKind::ScaleNonlinearity,
+];
+
+fn point(
+    true_input: [f64; 3],
+    mean: [f64; 3],
+    std: [f64; 3],
+    seg: &crate::segment::Segment,
+    t: &SegmentTruth,
+) -> FitPoint {
+    // A floor on the standard error keeps a quantised, noiseless axis from taking all weight.
+    let se = std.map(|s| (s / (seg.n as f64).sqrt()).max(1e-12));
+    FitPoint {
+        true_input: Vec3::from(true_input),
+        measured: Vec3::from(mean),
+        std_error: Vec3::from(se),
+        conditions: Conditions {
+            temp_c: t.temp_c,
+            time_since_power_on_s: t.time_since_power_on_s,
+            specific_force_m_s2: Vec3::from(t.specific_force_m_s2),
+            angular_rate_rad_s: Vec3::from(t.angular_rate_rad_s),
+            angular_accel_rad_s2: Vec3::zeros(),
+        },
+        t_s: 0.5 * (seg.start_s + seg.end_s),
+    }
+}
+
+/// Detect segments in `series`, take the true input of each from `truth`, and fit the accel
+/// model to the static segments and the gyro model to the static segments and rate plateaus.
+/// Without plateaus the gyro gain effects (scale, misalignment, asymmetry, nonlinearity) are
+/// left out of the gyro fit (a note says so): Earth rate is too small to excite them.
+pub fn calibrate(
+    series: &crate::ImuSeries,
+    truth: &imu_bus::truth::Truth,
+    opts: &CalibrateOptions,
+) -> Result<CalibrationFit, CalibrateError> {
+    use crate::segment::SegmentKind;
+    let segmentation = crate::segment::detect(series, &opts.segment)?;
+    let segment_truth = truth_for_segments(series, &segmentation.segments, truth)?;
+    let mut notes = Vec::new();
+    let fit_opts = |drift| FitOptions {
+        fixed: Vec::new(),
+        bias_drift: drift,
+        ..opts.fit.clone()
+    };
+
+    let needed = |m: &TriadModel| m.n_params() / 3 + 1;
+    segmentation.require(SegmentKind::Static, needed(&opts.accel).max(2), "accel fit")?;
+    let accel_points: Vec<FitPoint> = segmentation
+        .segments
+        .iter()
+        .zip(&segment_truth)
+        .filter(|(s, _)| s.kind == SegmentKind::Static)
+        .map(|(s, t)| {
+            point(
+                t.specific_force_m_s2,
+                s.mean_accel_m_s2,
+                s.std_accel_m_s2,
+                s,
+                t,
+            )
+        })
+        .collect();
+    let accel = fit_triad(
+        &opts.accel,
+        Triad::Accel,
+        &accel_points,
+        &fit_opts(opts.accel_bias_drift_m_s2),
+    )?;
+
+    let mut gyro_model = opts.gyro.clone();
+    if segmentation.count(SegmentKind::Plateau) == 0 {
+        let held: Vec<EffectKind> = GAIN_KINDS
+            .into_iter()
+            .filter(|k| gyro_model.has(*k))
+            .collect();
+        if !held.is_empty() {
+            let mut m = TriadModel::default();
+            for k in gyro_model.kinds() {
+                if !held.contains(&k) {
+                    m.add(k);
+                }
+            }
+            notes.push(format!(
+                "no rate plateaus found: gyro {} not fitted (Earth rate cannot excite them; \
+                 record a rate-table run)",
+                held.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
+            ));
+            gyro_model = m;
+        }
+    }
+    let gyro_points: Vec<FitPoint> = segmentation
+        .segments
+        .iter()
+        .zip(&segment_truth)
+        .map(|(s, t)| {
+            point(
+                t.angular_rate_rad_s,
+                s.mean_gyro_rad_s,
+                s.std_gyro_rad_s,
+                s,
+                t,
+            )
+        })
+        .collect();
+    segmentation.require(SegmentKind::Static, 1, "gyro fit")?;
+    let gyro = fit_triad(
+        &gyro_model,
+        Triad::Gyro,
+        &gyro_points,
+        &fit_opts(opts.gyro_bias_drift_rad_s),
+    )?;
+
+    let mut calibration = imu_model::Calibration::identity();
+    calibration.accel = accel.model.clone();
+    calibration.gyro = gyro.model.clone();
+    Ok(CalibrationFit {
+        segmentation,
+        segment_truth,
+        accel,
+        gyro,
+        calibration,
+        notes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(kinds: &[EffectKind]) -> TriadModel {
+        let mut m = TriadModel::default();
+        for k in kinds {
+            m.add(*k);
+        }
+        m
+    }
+
+    #[test]
+    fn recovers_exact_parameters_and_flags_unobservable_g_sensitivity() {
+        use EffectKind::*;
+        let mut truth = model(&[Bias, Scale, Misalignment]);
+        let tp: Vec<f64> = (0..truth.n_params())
+            .map(|i| 1e-3 * (i as f64 - 4.0))
+            .collect();
+        truth.set_params(&tp);
+        let g = 9.8;
+        let dirs = [
+            [g, 0.0, 0.0],
+            [-g, 0.0, 0.0],
+            [0.0, g, 0.0],
+            [0.0, -g, 0.0],
+            [0.0, 0.0, g],
+            [0.0, 0.0, -g],
+            [g / 2f64.sqrt(), g / 2f64.sqrt(), 0.0],
+            [0.0, g / 2f64.sqrt(), -g / 2f64.sqrt()],
+        ];
+        let points: Vec<FitPoint> = dirs
+            .iter()
+            .map(|d| {
+                let x = Vec3::from(*d);
+                FitPoint {
+                    true_input: x,
+                    measured: truth.forward(x, &Conditions::default()),
+                    std_error: Vec3::repeat(1e-3),
+                    conditions: Conditions::default(),
+                    t_s: 0.0,
+                }
+            })
+            .collect();
+        let r = fit_triad(
+            &model(&[Bias, Scale, Misalignment]),
+            Triad::Accel,
+            &points,
+            &FitOptions::default(),
+        )
+        .unwrap();
+        for (f, t) in r.params.iter().zip(&tp) {
+            assert!((f - t).abs() < 1e-9, "{f} vs {t}");
+        }
+        assert!(r.unobservable.is_empty());
+
+        // Gyro at rest in one orientation: g-sensitivity columns for x/y are zero, the z column
+        // is collinear with the bias.
+        let gyro = model(&[Bias, GSensitivity]);
+        let pts: Vec<FitPoint> = (0..4)
+            .map(|k| FitPoint {
+                true_input: Vec3::new(1e-5 * k as f64, 0.0, 5e-5),
+                measured: Vec3::new(0.01, -0.02, 0.003),
+                std_error: Vec3::repeat(1e-4),
+                conditions: Conditions {
+                    specific_force_m_s2: Vec3::new(0.0, 0.0, g),
+                    ..Conditions::default()
+                },
+                t_s: k as f64,
+            })
+            .collect();
+        let r = fit_triad(&gyro, Triad::Gyro, &pts, &FitOptions::default()).unwrap();
+        assert_eq!(r.free.len(), 3, "{:?}", r.unobservable);
+        assert_eq!(r.unobservable.len(), 9);
+        assert!(r.free.iter().all(|&i| r.names[i].starts_with("bias")));
+        assert!(
+            (r.params[0] - (0.01 - 1.5e-5)).abs() < 1e-9,
+            "{}",
+            r.params[0]
+        );
+    }
+}
