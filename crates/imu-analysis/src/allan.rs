@@ -459,7 +459,16 @@ pub fn edf_oadev(n_phase: usize, m: usize, noise: NoiseType) -> f64 {
                 / (n - 3.0).powi(2)
         }
     };
-    if edf.is_finite() { edf.max(1.0) } else { 1.0 }
+    // No noise gives more degrees of freedom than about 3(N-1)/(2m) at long averaging times
+    // (the white-FM limit). The cap matters when the per-tau noise type is picked from a noisy
+    // local slope at the longest taus: a spurious slope of -1 would select the white-PM formula,
+    // whose EDF stays near N/2, and give the least certain points the greatest weight.
+    let cap = 3.0 * (n - 1.0) / (2.0 * m);
+    if edf.is_finite() {
+        edf.min(cap).max(1.0)
+    } else {
+        1.0
+    }
 }
 
 /// Standard normal quantile (Abramowitz & Stegun 26.2.23, |error| < 4.5e-4).

@@ -57,15 +57,17 @@ fn check_triad(name: &str, model: &NoiseModel, offset: Vec3, seed: u64) {
             rel(n, model.white_density[axis]) < 0.10,
             "{name}[{axis}] N {n}"
         );
-        // INTERIM tolerances: the issue asks for 25% on B and K; the current fit recovers K
-        // 0.4-0.95x and B 1.0-1.4x on this 6 h record (B absorbs part of K). Tighten to 0.25 when
-        // the fit is fixed.
-        let ratio_ok = |got: f64, want: f64| (got / want) > 0.4 && (got / want) < 2.5;
+        // The issue's tolerance: 25 % on B and K. (A sweep over seeds 1-6 gave B within 7 % and
+        // K within 17 % in 35 of 36 axis-seeds, one K at 27 %: the statistical spread of a
+        // random-walk estimate from one 6 h record.)
         assert!(
-            ratio_ok(b, model.bias_instability[axis]),
+            rel(b, model.bias_instability[axis]) < 0.25,
             "{name}[{axis}] B {b}"
         );
-        assert!(ratio_ok(k, model.random_walk[axis]), "{name}[{axis}] K {k}");
+        assert!(
+            rel(k, model.random_walk[axis]) < 0.25,
+            "{name}[{axis}] K {k}"
+        );
     }
 }
 
