@@ -17,8 +17,6 @@ use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
-mod sha256;
-
 /// Command line.
 #[derive(Debug, Parser)]
 #[command(version, about)]
@@ -65,11 +63,17 @@ struct JsonOut<'a> {
     truth_comparison: Option<Vec<TruthRow>>,
 }
 
+/// The input's path and SHA-256, hashed as a stream (recordings can be hundreds of MB).
 fn input_file(path: &Path) -> Result<InputFile> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    use sha2::Digest;
+    let mut file =
+        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut hasher = sha2::Sha256::new();
+    std::io::copy(&mut file, &mut hasher).with_context(|| format!("reading {}", path.display()))?;
+    let digest = hasher.finalize();
     Ok(InputFile {
         path: path.display().to_string(),
-        sha256: Some(sha256::hex(&bytes)),
+        sha256: Some(digest.iter().map(|b| format!("{b:02x}")).collect()),
     })
 }
 
