@@ -246,8 +246,10 @@ fn run(cli: &Cli) -> Result<()> {
     if series.is_empty() {
         bail!("{}: no samples", cli.recording.display());
     }
-    let truth = imu_bus::truth::read_truth(&cli.reference)
-        .with_context(|| format!("reading reference {}", cli.reference.display()))?;
+    let truth = imu_analysis::reference::Reference::Truth(
+        imu_bus::truth::read_truth(&cli.reference)
+            .with_context(|| format!("reading reference {}", cli.reference.display()))?,
+    );
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let opts = options(cli.model.as_deref(), duration_s)?;
     let mut fit = calibrate(&series, &truth, &opts)

@@ -590,73 +590,7 @@ pub fn fit_triad(
 
 // ------------------------------------------------------------------ calibration from segments
 
-/// The true input over one segment, from a reference (sensor frame).
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct SegmentTruth {
-    /// Mean true specific force, m/s^2.
-    pub specific_force_m_s2: [f64; 3],
-    /// Mean true angular rate (including Earth rate), rad/s.
-    pub angular_rate_rad_s: [f64; 3],
-    /// Mean true temperature, deg C.
-    pub temp_c: f64,
-    /// Mean time since power-on, s.
-    pub time_since_power_on_s: f64,
-}
-
-/// Failures of the reference alignment.
-#[derive(Debug, thiserror::Error)]
-pub enum ReferenceError {
-    /// The truth file holds fewer data samples than the recording.
-    #[error(
-        "the reference has {truth_samples} data samples (command 0x01) but the recording \
-         {series_samples}: it is not the truth of this recording (or was cut short)"
-    )]
-    TooShort {
-        /// Data samples in the truth.
-        truth_samples: usize,
-        /// Samples in the series.
-        series_samples: usize,
-    },
-}
-
-/// Mean truth over each segment's samples. In an offline recording the k-th data sample is the
-/// k-th truth sample with command 0x01 (same order, no gaps), so the truth is averaged over
-/// exactly the samples of the segment.
-pub fn truth_for_segments(
-    series: &crate::ImuSeries,
-    segments: &[crate::segment::Segment],
-    truth: &imu_bus::truth::Truth,
-) -> Result<Vec<SegmentTruth>, ReferenceError> {
-    let data: Vec<&imu_bus::truth::TruthSample> =
-        truth.samples.iter().filter(|s| s.command == 0x01).collect();
-    if data.len() < series.len() {
-        return Err(ReferenceError::TooShort {
-            truth_samples: data.len(),
-            series_samples: series.len(),
-        });
-    }
-    Ok(segments
-        .iter()
-        .map(|seg| {
-            let n = seg.n as f64;
-            let mut out = SegmentTruth {
-                specific_force_m_s2: [0.0; 3],
-                angular_rate_rad_s: [0.0; 3],
-                temp_c: 0.0,
-                time_since_power_on_s: 0.0,
-            };
-            for s in &data[seg.range()] {
-                for a in 0..3 {
-                    out.specific_force_m_s2[a] += s.specific_force_m_s2[a] / n;
-                    out.angular_rate_rad_s[a] += s.angular_rate_rad_s[a] / n;
-                }
-                out.temp_c += s.temp_c / n;
-                out.time_since_power_on_s += s.time_since_power_on_s / n;
-            }
-            out
-        })
-        .collect())
-}
+pub use crate::reference::{Reference, ReferenceError, SegmentTruth};
 
 /// What [`calibrate`] fits and how.
 #[derive(Clone, Debug)]
@@ -764,18 +698,18 @@ fn point(
     }
 }
 
-/// Detect segments in `series`, take the true input of each from `truth`, and fit the accel
+/// Detect segments in `series`, take the true input of each from `reference`, and fit the accel
 /// model to the static segments and the gyro model to the static segments and rate plateaus.
 /// Without plateaus the gyro gain effects (scale, misalignment, asymmetry, nonlinearity) are
 /// left out of the gyro fit (a note says so): Earth rate is too small to excite them.
 pub fn calibrate(
     series: &crate::ImuSeries,
-    truth: &imu_bus::truth::Truth,
+    reference: &Reference,
     opts: &CalibrateOptions,
 ) -> Result<CalibrationFit, CalibrateError> {
     use crate::segment::SegmentKind;
     let segmentation = crate::segment::detect(series, &opts.segment)?;
-    let segment_truth = truth_for_segments(series, &segmentation.segments, truth)?;
+    let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
     let mut notes = Vec::new();
     let fit_opts = |drift| FitOptions {
         fixed: Vec::new(),

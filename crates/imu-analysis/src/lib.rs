@@ -11,6 +11,7 @@ pub mod impact;
 pub mod input;
 pub mod noise;
 pub mod plot;
+pub mod reference;
 pub mod report;
 pub mod segment;
 pub mod thermal;

@@ -9,8 +9,9 @@ use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{Source, read_mcap};
+use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
-use imu_bus::truth::{Truth, read_truth};
+use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, Measured, Triad, TriadModel, Vec3};
 
 /// Paper 3.1.2 shortened: 2 x 6 positions, 60-degree steps, 20 s each.
@@ -95,7 +96,7 @@ fn model_path() -> PathBuf {
 struct Run {
     _dir: tempfile::TempDir,
     series: ImuSeries,
-    truth: Truth,
+    truth: Reference,
     truth_model: Calibration,
 }
 
@@ -117,7 +118,7 @@ fn record(scenario_text: &str, seed: u64) -> Run {
     let out = imud::offline::record(sim, &c).unwrap();
     assert_eq!(out.files.len(), 1, "{:?}", out.files);
     let series = read_mcap(&out.files[0], Source::Raw, None).unwrap();
-    let truth = read_truth(&truth_path).unwrap();
+    let truth = Reference::Truth(read_truth(&truth_path).unwrap());
     let truth_model = Calibration::load(&model_path()).unwrap();
     Run {
         _dir: dir,
