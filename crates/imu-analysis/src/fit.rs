@@ -54,6 +54,11 @@ pub struct FitOptions {
     /// too noisy and the standard errors came out worse than with white scatter scaled by the
     /// reduced chi-square.
     pub drift_model: bool,
+    /// Known random-walk drift of the segment means per axis, as its rate variance `q`
+    /// (unit^2/s, i.e. K^2 of the IEEE rate/acceleration random walk): the segment means are
+    /// then weighted with the covariance `se_k^2 delta_kl + q min(t_k, t_l)` instead of white
+    /// errors. Used when a noise characterisation gives K; ignored with `drift_model` on.
+    pub random_walk_q: Option<[f64; 3]>,
 }
 
 /// Bias wander over a recording of `duration_s` from a noise model: bias instability `B` and
@@ -74,6 +79,7 @@ impl Default for FitOptions {
             fixed: Vec::new(),
             bias_drift: None,
             drift_model: false,
+            random_walk_q: None,
         }
     }
 }
@@ -116,6 +122,8 @@ pub struct FitResult {
     pub residuals: Vec<[f64; 3]>,
     /// Weighted sum of squared residuals.
     pub chi2: f64,
+    /// The weighted sum of squared residuals per axis.
+    pub chi2_axis: [f64; 3],
     /// Degrees of freedom (observations - free parameters).
     pub dof: usize,
     /// chi2 / dof (the covariance is scaled by it when above 1).
@@ -478,7 +486,7 @@ pub fn fit_triad(
 
     // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
     // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
-    let mut q = [0.0; 3];
+    let mut q = opts.random_walk_q.unwrap_or([0.0; 3]);
     let mut w = Whitener::new(points, q);
     let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
     if opts.drift_model {
@@ -556,6 +564,8 @@ pub fn fit_triad(
         residuals_u.push([d[0], d[1], d[2]]);
     }
     let residual_rms = sq.map(|s| (s / points.len() as f64).sqrt());
+    let raw_final = raw_residuals(&mut m, &p, points);
+    let chi2_axis = std::array::from_fn(|a| w.axis_chi2(&raw_final, a));
     // Standard errors go into the model per effect; an effect with a held parameter gets none
     // (a 0 would claim the held value is exact).
     let mut rest = std_errors.as_slice();
@@ -579,6 +589,7 @@ pub fn fit_triad(
         residual_rms,
         residuals: residuals_u,
         chi2: cost,
+        chi2_axis,
         dof,
         reduced_chi2,
         drift_random_walk: q.map(f64::sqrt),
@@ -698,18 +709,128 @@ fn point(
     }
 }
 
-/// Detect segments in `series`, take the true input of each from `reference`, and fit the accel
-/// model to the static segments and the gyro model to the static segments and rate plateaus.
-/// Without plateaus the gyro gain effects (scale, misalignment, asymmetry, nonlinearity) are
-/// left out of the gyro fit (a note says so): Earth rate is too small to excite them.
+/// A recording turned into fit observations: its segments, the true input of each, and the
+/// accel and gyro points built from them.
+#[derive(Clone, Debug)]
+pub struct Observations {
+    /// The detected segments and thresholds.
+    pub segmentation: crate::segment::Segmentation,
+    /// Truth per segment (parallel to `segmentation.segments`).
+    pub segment_truth: Vec<SegmentTruth>,
+    /// Accel points and the index of the segment each came from.
+    pub accel: Vec<(usize, FitPoint)>,
+    /// Gyro points (every segment) and their segment indices.
+    pub gyro: Vec<(usize, FitPoint)>,
+}
+
+impl Observations {
+    /// Detect segments in `series` and take the true input of each from `reference`. Accel
+    /// points come from the static segments, plus, with `accel_on_plateaus`, from the rate
+    /// plateaus whose accel is as steady as at rest (a table turning about the vertical: the
+    /// centripetal term of a lever arm shows there); gyro points from every segment.
+    pub fn from_recording(
+        series: &crate::ImuSeries,
+        reference: &Reference,
+        segment: &crate::segment::SegmentOptions,
+        accel_on_plateaus: bool,
+    ) -> Result<Observations, CalibrateError> {
+        use crate::segment::SegmentKind;
+        let segmentation = crate::segment::detect(series, segment)?;
+        let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
+        // Steadiness bound for plateau accel: 3x the largest per-axis accel std at rest.
+        let static_std = segmentation
+            .of_kind(SegmentKind::Static)
+            .flat_map(|s| s.std_accel_m_s2)
+            .fold(0.0, f64::max);
+        let segs = segmentation.segments.iter().zip(&segment_truth).enumerate();
+        let accel = segs
+            .clone()
+            .filter(|(_, (s, _))| {
+                s.kind == SegmentKind::Static
+                    || (accel_on_plateaus
+                        && s.std_accel_m_s2.iter().all(|v| *v <= 3.0 * static_std))
+            })
+            .map(|(i, (s, t))| {
+                (
+                    i,
+                    point(
+                        t.specific_force_m_s2,
+                        s.mean_accel_m_s2,
+                        s.std_accel_m_s2,
+                        s,
+                        t,
+                    ),
+                )
+            })
+            .collect();
+        let gyro = segs
+            .map(|(i, (s, t))| {
+                (
+                    i,
+                    point(
+                        t.angular_rate_rad_s,
+                        s.mean_gyro_rad_s,
+                        s.std_gyro_rad_s,
+                        s,
+                        t,
+                    ),
+                )
+            })
+            .collect();
+        Ok(Observations {
+            segmentation,
+            segment_truth,
+            accel,
+            gyro,
+        })
+    }
+
+    /// The points of one triad (accel or gyro).
+    pub fn points(&self, triad: Triad) -> Vec<FitPoint> {
+        let v = if triad == Triad::Gyro {
+            &self.gyro
+        } else {
+            &self.accel
+        };
+        v.iter().map(|(_, p)| p.clone()).collect()
+    }
+
+    /// `model` without the gyro gain effects when the recording has no rate plateaus (Earth
+    /// rate is too small to excite them), and the note saying so (None if nothing was held).
+    pub fn gyro_model_for(&self, model: &TriadModel) -> (TriadModel, Option<String>) {
+        use crate::segment::SegmentKind;
+        if self.segmentation.count(SegmentKind::Plateau) > 0 {
+            return (model.clone(), None);
+        }
+        let held: Vec<EffectKind> = GAIN_KINDS.into_iter().filter(|k| model.has(*k)).collect();
+        if held.is_empty() {
+            return (model.clone(), None);
+        }
+        let mut m = model.clone();
+        for k in &held {
+            m.remove(*k);
+        }
+        let note = format!(
+            "no rate plateaus found: gyro {} not fitted (Earth rate cannot excite them; record \
+             a rate-table run)",
+            held.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
+        );
+        (m, Some(note))
+    }
+}
+
+/// Detect segments in `series`, take the true input of each from `reference`, and fit the
+/// accel model to the static segments and the gyro model to the static segments and rate
+/// plateaus. Without plateaus the gyro gain effects (scale, misalignment, asymmetry,
+/// nonlinearity) are left out of the gyro fit (a note says so): Earth rate is too small to
+/// excite them.
 pub fn calibrate(
     series: &crate::ImuSeries,
     reference: &Reference,
     opts: &CalibrateOptions,
 ) -> Result<CalibrationFit, CalibrateError> {
     use crate::segment::SegmentKind;
-    let segmentation = crate::segment::detect(series, &opts.segment)?;
-    let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
+    let obs = Observations::from_recording(series, reference, &opts.segment, false)?;
     let mut notes = Vec::new();
     let fit_opts = |drift| FitOptions {
         fixed: Vec::new(),
@@ -718,69 +839,23 @@ pub fn calibrate(
     };
 
     let needed = |m: &TriadModel| m.n_params() / 3 + 1;
-    segmentation.require(SegmentKind::Static, needed(&opts.accel).max(2), "accel fit")?;
-    let accel_points: Vec<FitPoint> = segmentation
-        .segments
-        .iter()
-        .zip(&segment_truth)
-        .filter(|(s, _)| s.kind == SegmentKind::Static)
-        .map(|(s, t)| {
-            point(
-                t.specific_force_m_s2,
-                s.mean_accel_m_s2,
-                s.std_accel_m_s2,
-                s,
-                t,
-            )
-        })
-        .collect();
+    obs.segmentation
+        .require(SegmentKind::Static, needed(&opts.accel).max(2), "accel fit")?;
     let accel = fit_triad(
         &opts.accel,
         Triad::Accel,
-        &accel_points,
+        &obs.points(Triad::Accel),
         &fit_opts(opts.accel_bias_drift_m_s2),
     )?;
 
-    let mut gyro_model = opts.gyro.clone();
-    if segmentation.count(SegmentKind::Plateau) == 0 {
-        let held: Vec<EffectKind> = GAIN_KINDS
-            .into_iter()
-            .filter(|k| gyro_model.has(*k))
-            .collect();
-        if !held.is_empty() {
-            let mut m = TriadModel::default();
-            for k in gyro_model.kinds() {
-                if !held.contains(&k) {
-                    m.add(k);
-                }
-            }
-            notes.push(format!(
-                "no rate plateaus found: gyro {} not fitted (Earth rate cannot excite them; \
-                 record a rate-table run)",
-                held.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
-            ));
-            gyro_model = m;
-        }
-    }
-    let gyro_points: Vec<FitPoint> = segmentation
-        .segments
-        .iter()
-        .zip(&segment_truth)
-        .map(|(s, t)| {
-            point(
-                t.angular_rate_rad_s,
-                s.mean_gyro_rad_s,
-                s.std_gyro_rad_s,
-                s,
-                t,
-            )
-        })
-        .collect();
-    segmentation.require(SegmentKind::Static, 1, "gyro fit")?;
+    let (gyro_model, note) = obs.gyro_model_for(&opts.gyro);
+    notes.extend(note);
+    obs.segmentation
+        .require(SegmentKind::Static, 1, "gyro fit")?;
     let gyro = fit_triad(
         &gyro_model,
         Triad::Gyro,
-        &gyro_points,
+        &obs.points(Triad::Gyro),
         &fit_opts(opts.gyro_bias_drift_rad_s),
     )?;
 
@@ -788,8 +863,8 @@ pub fn calibrate(
     calibration.accel = accel.model.clone();
     calibration.gyro = gyro.model.clone();
     Ok(CalibrationFit {
-        segmentation,
-        segment_truth,
+        segmentation: obs.segmentation,
+        segment_truth: obs.segment_truth,
         accel,
         gyro,
         calibration,

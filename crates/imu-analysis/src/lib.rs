@@ -5,6 +5,7 @@
 //! No device I/O and no tokio here: these are pure computations over files.
 
 pub mod allan;
+pub mod diagnose;
 pub mod dynamic;
 pub mod fit;
 pub mod impact;
@@ -14,6 +15,7 @@ pub mod plot;
 pub mod reference;
 pub mod report;
 pub mod segment;
+pub mod stats;
 pub mod thermal;
 
 pub use input::{ImuSeries, InputError, Source};

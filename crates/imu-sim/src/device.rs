@@ -260,6 +260,13 @@ impl DeviceCore {
         let ticks = (ticks_unwrapped % 65_536) as u16;
         let is_temperature = cmd == Command::Temperature;
         let (mut accel, mut gyro, mut mag) = self.deterministic(&state, t_s);
+        for d in &self.scenario.disturbances {
+            match d.triad {
+                imu_model::Triad::Accel => accel += d.at(t_s),
+                imu_model::Triad::Gyro => gyro += d.at(t_s),
+                imu_model::Triad::Mag => mag += d.at(t_s),
+            }
+        }
         if !is_temperature {
             // Temperature polls do not consume noise, so the IMU noise sequence is the same
             // whether or not the host interleaves temperature reads.

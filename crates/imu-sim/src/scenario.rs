@@ -92,6 +92,11 @@ pub struct Scenario {
     /// The sensor temperature over time.
     #[serde(default)]
     pub temperature: TemperatureProfile,
+    /// Errors outside the model library, added to the sensor output (not part of the truth
+    /// model): periodic disturbances such as a vibrating pump or mains interference. They let
+    /// tests check that the model workbench does not blame a library effect for them.
+    #[serde(rename = "disturbance", default)]
+    pub disturbances: Vec<Disturbance>,
     /// The motion, in order.
     #[serde(rename = "segment", default)]
     pub segments: Vec<SegmentSpec>,
@@ -174,6 +179,30 @@ impl Default for GainScaleSpec {
             gyro: 10000,
             mag: 2000,
         }
+    }
+}
+
+/// A sinusoidal disturbance on one triad's output: `amplitude sin(2 pi f t + phase)` per axis.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Disturbance {
+    /// `accel` (m/s^2), `gyro` (rad/s) or `mag` (gauss).
+    pub triad: imu_model::Triad,
+    /// Amplitude per axis, in the triad's unit.
+    pub amplitude: [f64; 3],
+    /// Frequency, Hz.
+    pub frequency_hz: f64,
+    /// Phase at scenario time 0, degrees.
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+impl Disturbance {
+    /// The disturbance at scenario time `t_s`.
+    pub fn at(&self, t_s: f64) -> imu_model::Vec3 {
+        let s =
+            (std::f64::consts::TAU * self.frequency_hz * t_s + self.phase_deg.to_radians()).sin();
+        imu_model::Vec3::from(self.amplitude) * s
     }
 }
 
@@ -550,6 +579,14 @@ impl Scenario {
             message,
         };
         let positive = |v: f64| v.is_finite() && v > 0.0;
+        for (i, d) in self.disturbances.iter().enumerate() {
+            if !positive(d.frequency_hz) || d.amplitude.iter().any(|a| !a.is_finite()) {
+                return Err(invalid(
+                    format!("disturbance[{i}]"),
+                    "frequency-hz must be positive and the amplitudes finite".into(),
+                ));
+            }
+        }
         if !positive(self.rate_hz) || self.rate_hz > 100_000.0 {
             return Err(invalid(
                 "rate-hz".into(),

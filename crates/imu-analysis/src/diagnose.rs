@@ -1,0 +1,1807 @@
+//! The model workbench: hold an error model against a recording, see where it fails, find which
+//! physical effect of the library is missing, add it, and watch the error fall to the noise
+//! floor.
+//!
+//! Observations are segment means (static positions and rate plateaus) with their true input
+//! from a reference, exactly as for calibration ([`crate::fit::Observations`]). What is new here:
+//!
+//! - **Noise floor from the data.** Real MEMS noise is coloured: a segment mean scatters by more
+//!   than white noise predicts. The floor comes from the overlapping Allan deviation of the
+//!   static segments themselves, pooled over segments: each segment mean gets the Allan
+//!   variance at its own duration (for white noise exactly the variance of the mean; for
+//!   bias instability the scatter of adjacent means), read off or extrapolated from the pooled
+//!   curve. The IEEE terms fitted to the curve ([`crate::noise::fit_terms`]) are reported. A
+//!   noise characterisation of a long static run (imu-noise's `[noise]` tables) may be given
+//!   instead.
+//! - **Goodness of fit.** The generalised chi-square of the residuals against that covariance,
+//!   with the degrees of freedom the fit left, gives a p-value per triad and axis.
+//! - **Candidates.** Every library effect not in the model is added in turn and the model
+//!   refitted. Segments are often too short to resolve a slow random walk of the bias, and a
+//!   wander between segments must not pass for an effect, so every fit profiles out, per axis,
+//!   the residuals' white scale and random-walk drift (maximum likelihood, alternated with the
+//!   parameter fit); nested models are compared by the likelihood ratio, expressed as an F
+//!   statistic (exact for a linear model with one profiled scale), by AIC, and by the share of
+//!   the excess chi-square (against the floor) the effect explains. Parameters the recording cannot determine are named and not
+//!   counted. An effect is *claimed* only when it is significant, explains a substantial share
+//!   of the excess, and the recording can tell it apart from the runner-up.
+//! - **Structure.** Residuals against every candidate explanatory signal, lag-1 autocorrelation,
+//!   a periodogram of the segment residuals in time, and spectral lines inside the static
+//!   segments: what remains when nothing in the library explains it.
+//! - **Ladder.** From a base model, add the best claimed effect and refit until the residual is
+//!   consistent with the noise floor or nothing more is claimed.
+
+use std::fmt::Write as _;
+
+use imu_model::{EffectKind, NoiseModel, Triad, TriadModel};
+use serde::Serialize;
+
+use crate::allan::{self, Kind, TauSet};
+use crate::fit::{
+    CalibrateError, FitError, FitOptions, FitPoint, FitResult, Observations, Reference, fit_triad,
+};
+use crate::noise::NoiseTerms;
+use crate::segment::{SegmentKind, SegmentOptions};
+use crate::stats;
+use crate::{ImuSeries, noise};
+
+/// Settings of the workbench.
+#[derive(Clone, Debug)]
+pub struct DiagnoseOptions {
+    /// Segmentation settings.
+    pub segment: SegmentOptions,
+    /// Fit settings (`fixed`, `bias_drift` and `random_walk_q` are set here).
+    pub fit: FitOptions,
+    /// Significance level of the candidate tests and of the goodness-of-fit verdict.
+    pub alpha: f64,
+    /// Smallest share of the excess chi-square (chi2 - dof) a claimed effect must explain.
+    pub min_share: f64,
+    /// Two candidates whose explained residual patterns correlate above this, with comparable
+    /// improvement, are reported as indistinguishable in this recording.
+    pub ambiguity_correlation: f64,
+    /// At most this many ladder steps.
+    pub max_steps: usize,
+    /// Noise characterisation of the accel (e.g. from imu-noise); default: from the data.
+    pub accel_noise: Option<NoiseModel>,
+    /// Noise characterisation of the gyro; default: from the data.
+    pub gyro_noise: Option<NoiseModel>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            segment: SegmentOptions::default(),
+            fit: FitOptions::default(),
+            alpha: 1e-3,
+            min_share: 0.3,
+            ambiguity_correlation: 0.9,
+            max_steps: 6,
+            accel_noise: None,
+            gyro_noise: None,
+        }
+    }
+}
+
+/// Failures of the workbench.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// Segmentation or reference failed.
+    #[error(transparent)]
+    Observations(#[from] CalibrateError),
+    /// The base fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+    /// Not enough static data for a noise floor.
+    #[error(
+        "{triad}: no static segment of at least {min_s} s to measure the noise floor from; record \
+         the sensor still for a while (or give a noise characterisation)"
+    )]
+    NoStaticData {
+        /// Triad.
+        triad: Triad,
+        /// Shortest usable duration, s.
+        min_s: f64,
+    },
+}
+
+// ------------------------------------------------------------------------------ noise floor
+
+/// The noise floor of one triad: the noise terms per axis and where they came from.
+#[derive(Clone, Debug, Serialize)]
+pub struct NoiseFloor {
+    /// Triad.
+    pub triad: Triad,
+    /// Where the terms came from.
+    pub source: String,
+    /// White noise density per axis, U/sqrt(Hz).
+    pub white_per_sqrt_hz: [f64; 3],
+    /// Bias instability per axis, U (the Allan floor is 0.664 of it).
+    pub bias_instability: [f64; 3],
+    /// Random walk used for the drift between segments per axis, U sqrt(Hz).
+    pub random_walk_sqrt_hz: [f64; 3],
+    /// True where the random walk is only an upper bound (not resolved by the data).
+    pub random_walk_is_bound: [bool; 3],
+    /// Quantization per axis, U s.
+    pub quantization_s: [f64; 3],
+    /// Pooled overlapping Allan deviation of the static segments per axis: (tau s, dev U).
+    pub allan: [Vec<(f64, f64)>; 3],
+}
+
+impl NoiseFloor {
+    /// Variance of the mean of a segment of `duration_s` on `axis`: the Allan variance at the
+    /// segment's duration (equal to the variance of the mean for white noise, and the scatter
+    /// of adjacent means for coloured noise), read off the pooled curve (log-log
+    /// interpolation) or extrapolated beyond its longest tau with the slope of its last
+    /// points (clamped between white noise and random walk).
+    pub fn segment_mean_variance(&self, axis: usize, duration_s: f64) -> f64 {
+        let c = &self.allan[axis];
+        let t = duration_s.max(1e-9);
+        if c.is_empty() {
+            return 0.0;
+        }
+        let ln = |v: (f64, f64)| (v.0.ln(), v.1.max(1e-300).ln());
+        let dev = if t <= c[0].0 {
+            c[0].1 * (c[0].0 / t).sqrt()
+        } else if let Some(i) = c.iter().position(|p| p.0 >= t) {
+            let ((x0, y0), (x1, y1)) = (ln(c[i - 1]), ln(c[i]));
+            (y0 + (y1 - y0) * (t.ln() - x0) / (x1 - x0)).exp()
+        } else {
+            let tail: Vec<(f64, f64)> = c.iter().rev().take(3).map(|p| ln(*p)).collect();
+            let slope = if tail.len() < 2 {
+                -0.5
+            } else {
+                let n = tail.len() as f64;
+                let mx = tail.iter().map(|p| p.0).sum::<f64>() / n;
+                let my = tail.iter().map(|p| p.1).sum::<f64>() / n;
+                let sxy: f64 = tail.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+                let sxx: f64 = tail.iter().map(|p| (p.0 - mx).powi(2)).sum();
+                (sxy / sxx.max(1e-300)).clamp(-0.5, 0.5)
+            };
+            let last = c[c.len() - 1];
+            last.1 * (t / last.0).powf(slope)
+        };
+        dev * dev
+    }
+
+    /// From a noise characterisation (white density, bias instability, random walk,
+    /// quantization step -> Q = lsb / sqrt(12) x sample period); its Allan curve is the
+    /// model's, at octave taus from the sample period to a day.
+    pub fn from_model(triad: Triad, m: &NoiseModel, rate_hz: f64) -> NoiseFloor {
+        let tau0 = 1.0 / rate_hz.max(1e-9);
+        let taus: Vec<f64> = (0..)
+            .map(|k| tau0 * 2f64.powi(k))
+            .take_while(|t| *t < 86_400.0)
+            .collect();
+        NoiseFloor {
+            triad,
+            source: "the given noise characterisation".into(),
+            white_per_sqrt_hz: m.white_density,
+            bias_instability: m.bias_instability,
+            random_walk_sqrt_hz: m.random_walk,
+            random_walk_is_bound: [false; 3],
+            quantization_s: m.quantization_lsb.map(|q| q / 12f64.sqrt() * tau0),
+            allan: std::array::from_fn(|a| {
+                taus.iter().map(|&t| (t, m.allan_deviation(t)[a])).collect()
+            }),
+        }
+    }
+}
+
+/// Two candidates whose AIC improvements differ by less than this are not told apart.
+const AMBIGUOUS_AIC: f64 = 10.0;
+
+/// Shortest static segment used for the noise floor, s.
+const MIN_NOISE_SEGMENT_S: f64 = 2.0;
+
+/// Measures the noise floor of `triad` from the static segments of `series`: the overlapping
+/// Allan variance of each segment at octave taus, pooled over segments by their number of terms,
+/// and the IEEE terms fitted to it.
+pub fn measure_noise_floor(
+    series: &ImuSeries,
+    obs: &Observations,
+    triad: Triad,
+) -> Result<NoiseFloor, DiagnoseError> {
+    let rate = series.sample_rate_hz();
+    let tau0 = 1.0 / rate;
+    let data = if triad == Triad::Gyro {
+        &series.gyro_rad_s
+    } else {
+        &series.accel_m_s2
+    };
+    let statics: Vec<_> = obs
+        .segmentation
+        .of_kind(SegmentKind::Static)
+        .filter(|s| s.n as f64 * tau0 >= MIN_NOISE_SEGMENT_S)
+        .collect();
+    if statics.is_empty() {
+        return Err(DiagnoseError::NoStaticData {
+            triad,
+            min_s: MIN_NOISE_SEGMENT_S,
+        });
+    }
+    let total_s: f64 = statics.iter().map(|s| s.n as f64 * tau0).sum();
+    let opts = allan::Options {
+        taus: TauSet::Octave,
+        ..Default::default()
+    };
+    let mut floor = NoiseFloor {
+        triad,
+        source: format!(
+            "overlapping Allan deviation of {} static segments ({total_s:.0} s in all), IEEE \
+             terms fitted",
+            statics.len()
+        ),
+        white_per_sqrt_hz: [0.0; 3],
+        bias_instability: [0.0; 3],
+        random_walk_sqrt_hz: [0.0; 3],
+        random_walk_is_bound: [false; 3],
+        quantization_s: [0.0; 3],
+        allan: Default::default(),
+    };
+    for axis in 0..3 {
+        // m -> (sum of var x terms, terms, edf)
+        let mut pooled: std::collections::BTreeMap<usize, (f64, f64, f64)> = Default::default();
+        for s in &statics {
+            let y: Vec<f64> = data[s.range()].iter().map(|v| v[axis]).collect();
+            let Ok(curve) = allan::deviation(Kind::Oadev, &y, tau0, &opts) else {
+                continue;
+            };
+            for p in curve.points {
+                let e = pooled.entry(p.m).or_default();
+                e.0 += p.dev * p.dev * p.n_terms as f64;
+                e.1 += p.n_terms as f64;
+                e.2 += p.edf;
+            }
+        }
+        let points: Vec<allan::DevPoint> = pooled
+            .iter()
+            .filter(|(_, v)| v.1 > 0.0)
+            .map(|(&m, &(sv, n, edf))| {
+                let dev = (sv / n).sqrt();
+                let (lo, hi) = allan::confidence_interval(dev, edf, 0.683);
+                allan::DevPoint {
+                    m,
+                    tau_s: m as f64 * tau0,
+                    dev,
+                    n_terms: n as usize,
+                    edf,
+                    dev_lo: lo,
+                    dev_hi: hi,
+                }
+            })
+            .collect();
+        floor.allan[axis] = points.iter().map(|p| (p.tau_s, p.dev)).collect();
+        let curve = allan::DevCurve {
+            kind: Kind::Oadev,
+            tau0_s: tau0,
+            confidence: 0.683,
+            points,
+        };
+        match noise::fit_terms(&curve) {
+            Ok(t) => apply_terms(&mut floor, axis, &t),
+            Err(_) => {
+                // Too few taus: the segment means' own scatter is all there is.
+                let y: Vec<f64> = statics
+                    .iter()
+                    .flat_map(|s| data[s.range()].iter().map(|v| v[axis]))
+                    .collect();
+                let m = y.iter().sum::<f64>() / y.len() as f64;
+                let var = y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / y.len() as f64;
+                floor.white_per_sqrt_hz[axis] = (var * tau0).sqrt();
+            }
+        }
+    }
+    Ok(floor)
+}
+
+fn apply_terms(floor: &mut NoiseFloor, axis: usize, t: &NoiseTerms) {
+    floor.white_per_sqrt_hz[axis] = t.n_u_per_sqrt_hz.value;
+    floor.bias_instability[axis] = t.b_u.value;
+    floor.quantization_s[axis] = t.q_u_s.value;
+    // The random walk as fitted; when the segments are too short to resolve it the value is
+    // marked as such (the candidate tests profile the drift from the residuals anyway).
+    let k = &t.k_u_sqrt_hz;
+    floor.random_walk_sqrt_hz[axis] = k.value;
+    floor.random_walk_is_bound[axis] = !k.significant;
+}
+
+/// The observations of one triad with the noise floor as their standard errors.
+fn floored_points(
+    points: &[FitPoint],
+    floor: &NoiseFloor,
+    rate_hz: f64,
+    n: &[usize],
+) -> Vec<FitPoint> {
+    points
+        .iter()
+        .zip(n)
+        .map(|(p, &n)| {
+            let duration_s = n as f64 / rate_hz;
+            let mut q = p.clone();
+            for a in 0..3 {
+                let v = floor.segment_mean_variance(a, duration_s);
+                q.std_error[a] = v.sqrt().max(p.std_error[a]);
+            }
+            q
+        })
+        .collect()
+}
+
+// ------------------------------------------------------------------------------ results
+
+/// Per-axis verdict.
+#[derive(Clone, Debug, Serialize)]
+pub struct AxisVerdict {
+    /// RMS of the residuals, U.
+    pub residual_rms: f64,
+    /// RMS the residuals would have if the model were right (noise floor and the fit's
+    /// degrees of freedom), U.
+    pub noise_floor_rms: f64,
+    /// The same with the bias wander between segments the residuals show (maximum-likelihood
+    /// random walk; equal to `noise_floor_rms` when no wander is found), U.
+    pub noise_floor_with_drift_rms: f64,
+    /// Generalised chi-square of this axis.
+    pub chi2: f64,
+    /// Its degrees of freedom.
+    pub dof: f64,
+    /// P(chi-square > chi2) if the model were right.
+    pub p_value: f64,
+}
+
+/// One observation's residual.
+#[derive(Clone, Debug, Serialize)]
+pub struct SegmentResidual {
+    /// Index into the segmentation.
+    pub segment: usize,
+    /// Static or plateau.
+    pub kind: SegmentKind,
+    /// Start and end time, s.
+    pub start_s: f64,
+    /// End time, s.
+    pub end_s: f64,
+    /// model(true input) - measured, U.
+    pub residual: [f64; 3],
+    /// Noise floor (standard deviation) of this mean, U.
+    pub floor: [f64; 3],
+    /// Residual in units of the floor.
+    pub z: [f64; 3],
+}
+
+/// Correlation of an axis's residual with an explanatory signal.
+#[derive(Clone, Debug, Serialize)]
+pub struct Correlate {
+    /// Signal name (with unit).
+    pub signal: String,
+    /// Pearson correlation.
+    pub r: f64,
+}
+
+/// The structure left in one axis's residual.
+#[derive(Clone, Debug, Serialize)]
+pub struct Structure {
+    /// Signals sorted by |r| (strongest first).
+    pub correlates: Vec<Correlate>,
+    /// Lag-1 autocorrelation of the floor-normalised residuals in time order.
+    pub lag1_autocorrelation: f64,
+    /// Dominant period of the residuals in time (Lomb-Scargle), s, and its share of variance.
+    pub dominant_period_s: Option<(f64, f64)>,
+}
+
+/// A periodic component found inside the static segments.
+#[derive(Clone, Debug, Serialize)]
+pub struct SpectralLine {
+    /// Axis (0 = x).
+    pub axis: usize,
+    /// Frequency, Hz.
+    pub frequency_hz: f64,
+    /// Amplitude of the sinusoid, U.
+    pub amplitude: f64,
+    /// Line power over the local noise level.
+    pub ratio: f64,
+}
+
+/// One parameter of a candidate effect.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParamValue {
+    /// `<effect>.<param>`.
+    pub name: String,
+    /// Fitted value.
+    pub value: f64,
+    /// Standard error.
+    pub std_error: Option<f64>,
+    /// Unit.
+    pub unit: String,
+}
+
+/// A library effect tried on top of the model.
+#[derive(Clone, Debug, Serialize)]
+pub struct Candidate {
+    /// The effect.
+    pub effect: EffectKind,
+    /// Triad.
+    pub triad: Triad,
+    /// Parameters the recording determines (0: not observable here).
+    pub new_params: usize,
+    /// Why not observable (or which of its parameters are not).
+    pub not_observable: Vec<String>,
+    /// Generalised chi-square with the effect.
+    pub chi2: f64,
+    /// Degrees of freedom with the effect.
+    pub dof: usize,
+    /// F statistic of the nested comparison.
+    pub f: f64,
+    /// Its p-value.
+    pub p_value: f64,
+    /// AIC improvement (positive = better).
+    pub delta_aic: f64,
+    /// Share of the model's excess chi-square (chi2 - dof) the effect explains.
+    pub share_of_excess: f64,
+    /// Residual RMS per axis with the effect, U.
+    pub residual_rms: [f64; 3],
+    /// p < alpha.
+    pub significant: bool,
+    /// Significant, explains enough and is not confused with another candidate.
+    pub claimed: bool,
+    /// Plain-words explanation.
+    pub explanation: String,
+    /// The effect's fitted parameters.
+    pub params: Vec<ParamValue>,
+    /// The lines to add to the model file.
+    pub model_change: String,
+    /// The refit.
+    #[serde(skip)]
+    pub fit: Option<FitResult>,
+    /// Explained pattern (base residual - residual with the effect, floor-normalised).
+    #[serde(skip)]
+    pattern: Vec<f64>,
+}
+
+/// Two candidates this recording cannot tell apart.
+#[derive(Clone, Debug, Serialize)]
+pub struct Ambiguity {
+    /// Triad.
+    pub triad: Triad,
+    /// The two effects.
+    pub effects: [EffectKind; 2],
+    /// Correlation of what they explain.
+    pub correlation: f64,
+    /// The recording that would separate them.
+    pub separating_recording: String,
+}
+
+/// The model held against one triad's observations.
+#[derive(Clone, Debug, Serialize)]
+pub struct TriadDiagnosis {
+    /// Triad.
+    pub triad: Triad,
+    /// The model's effects.
+    pub effects: Vec<EffectKind>,
+    /// Ratio of the residual variance to the noise floor's, per axis (maximum likelihood, with
+    /// the drift below).
+    pub noise_scale: [f64; 3],
+    /// Random walk of the bias between segments that the residuals show, per axis, U sqrt(Hz)
+    /// (maximum likelihood).
+    pub drift_random_walk: [f64; 3],
+    /// Generalised chi-square against the noise floor.
+    pub chi2: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// P(chi-square > chi2) if the model were right.
+    pub p_value: f64,
+    /// The model is consistent with the noise floor (p >= alpha, no spectral line).
+    pub consistent: bool,
+    /// The residuals are consistent with the noise floor once a slow random-walk wander of the
+    /// bias between segments (`drift_random_walk`, maximum likelihood) is allowed: what is left
+    /// is drift of the sensor, not a missing effect (p of that test >= alpha).
+    pub consistent_with_drift: bool,
+    /// p-value of that test.
+    pub p_value_with_drift: f64,
+    /// Per axis.
+    pub axes: [AxisVerdict; 3],
+    /// Per observation, in time order.
+    pub segments: Vec<SegmentResidual>,
+    /// Indices into `segments` of the worst observations (largest |z|).
+    pub worst: Vec<usize>,
+    /// Residual structure per axis.
+    pub structure: [Structure; 3],
+    /// Periodic components inside the static segments.
+    pub spectral_lines: Vec<SpectralLine>,
+    /// Candidates, best first (observable ones ranked by AIC improvement).
+    pub candidates: Vec<Candidate>,
+    /// Candidates the recording cannot separate.
+    pub ambiguities: Vec<Ambiguity>,
+    /// The verdict in words.
+    pub verdict: String,
+    /// The fit.
+    pub fit: FitResult,
+    /// The noise floor used.
+    pub noise_floor: NoiseFloor,
+}
+
+/// The workbench's state: a recording's observations and noise floors.
+pub struct Workbench<'a> {
+    series: &'a ImuSeries,
+    /// Segments, truth and points.
+    pub obs: Observations,
+    /// Accel noise floor.
+    pub accel_floor: NoiseFloor,
+    /// Gyro noise floor.
+    pub gyro_floor: NoiseFloor,
+    accel_points: Vec<FitPoint>,
+    gyro_points: Vec<FitPoint>,
+    accel_index: Vec<usize>,
+    gyro_index: Vec<usize>,
+    opts: DiagnoseOptions,
+    spectral: [Vec<SpectralLine>; 2],
+}
+
+/// Effects whose time constant or shape a neutral start cannot find: fitted from several
+/// starting points.
+fn start_values(kind: EffectKind, span_s: f64) -> Vec<f64> {
+    match kind {
+        EffectKind::Warmup => [0.03, 0.1, 0.3, 1.0]
+            .iter()
+            .map(|f| (f * span_s).max(1.0))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+impl<'a> Workbench<'a> {
+    /// Segments `series`, takes the truth from `reference`, measures the noise floors.
+    pub fn new(
+        series: &'a ImuSeries,
+        reference: &Reference,
+        opts: DiagnoseOptions,
+    ) -> Result<Workbench<'a>, DiagnoseError> {
+        let obs = Observations::from_recording(series, reference, &opts.segment, true)?;
+        let rate = series.sample_rate_hz();
+        let floor = |t: Triad, given: &Option<NoiseModel>| match given {
+            Some(m) => Ok(NoiseFloor::from_model(t, m, rate)),
+            None => measure_noise_floor(series, &obs, t),
+        };
+        let accel_floor = floor(Triad::Accel, &opts.accel_noise)?;
+        let gyro_floor = floor(Triad::Gyro, &opts.gyro_noise)?;
+        let n_of = |v: &[(usize, FitPoint)]| -> Vec<usize> {
+            v.iter()
+                .map(|(i, _)| obs.segmentation.segments[*i].n)
+                .collect()
+        };
+        let (an, gn) = (n_of(&obs.accel), n_of(&obs.gyro));
+        let accel_points = floored_points(&obs.points(Triad::Accel), &accel_floor, rate, &an);
+        let gyro_points = floored_points(&obs.points(Triad::Gyro), &gyro_floor, rate, &gn);
+        let spectral = [
+            spectral_lines(series, &obs, Triad::Accel),
+            spectral_lines(series, &obs, Triad::Gyro),
+        ];
+        Ok(Workbench {
+            series,
+            accel_index: obs.accel.iter().map(|(i, _)| *i).collect(),
+            gyro_index: obs.gyro.iter().map(|(i, _)| *i).collect(),
+            obs,
+            accel_floor,
+            gyro_floor,
+            accel_points,
+            gyro_points,
+            opts,
+            spectral,
+        })
+    }
+
+    /// The series under study.
+    pub fn series(&self) -> &ImuSeries {
+        self.series
+    }
+
+    fn points(&self, t: Triad) -> (&[FitPoint], &[usize], &NoiseFloor) {
+        if t == Triad::Gyro {
+            (&self.gyro_points, &self.gyro_index, &self.gyro_floor)
+        } else {
+            (&self.accel_points, &self.accel_index, &self.accel_floor)
+        }
+    }
+
+    fn fit_opts(&self, t: Triad) -> FitOptions {
+        let (_, _, floor) = self.points(t);
+        FitOptions {
+            fixed: Vec::new(),
+            bias_drift: None,
+            drift_model: false,
+            random_walk_q: Some(floor.random_walk_sqrt_hz.map(|k| k * k)),
+            ..self.opts.fit.clone()
+        }
+    }
+
+    /// The model actually fittable on this recording for `triad` (gyro gains held without
+    /// plateaus), and a note when something was held.
+    pub fn fittable(&self, triad: Triad, model: &TriadModel) -> (TriadModel, Option<String>) {
+        if triad == Triad::Gyro {
+            self.obs.gyro_model_for(model)
+        } else {
+            (model.clone(), None)
+        }
+    }
+
+    /// Fit with the residuals' white scale and random-walk drift per axis profiled out (their
+    /// maximum-likelihood values alternated with the parameter fit): a slow wander of the
+    /// bias, whatever its size, is then part of the noise model of every candidate alike.
+    fn fit(&self, triad: Triad, model: &TriadModel) -> Result<Profiled, FitError> {
+        let (points, _, _) = self.points(triad);
+        let mut scale = [1.0_f64; 3];
+        let mut rho = [0.0; 3];
+        let mut m = model.clone();
+        let mut last: Option<Profiled> = None;
+        for _ in 0..5 {
+            let pts: Vec<FitPoint> = points
+                .iter()
+                .map(|p| {
+                    let mut q = p.clone();
+                    for (a, sc) in scale.iter().enumerate() {
+                        q.std_error[a] *= sc.sqrt();
+                    }
+                    q
+                })
+                .collect();
+            let opts = FitOptions {
+                random_walk_q: Some(std::array::from_fn(|a| scale[a] * rho[a])),
+                ..self.fit_opts(triad)
+            };
+            let fit = fit_triad(&m, triad, &pts, &opts)?;
+            m = fit.model.clone();
+            let mut loglik = 0.0;
+            let mut next_scale = scale;
+            let mut next_rho = rho;
+            for a in 0..3 {
+                let r: Vec<f64> = fit.residuals.iter().map(|v| v[a]).collect();
+                let (sa, ra, ll) = profile_axis(&r, points, a);
+                next_scale[a] = sa;
+                next_rho[a] = ra;
+                loglik += ll;
+            }
+            let settled = (0..3).all(|a| {
+                (next_scale[a] / scale[a] - 1.0).abs() < 1e-3
+                    && (next_rho[a] - rho[a]).abs() <= 1e-3 * rho[a].max(1e-300)
+            });
+            scale = next_scale;
+            rho = next_rho;
+            let done = settled;
+            last = Some(Profiled {
+                fit,
+                loglik,
+                scale,
+                rho,
+            });
+            if done {
+                break;
+            }
+        }
+        Ok(last.expect("at least one iteration"))
+    }
+
+    /// Fit with several starts for effects with a time constant; keep the most likely.
+    fn fit_candidate(
+        &self,
+        triad: Triad,
+        model: &TriadModel,
+        added: EffectKind,
+    ) -> Option<Profiled> {
+        let (points, _, _) = self.points(triad);
+        let span = points
+            .iter()
+            .map(|p| p.conditions.time_since_power_on_s)
+            .fold(0.0, f64::max);
+        let mut best: Option<Profiled> = None;
+        let mut consider = |r: Profiled| {
+            if best.as_ref().is_none_or(|b| r.loglik > b.loglik) {
+                best = Some(r);
+            }
+        };
+        let starts = start_values(added, span);
+        if starts.is_empty() {
+            if let Ok(r) = self.fit(triad, model) {
+                // A nonlinear parameter whose neutral start gives a zero column is refitted
+                // from the first solution.
+                if r.fit
+                    .unobservable
+                    .iter()
+                    .any(|u| u.reason.contains("zero Jacobian"))
+                    && let Ok(r2) = self.fit(triad, &r.fit.model)
+                {
+                    consider(r2);
+                }
+                consider(r);
+            }
+        } else {
+            for tau in starts {
+                let mut m = model.clone();
+                let names = m.param_names(triad);
+                let mut p = m.params();
+                // Give the time constant its start and a small amplitude so it is excited.
+                for (i, n) in names.iter().enumerate() {
+                    if n.ends_with("tau_s") {
+                        p[i] = tau;
+                    } else if n.starts_with(added.id()) {
+                        p[i] = 1e-9;
+                    }
+                }
+                m.set_params(&p);
+                if let Ok(r) = self.fit(triad, &m) {
+                    consider(r);
+                }
+            }
+        }
+        best
+    }
+
+    /// Holds `model` against the recording's `triad`: verdict, residuals, structure, and every
+    /// library effect not in the model tried as a candidate.
+    pub fn diagnose(
+        &self,
+        triad: Triad,
+        model: &TriadModel,
+    ) -> Result<TriadDiagnosis, DiagnoseError> {
+        let (model, _) = self.fittable(triad, model);
+        let profiled = self.fit(triad, &model)?;
+        let base = profiled.fit.clone();
+        let (points, index, floor) = self.points(triad);
+        let n = points.len();
+        let dof = base.dof;
+        // The verdict holds the residuals against the segment-scale floor only: a random walk
+        // the segments cannot resolve is not assumed (the candidate tests profile it).
+        let floor_q = [0.0; 3];
+        let chi2_axis = floor_chi2(&base.residuals, points, floor_q);
+        let chi2: f64 = chi2_axis.iter().sum();
+        let p_value = stats::chi2_sf(chi2, dof as f64);
+        let free_per_axis = base.free.len() as f64 / 3.0;
+        let axes: [AxisVerdict; 3] = std::array::from_fn(|a| {
+            let dof_a = (n as f64 - free_per_axis).max(1.0);
+            AxisVerdict {
+                residual_rms: base.residual_rms[a],
+                noise_floor_rms: floor_rms(points, a, free_per_axis, 0.0),
+                noise_floor_with_drift_rms: 0.0,
+                chi2: chi2_axis[a],
+                dof: dof_a,
+                p_value: stats::chi2_sf(chi2_axis[a], dof_a),
+            }
+        });
+        let segments: Vec<SegmentResidual> = points
+            .iter()
+            .zip(index)
+            .zip(&base.residuals)
+            .map(|((p, &i), r)| {
+                let s = &self.obs.segmentation.segments[i];
+                let fl = [p.std_error[0], p.std_error[1], p.std_error[2]];
+                SegmentResidual {
+                    segment: i,
+                    kind: s.kind,
+                    start_s: s.start_s,
+                    end_s: s.end_s,
+                    residual: *r,
+                    floor: fl,
+                    z: std::array::from_fn(|a| r[a] / fl[a]),
+                }
+            })
+            .collect();
+        let mut worst: Vec<usize> = (0..segments.len()).collect();
+        let zmax = |s: &SegmentResidual| s.z.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        worst.sort_by(|&a, &b| zmax(&segments[b]).total_cmp(&zmax(&segments[a])));
+        worst.truncate(5);
+        let signals = signals(points, triad);
+        let structure = std::array::from_fn(|a| residual_structure(&segments, &signals, a));
+        let spectral_lines = self.spectral[usize::from(triad == Triad::Gyro)].clone();
+
+        // Candidates.
+        let excess = (chi2 - dof as f64).max(1e-12);
+        let n_obs = 3.0 * n as f64;
+        let base_pattern: Vec<f64> = normalised(&base.residuals, points);
+        let mut candidates: Vec<Candidate> = EffectKind::ALL
+            .into_iter()
+            .filter(|k| k.applies_to(triad) && !model.has(*k))
+            .filter_map(|k| {
+                let mut m = model.clone();
+                m.add(k);
+                let (m, held) = self.fittable(triad, &m);
+                if !m.has(k) {
+                    return Some(unobservable_candidate(
+                        k,
+                        triad,
+                        held.unwrap_or_else(|| "not fittable on this recording".into()),
+                    ));
+                }
+                let prof = self.fit_candidate(triad, &m, k)?;
+                let r = prof.fit.clone();
+                let new_params = r.free.len().saturating_sub(base.free.len());
+                let not_obs: Vec<String> = r
+                    .unobservable
+                    .iter()
+                    .filter(|u| u.name.starts_with(k.id()))
+                    .map(|u| format!("{}: {}", u.name, u.reason))
+                    .collect();
+                if new_params == 0 || r.dof == 0 {
+                    let mut c = unobservable_candidate(k, triad, not_obs.join("; "));
+                    c.not_observable = not_obs;
+                    return Some(c);
+                }
+                // Likelihood ratio with the noise scale and drift profiled in both models, as an
+                // F statistic (exact for a linear model with one profiled scale).
+                let lr = (2.0 * (prof.loglik - profiled.loglik)).max(0.0);
+                let dof2 = (n_obs - r.free.len() as f64 - 6.0).max(1.0);
+                let f = (lr / n_obs).exp_m1() * dof2 / new_params as f64;
+                let p = stats::f_sf(f, new_params as f64, dof2);
+                let cand_chi2: f64 = floor_chi2(&r.residuals, points, floor_q).iter().sum();
+                let d_chi2 = (chi2 - cand_chi2).max(0.0);
+                let pattern: Vec<f64> = normalised(&r.residuals, points)
+                    .iter()
+                    .zip(&base_pattern)
+                    .map(|(a, b)| b - a)
+                    .collect();
+                let params = effect_params(&r, k);
+                Some(Candidate {
+                    effect: k,
+                    triad,
+                    new_params,
+                    not_observable: not_obs,
+                    chi2: cand_chi2,
+                    dof: r.dof,
+                    f,
+                    p_value: p,
+                    delta_aic: lr - 2.0 * new_params as f64,
+                    share_of_excess: d_chi2 / excess,
+                    residual_rms: r.residual_rms,
+                    significant: p < self.opts.alpha,
+                    claimed: false,
+                    explanation: explain(k, triad, &params, &r),
+                    model_change: model_change(triad, &r.model, k),
+                    params,
+                    fit: Some(r),
+                    pattern,
+                })
+            })
+            .collect();
+        candidates.sort_by(|a, b| {
+            (b.new_params > 0)
+                .cmp(&(a.new_params > 0))
+                .then(b.delta_aic.total_cmp(&a.delta_aic))
+        });
+
+        // Ambiguities among the significant candidates.
+        let mut ambiguities = Vec::new();
+        let sig: Vec<usize> = (0..candidates.len())
+            .filter(|&i| candidates[i].significant)
+            .collect();
+        for (ai, &i) in sig.iter().enumerate() {
+            for &j in &sig[ai + 1..] {
+                let (ci, cj) = (&candidates[i], &candidates[j]);
+                let r = stats::correlation(&ci.pattern, &cj.pattern);
+                // Comparable likelihoods: an AIC difference under 10 (a likelihood ratio
+                // under e^5) does not pick one of two non-nested models with confidence.
+                let comparable = (ci.delta_aic - cj.delta_aic).abs() < AMBIGUOUS_AIC;
+                if r.abs() >= self.opts.ambiguity_correlation && comparable {
+                    ambiguities.push(Ambiguity {
+                        triad,
+                        effects: [ci.effect, cj.effect],
+                        correlation: r,
+                        separating_recording: separating_recording(ci.effect, cj.effect),
+                    });
+                }
+            }
+        }
+        let consistent_before = p_value >= self.opts.alpha;
+        if let Some(top) = candidates.first_mut() {
+            let confused = ambiguities.iter().any(|a| a.effects.contains(&top.effect));
+            top.claimed = !consistent_before
+                && top.significant
+                && top.share_of_excess >= self.opts.min_share
+                && !confused;
+        }
+        let q_ml: [f64; 3] = std::array::from_fn(|a| profiled.scale[a] * profiled.rho[a]);
+        let chi2_drift: f64 = floor_chi2(&base.residuals, points, q_ml).iter().sum();
+        let drift_params = q_ml.iter().filter(|q| **q > 0.0).count();
+        let p_value_with_drift =
+            stats::chi2_sf(chi2_drift, dof.saturating_sub(drift_params).max(1) as f64);
+        let mut axes = axes;
+        for (a, v) in axes.iter_mut().enumerate() {
+            v.noise_floor_with_drift_rms = floor_rms(points, a, free_per_axis, q_ml[a]);
+        }
+        let consistent = consistent_before && spectral_lines.is_empty();
+        let consistent_with_drift = (consistent_before || p_value_with_drift >= self.opts.alpha)
+            && spectral_lines.is_empty();
+        let verdict = verdict_text(
+            triad,
+            &model,
+            consistent_before,
+            (p_value_with_drift >= self.opts.alpha)
+                .then_some((p_value_with_drift, std::array::from_fn(|a| q_ml[a].sqrt()))),
+            p_value,
+            &axes,
+            &candidates,
+            &ambiguities,
+            &structure,
+            &spectral_lines,
+        );
+        Ok(TriadDiagnosis {
+            triad,
+            effects: model.kinds(),
+            noise_scale: profiled.scale,
+            drift_random_walk: std::array::from_fn(|a| {
+                (profiled.scale[a] * profiled.rho[a]).sqrt()
+            }),
+            chi2,
+            dof,
+            p_value,
+            consistent,
+            consistent_with_drift,
+            p_value_with_drift,
+            axes,
+            segments,
+            worst,
+            structure,
+            spectral_lines,
+            candidates,
+            ambiguities,
+            verdict,
+            fit: base,
+            noise_floor: floor.clone(),
+        })
+    }
+
+    /// The ladder: from `base` (accel and gyro models), repeatedly add the best claimed effect
+    /// of a triad that is not yet consistent with its noise floor, until both are consistent
+    /// or nothing more is claimed.
+    pub fn ladder(&self, base: &imu_model::Calibration) -> Result<Ladder, DiagnoseError> {
+        let mut models = [base.accel.clone(), base.gyro.clone()];
+        let triads = [Triad::Accel, Triad::Gyro];
+        let mut steps = Vec::new();
+        let mut added: Vec<(Triad, EffectKind)> = Vec::new();
+        loop {
+            let diags = [
+                self.diagnose(Triad::Accel, &models[0])?,
+                self.diagnose(Triad::Gyro, &models[1])?,
+            ];
+            steps.push(LadderStep {
+                added: added.last().copied(),
+                accel: StepSummary::of(&diags[0]),
+                gyro: StepSummary::of(&diags[1]),
+            });
+            let pick = diags
+                .iter()
+                .enumerate()
+                .filter_map(|(i, d)| d.candidates.first().filter(|c| c.claimed).map(|c| (i, c)))
+                .max_by(|a, b| a.1.delta_aic.total_cmp(&b.1.delta_aic));
+            let Some((i, c)) = pick else {
+                let final_model = self.final_calibration(base, &diags);
+                return Ok(Ladder {
+                    steps,
+                    final_diagnoses: diags,
+                    calibration: final_model,
+                });
+            };
+            if steps.len() > self.opts.max_steps {
+                let final_model = self.final_calibration(base, &diags);
+                return Ok(Ladder {
+                    steps,
+                    final_diagnoses: diags,
+                    calibration: final_model,
+                });
+            }
+            added.push((triads[i], c.effect));
+            models[i] = c
+                .fit
+                .as_ref()
+                .map(|f| f.model.clone())
+                .expect("claimed candidates carry their fit");
+        }
+    }
+
+    fn final_calibration(
+        &self,
+        base: &imu_model::Calibration,
+        diags: &[TriadDiagnosis; 2],
+    ) -> imu_model::Calibration {
+        let mut cal = base.clone();
+        cal.accel = diags[0].fit.model.clone();
+        cal.gyro = diags[1].fit.model.clone();
+        cal
+    }
+}
+
+/// One rung of the ladder.
+#[derive(Clone, Debug, Serialize)]
+pub struct LadderStep {
+    /// The effect added at this step (None for the base model).
+    pub added: Option<(Triad, EffectKind)>,
+    /// Accel summary after the step.
+    pub accel: StepSummary,
+    /// Gyro summary after the step.
+    pub gyro: StepSummary,
+}
+
+/// Residual and floor of one triad at one ladder step.
+#[derive(Clone, Debug, Serialize)]
+pub struct StepSummary {
+    /// Effects in the model.
+    pub effects: Vec<EffectKind>,
+    /// Residual RMS per axis, U.
+    pub residual_rms: [f64; 3],
+    /// Noise floor RMS per axis, U.
+    pub noise_floor_rms: [f64; 3],
+    /// Noise floor RMS with the bias wander the residuals show, per axis, U.
+    pub noise_floor_with_drift_rms: [f64; 3],
+    /// Generalised chi-square and dof.
+    pub chi2: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// p-value of the goodness of fit.
+    pub p_value: f64,
+    /// Consistent with the noise floor.
+    pub consistent: bool,
+    /// Consistent once a slow bias wander is allowed.
+    pub consistent_with_drift: bool,
+}
+
+impl StepSummary {
+    fn of(d: &TriadDiagnosis) -> StepSummary {
+        StepSummary {
+            effects: d.effects.clone(),
+            residual_rms: d.axes.each_ref().map(|a| a.residual_rms),
+            noise_floor_rms: d.axes.each_ref().map(|a| a.noise_floor_rms),
+            noise_floor_with_drift_rms: d.axes.each_ref().map(|a| a.noise_floor_with_drift_rms),
+            chi2: d.chi2,
+            dof: d.dof,
+            p_value: d.p_value,
+            consistent: d.consistent,
+            consistent_with_drift: d.consistent_with_drift,
+        }
+    }
+}
+
+/// The ladder's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct Ladder {
+    /// Base model first, then one step per added effect.
+    pub steps: Vec<LadderStep>,
+    /// The final model's diagnoses (accel, gyro).
+    pub final_diagnoses: [TriadDiagnosis; 2],
+    /// The final model as a calibration.
+    #[serde(skip)]
+    pub calibration: imu_model::Calibration,
+}
+
+// ------------------------------------------------------------------------------ helpers
+
+/// A fit with its noise scale and drift profiled out.
+#[derive(Clone, Debug)]
+struct Profiled {
+    fit: FitResult,
+    /// Gaussian log-likelihood of the residuals (constants dropped).
+    loglik: f64,
+    /// Residual variance over the floor's, per axis.
+    scale: [f64; 3],
+    /// Random-walk rate variance in units of the scale, per axis.
+    rho: [f64; 3],
+}
+
+/// Per-axis covariance of the segment means: `s_k^2 delta_kl + q min(t_k, t_l)` (time from
+/// the first segment), its Cholesky factor's log-determinant and `r^T C^-1 r`.
+fn gls(r: &[f64], points: &[FitPoint], a: usize, q: f64, scale: f64) -> Option<(f64, f64)> {
+    use imu_model::nalgebra::{DMatrix, DVector};
+    let n = r.len();
+    let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+    let c = DMatrix::from_fn(n, n, |k, l| {
+        let white = if k == l {
+            scale * points[k].std_error[a].powi(2)
+        } else {
+            0.0
+        };
+        white + q * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0)
+    });
+    let ch = c.cholesky()?;
+    let logdet = 2.0 * ch.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+    let z = ch.solve(&DVector::from_column_slice(r));
+    Some((r.iter().zip(z.iter()).map(|(a, b)| a * b).sum(), logdet))
+}
+
+/// Generalised chi-square per axis against the noise floor (white part from the points'
+/// standard errors, random walk `q`).
+fn floor_chi2(res: &[[f64; 3]], points: &[FitPoint], q: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|a| {
+        let r: Vec<f64> = res.iter().map(|v| v[a]).collect();
+        gls(&r, points, a, q[a], 1.0).map_or(f64::INFINITY, |(c, _)| c)
+    })
+}
+
+/// Maximum-likelihood white scale and random-walk rate (relative to the scale) of one axis's
+/// residuals, and the log-likelihood there: `rho` on a log grid refined by golden section,
+/// the scale in closed form.
+fn profile_axis(r: &[f64], points: &[FitPoint], a: usize) -> (f64, f64, f64) {
+    let n = r.len() as f64;
+    let ll = |rho: f64| -> Option<(f64, f64)> {
+        let (chi2, logdet) = gls(r, points, a, rho, 1.0)?;
+        let scale = (chi2 / n).max(1e-300);
+        Some((scale, -0.5 * (n * scale.ln() + logdet + n)))
+    };
+    let span = points
+        .iter()
+        .map(|p| p.t_s)
+        .fold(f64::NEG_INFINITY, f64::max)
+        - points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+    let s2 = points.iter().map(|p| p.std_error[a].powi(2)).sum::<f64>() / n;
+    let unit = s2 / span.max(1e-9);
+    let grid: Vec<f64> = std::iter::once(0.0)
+        .chain((0..=32).map(|k| unit * 10f64.powf(-4.0 + k as f64 * 0.25)))
+        .collect();
+    let mut best = (0.0, f64::NEG_INFINITY, 1.0);
+    let mut best_k = 0;
+    for (k, &rho) in grid.iter().enumerate() {
+        if let Some((scale, l)) = ll(rho)
+            && l > best.1
+        {
+            best = (rho, l, scale);
+            best_k = k;
+        }
+    }
+    if best_k > 0 {
+        // Golden section in log rho between the neighbours of the best grid point.
+        let lo = grid[best_k - 1].max(unit * 1e-5).ln();
+        let hi = grid[(best_k + 1).min(grid.len() - 1)].ln();
+        let (mut x0, mut x1) = (lo, hi);
+        let g = 0.618_033_988_749_895;
+        for _ in 0..30 {
+            let (c, d) = (x1 - g * (x1 - x0), x0 + g * (x1 - x0));
+            let lc = ll(c.exp()).map_or(f64::NEG_INFINITY, |v| v.1);
+            let ld = ll(d.exp()).map_or(f64::NEG_INFINITY, |v| v.1);
+            if lc > ld {
+                x1 = d;
+            } else {
+                x0 = c;
+            }
+        }
+        let rho = (0.5 * (x0 + x1)).exp();
+        if let Some((scale, l)) = ll(rho)
+            && l > best.1
+        {
+            best = (rho, l, scale);
+        }
+    }
+    (best.2, best.0, best.1)
+}
+
+/// RMS the residuals of one axis would have if the model were right: the segment-scale floor
+/// of each mean plus, with `q > 0`, a random walk's scatter about its mean over the segments'
+/// times, scaled by the fit's degrees of freedom.
+fn floor_rms(points: &[FitPoint], a: usize, free_per_axis: f64, q: f64) -> f64 {
+    let n = points.len() as f64;
+    let white: f64 = points.iter().map(|p| p.std_error[a].powi(2)).sum::<f64>() / n;
+    let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+    let t: Vec<f64> = points.iter().map(|p| p.t_s - t0).collect();
+    // Trace of P C P / n with C_kl = q min(t_k, t_l) and P the centring projector.
+    let diag: f64 = t.iter().sum();
+    let mut total = diag;
+    for (k, tk) in t.iter().enumerate() {
+        for tl in &t[..k] {
+            total += 2.0 * tk.min(*tl);
+        }
+    }
+    let rw = q * (diag / n - total / (n * n)).max(0.0);
+    let dof_factor = ((n - free_per_axis) / n).max(0.0);
+    ((white + rw) * dof_factor).sqrt()
+}
+
+fn normalised(res: &[[f64; 3]], points: &[FitPoint]) -> Vec<f64> {
+    res.iter()
+        .zip(points)
+        .flat_map(|(r, p)| (0..3).map(move |a| r[a] / p.std_error[a]))
+        .collect()
+}
+
+fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -> Candidate {
+    Candidate {
+        effect: k,
+        triad,
+        new_params: 0,
+        not_observable: vec![why.clone()],
+        chi2: f64::NAN,
+        dof: 0,
+        f: f64::NAN,
+        p_value: f64::NAN,
+        delta_aic: f64::NEG_INFINITY,
+        share_of_excess: 0.0,
+        residual_rms: [f64::NAN; 3],
+        significant: false,
+        claimed: false,
+        explanation: format!(
+            "{}: not observable in this recording ({why})",
+            k.description()
+        ),
+        params: Vec::new(),
+        model_change: String::new(),
+        fit: None,
+        pattern: Vec::new(),
+    }
+}
+
+fn effect_params(r: &FitResult, k: EffectKind) -> Vec<ParamValue> {
+    let prefix = format!("{}.", k.id());
+    (0..r.names.len())
+        .filter(|&i| r.names[i].starts_with(&prefix))
+        .map(|i| ParamValue {
+            name: r.names[i].clone(),
+            value: r.params[i],
+            std_error: r.std_errors[i],
+            unit: r.units[i].clone(),
+        })
+        .collect()
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// What drives one parameter, in physical words.
+fn driver(k: EffectKind, param: &str, triad: Triad) -> String {
+    let t = triad.name();
+    let rest = param.split_once('.').map_or("", |x| x.1);
+    let axis_of = |s: &str| s.chars().last().map(String::from).unwrap_or_default();
+    match k {
+        EffectKind::GSensitivity => {
+            let mut c = rest.chars();
+            let (row, col) = (c.next().unwrap_or('?'), c.next().unwrap_or('?'));
+            format!("the {row}-{t} residual follows the specific force along {col}")
+        }
+        EffectKind::Misalignment => {
+            let mut c = rest.chars();
+            let (row, col) = (c.next().unwrap_or('?'), c.next().unwrap_or('?'));
+            format!("the {row}-{t} residual follows the input along {col}")
+        }
+        EffectKind::ScaleNonlinearity => {
+            let power = if rest.starts_with("quadratic") {
+                "square"
+            } else {
+                "cube"
+            };
+            let a = axis_of(rest);
+            format!("the {a}-{t} residual follows the {power} of its input")
+        }
+        EffectKind::AsymmetricScale => {
+            let a = axis_of(rest);
+            format!("the {a}-{t} gain differs between positive and negative input")
+        }
+        EffectKind::Scale => format!(
+            "the {}-{t} residual is proportional to its input",
+            axis_of(rest)
+        ),
+        EffectKind::Bias => format!("a constant offset on {}-{t}", axis_of(rest)),
+        EffectKind::TempBias => format!("the {}-{t} residual follows temperature", axis_of(rest)),
+        EffectKind::TempScale => format!("the {}-{t} gain follows temperature", axis_of(rest)),
+        EffectKind::Warmup => format!(
+            "the {}-{t} residual decays with time since power-on",
+            axis_of(rest)
+        ),
+        EffectKind::LeverArm => format!(
+            "the {t} residual follows the square of the rotation rate (centripetal \
+             acceleration of a proof mass offset along {})",
+            axis_of(rest)
+        ),
+    }
+}
+
+fn explain(k: EffectKind, triad: Triad, params: &[ParamValue], r: &FitResult) -> String {
+    // The parameter with the largest |value / se| names the pattern.
+    let best = params
+        .iter()
+        .filter(|p| !p.name.ends_with("tau_s"))
+        .max_by(|a, b| {
+            let t = |p: &ParamValue| p.std_error.map_or(0.0, |s| (p.value / s).abs());
+            t(a).total_cmp(&t(b))
+        });
+    let mut s = k.description().to_string();
+    if let Some(p) = best {
+        let _ = write!(
+            s,
+            ": {} ({} = {:.3e}{} {})",
+            driver(k, &p.name, triad),
+            p.name,
+            p.value,
+            p.std_error
+                .map_or(String::new(), |e| format!(" +/- {e:.1e}")),
+            p.unit
+        );
+    }
+    if let Some(tau) = params.iter().find(|p| p.name.ends_with("tau_s")) {
+        let _ = write!(s, ", time constant {:.0} s", tau.value);
+    }
+    let _ = write!(
+        s,
+        "; residual RMS with it: {:.3e} {:.3e} {:.3e} {}",
+        r.residual_rms[0],
+        r.residual_rms[1],
+        r.residual_rms[2],
+        triad.unit()
+    );
+    s
+}
+
+/// The TOML lines of `k` as fitted in `m` (what to add to the model file).
+fn model_change(triad: Triad, m: &TriadModel, k: EffectKind) -> String {
+    let mut only = TriadModel::default();
+    only.add(k);
+    if let (Some(src), Some(dst)) = (m.get(k), only.get_mut(k)) {
+        dst.set_params(&src.params());
+    }
+    let mut cal = imu_model::Calibration::identity();
+    *cal.triad_mut(triad) = only;
+    let text = cal.to_toml_string();
+    let header = format!("[{}.{}", triad.name(), k.id());
+    match text.find(&header) {
+        Some(i) => text[i..].trim_end().to_string(),
+        None => text,
+    }
+}
+
+/// The recording that separates two effects the present one cannot.
+fn separating_recording(a: EffectKind, b: EffectKind) -> String {
+    use EffectKind::*;
+    let has = |x: EffectKind| a == x || b == x;
+    if has(Warmup) && (has(TempBias) || has(TempScale)) {
+        "a temperature cycle after the warm-up has settled (heat and cool the sensor, e.g. in a \
+         chamber or with the sinusoidal temperature profile): temperature then changes without \
+         the time since power-on, and the two stop moving together"
+            .into()
+    } else if has(ScaleNonlinearity) && has(AsymmetricScale) {
+        "inputs of both signs at several magnitudes (e.g. rate steps of +/-20, 40, 60, 80 deg/s): \
+         a square bends both signs the same way, an asymmetry changes the gain with the sign"
+            .into()
+    } else if has(LeverArm) {
+        "rotations at several rates about each axis, with the sensor off the table axis in \
+         different directions: the centripetal term grows with the square of the rate and points \
+         along the offset"
+            .into()
+    } else if has(GSensitivity) {
+        "more static orientations (each axis up and down, and at 45 degrees): the g-dependent \
+         bias follows the specific force, the other effect does not"
+            .into()
+    } else {
+        format!(
+            "a recording in which the signals that drive {a} and {b} vary independently of each \
+             other"
+        )
+    }
+}
+
+/// Explanatory signals per observation: (name, values).
+fn signals(points: &[FitPoint], triad: Triad) -> Vec<(String, Vec<f64>)> {
+    let u = triad.unit();
+    let mut out: Vec<(String, Vec<f64>)> = Vec::new();
+    let col = |f: &dyn Fn(&FitPoint) -> f64| points.iter().map(f).collect::<Vec<f64>>();
+    for (a, name) in AXES.iter().enumerate() {
+        out.push((format!("input {name} [{u}]"), col(&|p| p.true_input[a])));
+    }
+    out.push((
+        format!("input magnitude [{u}]"),
+        col(&|p| p.true_input.norm()),
+    ));
+    for (a, name) in AXES.iter().enumerate() {
+        out.push((
+            format!("sign of input {name}"),
+            col(&|p| p.true_input[a].signum()),
+        ));
+    }
+    for (a, name) in AXES.iter().enumerate() {
+        out.push((
+            format!("specific force {name} [m/s^2]"),
+            col(&|p| p.conditions.specific_force_m_s2[a]),
+        ));
+    }
+    out.push(("temperature [degC]".into(), col(&|p| p.conditions.temp_c)));
+    out.push((
+        "time since power-on [s]".into(),
+        col(&|p| p.conditions.time_since_power_on_s),
+    ));
+    for (a, name) in AXES.iter().enumerate() {
+        out.push((
+            format!("rotation rate {name} [rad/s]"),
+            col(&|p| p.conditions.angular_rate_rad_s[a]),
+        ));
+    }
+    out.push((
+        "rotation rate squared [rad^2/s^2]".into(),
+        col(&|p| p.conditions.angular_rate_rad_s.norm_squared()),
+    ));
+    // Table angle: direction of the specific force in the plane normal to the sensor axis it
+    // varies least along.
+    let f: Vec<_> = points
+        .iter()
+        .map(|p| p.conditions.specific_force_m_s2.normalize())
+        .collect();
+    if f.iter().all(|v| v.iter().all(|x| x.is_finite())) && !f.is_empty() {
+        let var = |a: usize| {
+            let m = f.iter().map(|v| v[a]).sum::<f64>() / f.len() as f64;
+            f.iter().map(|v| (v[a] - m).powi(2)).sum::<f64>()
+        };
+        let axis = (0..3)
+            .min_by(|&a, &b| var(a).total_cmp(&var(b)))
+            .unwrap_or(0);
+        let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+        out.push((
+            format!("table angle about {} [deg]", AXES[axis]),
+            f.iter().map(|v| v[j].atan2(v[i]).to_degrees()).collect(),
+        ));
+    }
+    out
+}
+
+fn residual_structure(
+    segs: &[SegmentResidual],
+    signals: &[(String, Vec<f64>)],
+    a: usize,
+) -> Structure {
+    let r: Vec<f64> = segs.iter().map(|s| s.residual[a]).collect();
+    let mut correlates: Vec<Correlate> = signals
+        .iter()
+        .map(|(name, v)| Correlate {
+            signal: name.clone(),
+            r: stats::correlation(&r, v),
+        })
+        .filter(|c| c.r.is_finite() && c.r != 0.0)
+        .collect();
+    correlates.sort_by(|x, y| y.r.abs().total_cmp(&x.r.abs()));
+    let mut order: Vec<usize> = (0..segs.len()).collect();
+    order.sort_by(|&i, &j| segs[i].start_s.total_cmp(&segs[j].start_s));
+    let z: Vec<f64> = order.iter().map(|&i| segs[i].z[a]).collect();
+    let t: Vec<f64> = order
+        .iter()
+        .map(|&i| 0.5 * (segs[i].start_s + segs[i].end_s))
+        .collect();
+    Structure {
+        correlates,
+        lag1_autocorrelation: stats::lag1_autocorrelation(&z),
+        dominant_period_s: lomb_scargle_peak(&t, &z),
+    }
+}
+
+/// The strongest period of unevenly sampled `y(t)` (Lomb-Scargle), with the share of the
+/// variance a sinusoid at it explains; None with fewer than 8 points.
+fn lomb_scargle_peak(t: &[f64], y: &[f64]) -> Option<(f64, f64)> {
+    let n = t.len();
+    if n < 8 {
+        return None;
+    }
+    let span = t[n - 1] - t[0];
+    if span <= 0.0 {
+        return None;
+    }
+    let mean = y.iter().sum::<f64>() / n as f64;
+    let var: f64 = y.iter().map(|v| (v - mean).powi(2)).sum();
+    if var <= 0.0 {
+        return None;
+    }
+    let dt_min = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let f_max = 0.5 / dt_min.max(1e-9);
+    let f_min = 1.0 / span;
+    let mut best = (0.0, 0.0);
+    let steps = 400;
+    for k in 0..=steps {
+        let f = f_min * (f_max / f_min).powf(k as f64 / steps as f64);
+        let w = 2.0 * std::f64::consts::PI * f;
+        let (s2, c2) = t.iter().fold((0.0, 0.0), |(s, c), ti| {
+            (s + (2.0 * w * ti).sin(), c + (2.0 * w * ti).cos())
+        });
+        let tau = s2.atan2(c2) / (2.0 * w);
+        let (mut yc, mut ys, mut cc, mut ss) = (0.0, 0.0, 0.0, 0.0);
+        for (ti, yi) in t.iter().zip(y) {
+            let (s, c) = (w * (ti - tau)).sin_cos();
+            yc += (yi - mean) * c;
+            ys += (yi - mean) * s;
+            cc += c * c;
+            ss += s * s;
+        }
+        let p = yc * yc / cc.max(1e-300) + ys * ys / ss.max(1e-300);
+        if p > best.1 {
+            best = (1.0 / f, p);
+        }
+    }
+    Some((best.0, (best.1 / var).min(1.0)))
+}
+
+/// In-place radix-2 FFT of (re, im), length a power of two.
+fn fft(re: &mut [f64], im: &mut [f64]) {
+    let n = re.len();
+    let mut j = 0;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            re.swap(i, j);
+            im.swap(i, j);
+        }
+    }
+    let mut len = 2;
+    while len <= n {
+        let ang = -2.0 * std::f64::consts::PI / len as f64;
+        for start in (0..n).step_by(len) {
+            for k in 0..len / 2 {
+                let (s, c) = (ang * k as f64).sin_cos();
+                let (a, b) = (start + k, start + k + len / 2);
+                let (xr, xi) = (re[b] * c - im[b] * s, re[b] * s + im[b] * c);
+                re[b] = re[a] - xr;
+                im[b] = im[a] - xi;
+                re[a] += xr;
+                im[a] += xi;
+            }
+        }
+        len <<= 1;
+    }
+}
+
+/// Periodic components inside the static segments: the averaged, Hann-windowed periodogram of
+/// blocks of every static segment, each bin compared with the median of its neighbourhood; a
+/// bin standing out at a false-alarm probability of 1e-6 over all bins is a line.
+pub fn spectral_lines(series: &ImuSeries, obs: &Observations, triad: Triad) -> Vec<SpectralLine> {
+    let rate = series.sample_rate_hz();
+    let data = if triad == Triad::Gyro {
+        &series.gyro_rad_s
+    } else {
+        &series.accel_m_s2
+    };
+    let statics: Vec<_> = obs.segmentation.of_kind(SegmentKind::Static).collect();
+    let Some(shortest) = statics.iter().map(|s| s.n).min() else {
+        return Vec::new();
+    };
+    let mut len = 1usize;
+    while len * 2 <= shortest.min(1024) {
+        len *= 2;
+    }
+    if len < 64 {
+        return Vec::new();
+    }
+    let hann: Vec<f64> = (0..len)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / len as f64).cos())
+        .collect();
+    let wsum: f64 = hann.iter().sum();
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        let mut power = vec![0.0; len / 2];
+        let mut blocks = 0usize;
+        for s in &statics {
+            let y: Vec<f64> = data[s.range()].iter().map(|v| v[axis]).collect();
+            for chunk in y.chunks_exact(len) {
+                let m = chunk.iter().sum::<f64>() / len as f64;
+                let mut re: Vec<f64> = chunk.iter().zip(&hann).map(|(v, w)| (v - m) * w).collect();
+                let mut im = vec![0.0; len];
+                fft(&mut re, &mut im);
+                for k in 0..len / 2 {
+                    power[k] += re[k] * re[k] + im[k] * im[k];
+                }
+                blocks += 1;
+            }
+        }
+        if blocks < 4 {
+            continue;
+        }
+
+        let dof = 2.0 * blocks as f64;
+        let n_bins = (len / 2) as f64;
+        let half = 8usize;
+        let mut k = 4;
+        while k < len / 2 - 1 {
+            let lo = k.saturating_sub(half).max(1);
+            let hi = (k + half + 1).min(len / 2);
+            let mut neigh: Vec<f64> = (lo..hi)
+                .filter(|&j| j.abs_diff(k) > 2)
+                .map(|j| power[j])
+                .collect();
+            if neigh.len() < 4 {
+                k += 1;
+                continue;
+            }
+            let mid = neigh.len() / 2;
+            let (_, med, _) = neigh.select_nth_unstable_by(mid, f64::total_cmp);
+            // The median of a chi2(dof)/dof variable is about 1 - 2/(9 dof).
+            let level = *med / (1.0 - 2.0 / (9.0 * dof)).powi(3);
+            let ratio = power[k] / level.max(1e-300);
+            let p = stats::chi2_sf(ratio * dof, dof);
+            if p * n_bins < 1e-6 && ratio > 4.0 {
+                // Local maximum only; amplitude from the windowed power (sum the main lobe).
+                if power[k] >= power[k - 1] && power[k] >= power[k + 1] {
+                    let lobe: f64 = power[k - 1] + power[k] + power[k + 1];
+                    let lobe_noise = 3.0 * level;
+                    let amp =
+                        2.0 * ((lobe - lobe_noise).max(0.0) / blocks as f64 / 1.5).sqrt() / wsum;
+                    out.push(SpectralLine {
+                        axis,
+                        frequency_hz: k as f64 * rate / len as f64,
+                        amplitude: amp,
+                        ratio,
+                    });
+                    k += 3;
+                    continue;
+                }
+            }
+            k += 1;
+        }
+    }
+    out
+}
+
+#[allow(clippy::too_many_arguments)]
+fn verdict_text(
+    triad: Triad,
+    model: &TriadModel,
+    consistent: bool,
+    with_drift: Option<(f64, [f64; 3])>,
+    p: f64,
+    axes: &[AxisVerdict; 3],
+    candidates: &[Candidate],
+    ambiguities: &[Ambiguity],
+    structure: &[Structure; 3],
+    lines: &[SpectralLine],
+) -> String {
+    let u = triad.unit();
+    let ids: Vec<&str> = model.kinds().iter().map(|k| k.id()).collect();
+    let mut s = format!("{triad} model [{}]: ", ids.join(", "));
+    if consistent {
+        let _ = write!(
+            s,
+            "consistent with the noise floor (p = {p:.3}); residual RMS {} vs floor {} {u}.",
+            fmt3(axes.each_ref().map(|a| a.residual_rms)),
+            fmt3(axes.each_ref().map(|a| a.noise_floor_rms))
+        );
+    } else {
+        let worst = (0..3)
+            .max_by(|&a, &b| {
+                (axes[a].residual_rms / axes[a].noise_floor_rms)
+                    .total_cmp(&(axes[b].residual_rms / axes[b].noise_floor_rms))
+            })
+            .unwrap_or(0);
+        let _ = write!(
+            s,
+            "NOT consistent with the noise floor (p = {p:.1e}); residual RMS {} vs floor {} {u}, \
+             worst on {} ({:.1}x the floor).",
+            fmt3(axes.each_ref().map(|a| a.residual_rms)),
+            fmt3(axes.each_ref().map(|a| a.noise_floor_rms)),
+            AXES[worst],
+            axes[worst].residual_rms / axes[worst].noise_floor_rms
+        );
+        let any_significant = candidates.iter().any(|c| c.significant);
+        if let Some((pd, k)) = with_drift.filter(|_| !any_significant) {
+            let _ = write!(
+                s,
+                " The excess is a slow wander of the bias between segments, not a missing effect: \
+                 with a random walk of {} {u}/sqrt(s) the residuals are consistent with the floor \
+                 (p = {pd:.3}). (Bias instability and random walk the segments are too short to \
+                 show; a long static recording through imu-noise measures them.)",
+                fmt3(k)
+            );
+        } else {
+            match candidates.first() {
+                Some(c) if c.claimed => {
+                    let _ = write!(
+                        s,
+                        " Missing effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
+                        c.explanation,
+                        c.p_value,
+                        100.0 * c.share_of_excess.min(1.0)
+                    );
+                }
+                _ => {
+                    if let Some(a) = ambiguities.first() {
+                        let _ = write!(
+                            s,
+                            " {} and {} both explain the residual and cannot be told apart in this \
+                         recording (their explained patterns correlate {:.2}); to separate them \
+                         record {}.",
+                            a.effects[0], a.effects[1], a.correlation, a.separating_recording
+                        );
+                    } else {
+                        let _ = write!(
+                            s,
+                            " No effect of the library explains it: unexplained structure remains."
+                        );
+                        if let Some(c) = candidates.first().filter(|c| c.new_params > 0) {
+                            let _ = write!(
+                                s,
+                                " (Best candidate {}: p = {:.1e}, explains {:.0} % of the excess.)",
+                                c.effect,
+                                c.p_value,
+                                100.0 * c.share_of_excess.clamp(0.0, 1.0)
+                            );
+                        }
+                        let a = worst;
+                        if let Some(cr) = structure[a].correlates.first() {
+                            let _ = write!(
+                                s,
+                                " On {}: strongest correlate {} (r = {:.2}), lag-1 autocorrelation \
+                             {:.2}",
+                                AXES[a], cr.signal, cr.r, structure[a].lag1_autocorrelation
+                            );
+                        }
+                        if let Some((period, share)) = structure[a].dominant_period_s {
+                            let _ = write!(
+                                s,
+                                ", dominant period {period:.0} s ({:.0} % of the variance)",
+                                100.0 * share
+                            );
+                        }
+                        s.push('.');
+                    }
+                }
+            }
+        }
+    }
+    for l in lines {
+        let _ = write!(
+            s,
+            " Unexplained structure: a periodic component at {:.3} Hz, amplitude {:.2e} {u} on \
+             {}-{triad} ({:.0}x the local noise) inside the static segments; no library effect \
+             models a periodic disturbance (look for vibration or electrical interference at \
+             that frequency).",
+            l.frequency_hz, l.amplitude, AXES[l.axis], l.ratio
+        );
+    }
+    s
+}
+
+fn fmt3(v: [f64; 3]) -> String {
+    format!("{:.2e}/{:.2e}/{:.2e}", v[0], v[1], v[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fft_matches_a_direct_dft() {
+        let n = 16;
+        let x: Vec<f64> = (0..n).map(|i| ((i * 7 % 5) as f64).sin()).collect();
+        let (mut re, mut im) = (x.clone(), vec![0.0; n]);
+        fft(&mut re, &mut im);
+        for k in 0..n {
+            let (mut r, mut i) = (0.0, 0.0);
+            for (j, v) in x.iter().enumerate() {
+                let a = -2.0 * std::f64::consts::PI * (k * j) as f64 / n as f64;
+                r += v * a.cos();
+                i += v * a.sin();
+            }
+            assert!(
+                (re[k] - r).abs() < 1e-9 && (im[k] - i).abs() < 1e-9,
+                "bin {k}"
+            );
+        }
+    }
+
+    #[test]
+    fn lomb_scargle_finds_a_period_in_uneven_samples() {
+        let t: Vec<f64> = (0..60)
+            .map(|i| i as f64 * 33.0 + (i % 3) as f64 * 4.0)
+            .collect();
+        let y: Vec<f64> = t
+            .iter()
+            .map(|t| (2.0 * std::f64::consts::PI * t / 400.0).sin())
+            .collect();
+        let (period, share) = lomb_scargle_peak(&t, &y).unwrap();
+        assert!((period - 400.0).abs() < 20.0, "{period}");
+        assert!(share > 0.9, "{share}");
+    }
+
+    #[test]
+    fn every_effect_has_physical_words_for_its_parameters() {
+        for k in EffectKind::ALL {
+            for t in [Triad::Accel, Triad::Gyro] {
+                if !k.applies_to(t) {
+                    continue;
+                }
+                let mut m = TriadModel::default();
+                m.add(k);
+                for name in m.param_names(t) {
+                    let d = driver(k, &name, t);
+                    assert!(!d.contains('?') && d.contains(t.name()), "{name}: {d}");
+                }
+            }
+        }
+    }
+}
