@@ -37,7 +37,8 @@ use serde::Serialize;
 
 use crate::allan::{self, Kind, TauSet};
 use crate::fit::{
-    CalibrateError, FitError, FitOptions, FitPoint, FitResult, Observations, Reference, fit_triad,
+    CalibrateError, FitError, FitOptions, FitPoint, FitResult, Observations, Reference,
+    SharedNoise, fit_triad, segment_covariance,
 };
 use crate::noise::NoiseTerms;
 use crate::segment::{SegmentKind, SegmentOptions};
@@ -122,6 +123,9 @@ pub struct NoiseFloor {
     pub random_walk_is_bound: [bool; 3],
     /// Quantization per axis, U s.
     pub quantization_s: [f64; 3],
+    /// Flicker Allan variance floor per axis, U^2 (`(0.664 B)^2`): its long-range correlation
+    /// is part of the segment means' covariance.
+    pub flicker_var: [f64; 3],
     /// Pooled overlapping Allan deviation of the static segments per axis: (tau s, dev U).
     pub allan: [Vec<(f64, f64)>; 3],
 }
@@ -179,6 +183,9 @@ impl NoiseFloor {
             random_walk_sqrt_hz: m.random_walk,
             random_walk_is_bound: [false; 3],
             quantization_s: m.quantization_lsb.map(|q| q / 12f64.sqrt() * tau0),
+            flicker_var: m
+                .bias_instability
+                .map(|b| (crate::noise::BIAS_INSTABILITY_FACTOR * b).powi(2)),
             allan: std::array::from_fn(|a| {
                 taus.iter().map(|&t| (t, m.allan_deviation(t)[a])).collect()
             }),
@@ -235,6 +242,7 @@ pub fn measure_noise_floor(
         random_walk_sqrt_hz: [0.0; 3],
         random_walk_is_bound: [false; 3],
         quantization_s: [0.0; 3],
+        flicker_var: [0.0; 3],
         allan: Default::default(),
     };
     for axis in 0..3 {
@@ -296,6 +304,7 @@ pub fn measure_noise_floor(
 fn apply_terms(floor: &mut NoiseFloor, axis: usize, t: &NoiseTerms) {
     floor.white_per_sqrt_hz[axis] = t.n_u_per_sqrt_hz.value;
     floor.bias_instability[axis] = t.b_u.value;
+    floor.flicker_var[axis] = (crate::noise::BIAS_INSTABILITY_FACTOR * t.b_u.value).powi(2);
     floor.quantization_s[axis] = t.q_u_s.value;
     // The random walk as fitted; when the segments are too short to resolve it the value is
     // marked as such (the candidate tests profile the drift from the residuals anyway).
@@ -305,6 +314,9 @@ fn apply_terms(floor: &mut NoiseFloor, axis: usize, t: &NoiseTerms) {
 }
 
 /// The observations of one triad with the noise floor as their standard errors.
+/// The observations of one triad with the noise floor's independent part (the Allan variance
+/// at the segment's duration less the flicker floor, whose correlation between segments is
+/// modelled separately) as their standard errors.
 fn floored_points(
     points: &[FitPoint],
     floor: &NoiseFloor,
@@ -319,7 +331,8 @@ fn floored_points(
             let mut q = p.clone();
             for a in 0..3 {
                 let v = floor.segment_mean_variance(a, duration_s);
-                q.std_error[a] = v.sqrt().max(p.std_error[a]);
+                let independent = (v - floor.flicker_var[a]).max(0.1 * v);
+                q.std_error[a] = independent.sqrt().max(p.std_error[a]);
             }
             q
         })
@@ -601,14 +614,31 @@ impl<'a> Workbench<'a> {
     }
 
     fn fit_opts(&self, t: Triad) -> FitOptions {
-        let (_, _, floor) = self.points(t);
         FitOptions {
             fixed: Vec::new(),
             bias_drift: None,
             drift_model: false,
-            random_walk_q: Some(floor.random_walk_sqrt_hz.map(|k| k * k)),
+            shared_noise: Some(self.shared(t)),
             ..self.opts.fit.clone()
         }
+    }
+
+    /// The noise the segment means of `t` share: the floor's flicker at the median segment
+    /// duration (no random walk: the tests profile it).
+    fn shared(&self, t: Triad) -> [SharedNoise; 3] {
+        let (_, index, floor) = self.points(t);
+        let rate = self.series.sample_rate_hz();
+        let mut d: Vec<f64> = index
+            .iter()
+            .map(|&i| self.obs.segmentation.segments[i].n as f64 / rate)
+            .collect();
+        d.sort_by(f64::total_cmp);
+        let tau = d.get(d.len() / 2).copied().unwrap_or(1.0);
+        std::array::from_fn(|a| SharedNoise {
+            random_walk_q: 0.0,
+            flicker_var: floor.flicker_var[a],
+            flicker_tau_s: tau,
+        })
     }
 
     /// The model actually fittable on this recording for `triad` (gyro gains held without
@@ -626,6 +656,7 @@ impl<'a> Workbench<'a> {
     /// bias, whatever its size, is then part of the noise model of every candidate alike.
     fn fit(&self, triad: Triad, model: &TriadModel) -> Result<Profiled, FitError> {
         let (points, _, _) = self.points(triad);
+        let shared = self.shared(triad);
         let mut scale = [1.0_f64; 3];
         let mut rho = [0.0; 3];
         let mut m = model.clone();
@@ -642,7 +673,11 @@ impl<'a> Workbench<'a> {
                 })
                 .collect();
             let opts = FitOptions {
-                random_walk_q: Some(std::array::from_fn(|a| scale[a] * rho[a])),
+                shared_noise: Some(std::array::from_fn(|a| SharedNoise {
+                    random_walk_q: scale[a] * rho[a],
+                    flicker_var: scale[a] * shared[a].flicker_var,
+                    ..shared[a]
+                })),
                 ..self.fit_opts(triad)
             };
             let fit = fit_triad(&m, triad, &pts, &opts)?;
@@ -652,7 +687,7 @@ impl<'a> Workbench<'a> {
             let mut next_rho = rho;
             for a in 0..3 {
                 let r: Vec<f64> = fit.residuals.iter().map(|v| v[a]).collect();
-                let (sa, ra, ll) = profile_axis(&r, points, a);
+                let (sa, ra, ll) = profile_axis(&r, points, a, &shared[a]);
                 next_scale[a] = sa;
                 next_rho[a] = ra;
                 loglik += ll;
@@ -745,10 +780,11 @@ impl<'a> Workbench<'a> {
         let (points, index, floor) = self.points(triad);
         let n = points.len();
         let dof = base.dof;
-        // The verdict holds the residuals against the segment-scale floor only: a random walk
-        // the segments cannot resolve is not assumed (the candidate tests profile it).
-        let floor_q = [0.0; 3];
-        let chi2_axis = floor_chi2(&base.residuals, points, floor_q);
+        // The verdict holds the residuals against the floor measured in the segments (white and
+        // flicker); a random walk the segments cannot resolve is not assumed (the candidate
+        // tests profile it).
+        let shared = self.shared(triad);
+        let chi2_axis = floor_chi2(&base.residuals, points, &shared);
         let chi2: f64 = chi2_axis.iter().sum();
         let p_value = stats::chi2_sf(chi2, dof as f64);
         let free_per_axis = base.free.len() as f64 / 3.0;
@@ -756,7 +792,7 @@ impl<'a> Workbench<'a> {
             let dof_a = (n as f64 - free_per_axis).max(1.0);
             AxisVerdict {
                 residual_rms: base.residual_rms[a],
-                noise_floor_rms: floor_rms(points, a, free_per_axis, 0.0),
+                noise_floor_rms: floor_rms(points, a, free_per_axis, &shared[a]),
                 noise_floor_with_drift_rms: 0.0,
                 chi2: chi2_axis[a],
                 dof: dof_a,
@@ -827,7 +863,7 @@ impl<'a> Workbench<'a> {
                 let dof2 = (n_obs - r.free.len() as f64 - 6.0).max(1.0);
                 let f = (lr / n_obs).exp_m1() * dof2 / new_params as f64;
                 let p = stats::f_sf(f, new_params as f64, dof2);
-                let cand_chi2: f64 = floor_chi2(&r.residuals, points, floor_q).iter().sum();
+                let cand_chi2: f64 = floor_chi2(&r.residuals, points, &shared).iter().sum();
                 let d_chi2 = (chi2 - cand_chi2).max(0.0);
                 let pattern: Vec<f64> = normalised(&r.residuals, points)
                     .iter()
@@ -894,13 +930,19 @@ impl<'a> Workbench<'a> {
                 && !confused;
         }
         let q_ml: [f64; 3] = std::array::from_fn(|a| profiled.scale[a] * profiled.rho[a]);
-        let chi2_drift: f64 = floor_chi2(&base.residuals, points, q_ml).iter().sum();
+        let with_drift: [SharedNoise; 3] = std::array::from_fn(|a| SharedNoise {
+            random_walk_q: q_ml[a],
+            ..shared[a]
+        });
+        let chi2_drift: f64 = floor_chi2(&base.residuals, points, &with_drift)
+            .iter()
+            .sum();
         let drift_params = q_ml.iter().filter(|q| **q > 0.0).count();
         let p_value_with_drift =
             stats::chi2_sf(chi2_drift, dof.saturating_sub(drift_params).max(1) as f64);
         let mut axes = axes;
         for (a, v) in axes.iter_mut().enumerate() {
-            v.noise_floor_with_drift_rms = floor_rms(points, a, free_per_axis, q_ml[a]);
+            v.noise_floor_with_drift_rms = floor_rms(points, a, free_per_axis, &with_drift[a]);
         }
         let consistent = consistent_before && spectral_lines.is_empty();
         let consistent_with_drift = (consistent_before || p_value_with_drift >= self.opts.alpha)
@@ -1080,42 +1122,35 @@ struct Profiled {
     rho: [f64; 3],
 }
 
-/// Per-axis covariance of the segment means: `s_k^2 delta_kl + q min(t_k, t_l)` (time from
-/// the first segment), its Cholesky factor's log-determinant and `r^T C^-1 r`.
-fn gls(r: &[f64], points: &[FitPoint], a: usize, q: f64, scale: f64) -> Option<(f64, f64)> {
-    use imu_model::nalgebra::{DMatrix, DVector};
-    let n = r.len();
-    let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
-    let c = DMatrix::from_fn(n, n, |k, l| {
-        let white = if k == l {
-            scale * points[k].std_error[a].powi(2)
-        } else {
-            0.0
-        };
-        white + q * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0)
-    });
-    let ch = c.cholesky()?;
+/// `r^T C^-1 r` and `ln |C|` for one axis's residuals under [`segment_covariance`].
+fn gls(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> Option<(f64, f64)> {
+    use imu_model::nalgebra::DVector;
+    let ch = segment_covariance(points, a, shared, 1.0).cholesky()?;
     let logdet = 2.0 * ch.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
     let z = ch.solve(&DVector::from_column_slice(r));
     Some((r.iter().zip(z.iter()).map(|(a, b)| a * b).sum(), logdet))
 }
 
 /// Generalised chi-square per axis against the noise floor (white part from the points'
-/// standard errors, random walk `q`).
-fn floor_chi2(res: &[[f64; 3]], points: &[FitPoint], q: [f64; 3]) -> [f64; 3] {
+/// standard errors, shared part `shared`).
+fn floor_chi2(res: &[[f64; 3]], points: &[FitPoint], shared: &[SharedNoise; 3]) -> [f64; 3] {
     std::array::from_fn(|a| {
         let r: Vec<f64> = res.iter().map(|v| v[a]).collect();
-        gls(&r, points, a, q[a], 1.0).map_or(f64::INFINITY, |(c, _)| c)
+        gls(&r, points, a, &shared[a]).map_or(f64::INFINITY, |(c, _)| c)
     })
 }
 
 /// Maximum-likelihood white scale and random-walk rate (relative to the scale) of one axis's
 /// residuals, and the log-likelihood there: `rho` on a log grid refined by golden section,
 /// the scale in closed form.
-fn profile_axis(r: &[f64], points: &[FitPoint], a: usize) -> (f64, f64, f64) {
+fn profile_axis(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> (f64, f64, f64) {
     let n = r.len() as f64;
     let ll = |rho: f64| -> Option<(f64, f64)> {
-        let (chi2, logdet) = gls(r, points, a, rho, 1.0)?;
+        let s = SharedNoise {
+            random_walk_q: rho,
+            ..*shared
+        };
+        let (chi2, logdet) = gls(r, points, a, &s)?;
         let scale = (chi2 / n).max(1e-300);
         Some((scale, -0.5 * (n * scale.ln() + logdet + n)))
     };
@@ -1165,25 +1200,20 @@ fn profile_axis(r: &[f64], points: &[FitPoint], a: usize) -> (f64, f64, f64) {
     (best.2, best.0, best.1)
 }
 
-/// RMS the residuals of one axis would have if the model were right: the segment-scale floor
-/// of each mean plus, with `q > 0`, a random walk's scatter about its mean over the segments'
-/// times, scaled by the fit's degrees of freedom.
-fn floor_rms(points: &[FitPoint], a: usize, free_per_axis: f64, q: f64) -> f64 {
-    let n = points.len() as f64;
-    let white: f64 = points.iter().map(|p| p.std_error[a].powi(2)).sum::<f64>() / n;
-    let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
-    let t: Vec<f64> = points.iter().map(|p| p.t_s - t0).collect();
-    // Trace of P C P / n with C_kl = q min(t_k, t_l) and P the centring projector.
-    let diag: f64 = t.iter().sum();
-    let mut total = diag;
-    for (k, tk) in t.iter().enumerate() {
-        for tl in &t[..k] {
-            total += 2.0 * tk.min(*tl);
-        }
+/// RMS the residuals of one axis would have if the model were right: the trace of the
+/// centred covariance of the means (their own floor plus the shared flicker and random walk
+/// about their common mean) over n, scaled by the fit's degrees of freedom.
+fn floor_rms(points: &[FitPoint], a: usize, free_per_axis: f64, shared: &SharedNoise) -> f64 {
+    let n = points.len();
+    if n == 0 {
+        return 0.0;
     }
-    let rw = q * (diag / n - total / (n * n)).max(0.0);
-    let dof_factor = ((n - free_per_axis) / n).max(0.0);
-    ((white + rw) * dof_factor).sqrt()
+    let c = segment_covariance(points, a, shared, 1.0);
+    let nf = n as f64;
+    let total: f64 = c.iter().sum();
+    let trace_pcp = c.trace() - total / nf;
+    let dof_factor = ((nf - free_per_axis) / nf).max(0.0);
+    (trace_pcp.max(0.0) / nf * dof_factor).sqrt()
 }
 
 fn normalised(res: &[[f64; 3]], points: &[FitPoint]) -> Vec<f64> {

@@ -54,11 +54,11 @@ pub struct FitOptions {
     /// too noisy and the standard errors came out worse than with white scatter scaled by the
     /// reduced chi-square.
     pub drift_model: bool,
-    /// Known random-walk drift of the segment means per axis, as its rate variance `q`
-    /// (unit^2/s, i.e. K^2 of the IEEE rate/acceleration random walk): the segment means are
-    /// then weighted with the covariance `se_k^2 delta_kl + q min(t_k, t_l)` instead of white
-    /// errors. Used when a noise characterisation gives K; ignored with `drift_model` on.
-    pub random_walk_q: Option<[f64; 3]>,
+    /// Known correlated noise of the segment means per axis (random walk, flicker): the means
+    /// are then weighted with the covariance `se_k^2 delta_kl + shared_kl` (see
+    /// [`segment_covariance`]) instead of white errors. With `drift_model` on, its random walk
+    /// is estimated instead.
+    pub shared_noise: Option<[SharedNoise; 3]>,
 }
 
 /// Bias wander over a recording of `duration_s` from a noise model: bias instability `B` and
@@ -79,7 +79,7 @@ impl Default for FitOptions {
             fixed: Vec::new(),
             bias_drift: None,
             drift_model: false,
-            random_walk_q: None,
+            shared_noise: None,
         }
     }
 }
@@ -183,28 +183,77 @@ pub enum FitError {
     },
 }
 
-/// Per-axis whitening of the residuals: `L_a^-1` of the covariance of the segment means on
-/// axis `a`, `C_kl = se_k^2 delta_kl + q_a min(t_k, t_l)` (white error of each mean plus a
-/// random-walk drift of rate variance `q_a` shared by all segments of that axis).
+/// Noise shared by the segment means of one axis, beyond each mean's own white error.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SharedNoise {
+    /// Random-walk rate variance `q` (unit^2/s, K^2 of the IEEE random walk): covariance
+    /// `q min(t_k, t_l)`, time from the first segment.
+    pub random_walk_q: f64,
+    /// Flicker (bias instability) Allan variance floor `sigma_f^2` (unit^2; `(0.664 B)^2`).
+    pub flicker_var: f64,
+    /// Segment duration the flicker structure is evaluated at, s.
+    pub flicker_tau_s: f64,
+}
+
+/// Structure function of tau-averages of flicker FM noise separated by `n` averaging times,
+/// in units of `sigma_f^2 / (2 ln 2)`: `(n+1)^2 ln(n+1) + (n-1)^2 ln|n-1| - 2 n^2 ln n`
+/// (4 ln 2 for adjacent averages, growing as 2 ln n).
+fn flicker_structure(n: f64) -> f64 {
+    let xlx = |x: f64| if x <= 0.0 { 0.0 } else { x * x * x.ln() };
+    xlx(n + 1.0) + xlx((n - 1.0).abs()) - 2.0 * xlx(n)
+}
+
+/// Covariance of the segment means of axis `a`: `white_scale se_k^2 delta_kl` plus the shared
+/// random walk and flicker. Shared terms are the covariance of the increments from the first
+/// segment (a common offset is the bias's business): for flicker
+/// `(D_k0 + D_l0 - D_kl) / 2` with `D` the flicker structure function of the means.
+pub fn segment_covariance(
+    points: &[FitPoint],
+    a: usize,
+    shared: &SharedNoise,
+    white_scale: f64,
+) -> DMatrix<f64> {
+    let n = points.len();
+    let k0 = (0..n)
+        .min_by(|&i, &j| points[i].t_s.total_cmp(&points[j].t_s))
+        .unwrap_or(0);
+    let t0 = points.get(k0).map_or(0.0, |p| p.t_s);
+    let unit = shared.flicker_var / (2.0 * std::f64::consts::LN_2);
+    let tau = shared.flicker_tau_s.max(1e-9);
+    let d = |k: usize, l: usize| {
+        if unit == 0.0 {
+            0.0
+        } else {
+            unit * flicker_structure((points[k].t_s - points[l].t_s).abs() / tau)
+        }
+    };
+    DMatrix::from_fn(n, n, |k, l| {
+        let white = if k == l {
+            white_scale * points[k].std_error[a].powi(2)
+        } else {
+            0.0
+        };
+        let rw = shared.random_walk_q * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0);
+        white + rw + 0.5 * (d(k, k0) + d(l, k0) - d(k, l))
+    })
+}
+
+/// Per-axis whitening of the residuals: `L_a^-1` of [`segment_covariance`] on axis `a`.
 #[derive(Clone, Debug)]
 struct Whitener {
     l_inv: [DMatrix<f64>; 3],
 }
 
 impl Whitener {
-    fn new(points: &[FitPoint], q: [f64; 3]) -> Whitener {
-        let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
-        let n = points.len();
+    fn new(points: &[FitPoint], shared: &[SharedNoise; 3]) -> Whitener {
         let l_inv = std::array::from_fn(|a| {
-            let c = DMatrix::from_fn(n, n, |k, l| {
-                let white = if k == l {
-                    points[k].std_error[a].powi(2)
-                } else {
-                    0.0
-                };
-                white + q[a] * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0)
-            });
-            let l = c.cholesky().expect("diagonal > 0 plus a PSD term").l();
+            let c = segment_covariance(points, a, &shared[a], 1.0);
+            let l = match c.clone().cholesky() {
+                Some(ch) => ch.l(),
+                // A shared part that is not quite positive definite (unequal segment lengths
+                // under the flicker approximation): fall back to its diagonal.
+                None => DMatrix::from_diagonal(&c.diagonal().map(f64::sqrt)),
+            };
             l.try_inverse()
                 .expect("triangular with a positive diagonal")
         });
@@ -331,10 +380,16 @@ fn solve(
 
 /// The drift rate variance `q` of one axis that brings its whitened chi-square down to `dof`
 /// (0 if the white errors already explain the scatter), by bisection in log q.
-fn drift_q(points: &[FitPoint], raw: &DVector<f64>, mut q: [f64; 3], a: usize, dof: f64) -> f64 {
+fn drift_q(
+    points: &[FitPoint],
+    raw: &DVector<f64>,
+    mut q: [SharedNoise; 3],
+    a: usize,
+    dof: f64,
+) -> f64 {
     let mut chi2 = |qa: f64| {
-        q[a] = qa;
-        Whitener::new(points, q).axis_chi2(raw, a)
+        q[a].random_walk_q = qa;
+        Whitener::new(points, &q).axis_chi2(raw, a)
     };
     if chi2(0.0) <= dof {
         return 0.0;
@@ -377,7 +432,7 @@ fn find_unobservable(
     min_eig: f64,
 ) -> Vec<Unobservable> {
     let mut out = Vec::new();
-    let w = Whitener::new(points, [0.0; 3]);
+    let w = Whitener::new(points, &[SharedNoise::default(); 3]);
     loop {
         if free.is_empty() {
             return out;
@@ -486,17 +541,20 @@ pub fn fit_triad(
 
     // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
     // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
-    let mut q = opts.random_walk_q.unwrap_or([0.0; 3]);
-    let mut w = Whitener::new(points, q);
+    let mut q = opts.shared_noise.unwrap_or_default();
+    let mut w = Whitener::new(points, &q);
     let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
     if opts.drift_model {
         let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
         for _ in 0..8 {
             let raw = raw_residuals(&mut m, &p, points);
             let next: [f64; 3] = std::array::from_fn(|a| drift_q(points, &raw, q, a, dof_axis));
-            let settled = (0..3).all(|a| (next[a] - q[a]).abs() <= 1e-3 * next[a].max(1e-300));
-            q = next;
-            w = Whitener::new(points, q);
+            let settled =
+                (0..3).all(|a| (next[a] - q[a].random_walk_q).abs() <= 1e-3 * next[a].max(1e-300));
+            for (s, v) in q.iter_mut().zip(next) {
+                s.random_walk_q = v;
+            }
+            w = Whitener::new(points, &q);
             let (c, it, conv) = solve(&mut m, &mut p, &free, points, &w, opts);
             cost = c;
             iterations += it;
@@ -592,7 +650,7 @@ pub fn fit_triad(
         chi2_axis,
         dof,
         reduced_chi2,
-        drift_random_walk: q.map(f64::sqrt),
+        drift_random_walk: q.map(|s| s.random_walk_q.sqrt()),
         iterations,
         converged,
         warnings,
