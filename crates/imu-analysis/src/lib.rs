@@ -9,6 +9,7 @@ pub mod dynamic;
 pub mod fit;
 pub mod impact;
 pub mod input;
+pub mod lsq;
 pub mod noise;
 pub mod plot;
 pub mod reference;
