@@ -13,6 +13,7 @@ pub mod lsq;
 pub mod noise;
 pub mod plot;
 pub mod reference;
+pub mod reference_free;
 pub mod report;
 pub mod segment;
 pub mod thermal;
