@@ -1291,10 +1291,10 @@ value = [8.7e-3, -6.1e-3, 1.05e-2]
         }
     }
 
-    /// A synthetic recording: `n_poses` orientations from `rng` (or within `max_tilt_rad` of
-    /// z up), tick-quantised timestamps,
-    /// 12 s still each, 2 s moves with a triangular rate profile, through the truth model,
-    /// with a little deterministic noise so that segmentation finds its floor.
+    /// A synthetic recording through the truth model: `n_poses` orientations from `rng` (or
+    /// tilts within `max_tilt_rad` of z up), 12 s still each, 2 s moves with a triangular rate
+    /// profile, tick-quantised timestamps, and a little deterministic noise so that
+    /// segmentation finds its floor.
     fn synthetic(n_poses: usize, max_tilt_rad: Option<f64>, seed: u64) -> (ImuSeries, Calibration) {
         let t = truth();
         let mut rng = Lcg(seed);
