@@ -612,14 +612,16 @@ struct MoveData {
     /// Gyro sample minus the interpolated still-pose rate, rad/s, from the last sample of the
     /// pose before to the first of the pose after.
     rate_rad_s: Vec<Vec3>,
-    /// Regularised sample intervals, s (one fewer than `rate_rad_s`).
-    dt_s: Vec<f64>,
-    /// Calibrated up direction before and after.
+    /// Sample interval from the line fitted to the times, s.
+    step_s: f64,
+    /// Calibrated up direction at the pose before.
     up_before: Vec3,
-    /// Basis of the plane normal to `up_after`.
+    /// Orthonormal basis of the plane normal to the calibrated up direction after.
     e1: Vec3,
     e2: Vec3,
+    /// Conditions for the gain model (those of the pose before).
     conditions: Conditions,
+    /// Expected noise of each residual component, rad.
     sigma_rad: f64,
 }
 
@@ -629,9 +631,9 @@ impl MoveData {
     fn rotation(&self, gains: &TriadModel) -> UnitQuaternion<f64> {
         let mut q = UnitQuaternion::identity();
         let mut w0 = gains.inverse(self.rate_rad_s[0], &self.conditions);
-        for (r, dt) in self.rate_rad_s[1..].iter().zip(&self.dt_s) {
+        for r in &self.rate_rad_s[1..] {
             let w1 = gains.inverse(*r, &self.conditions);
-            q *= UnitQuaternion::from_scaled_axis((w0 + w1) * (0.5 * dt));
+            q *= UnitQuaternion::from_scaled_axis((w0 + w1) * (0.5 * self.step_s));
             w0 = w1;
         }
         q
@@ -708,7 +710,6 @@ fn prepare_moves(
                 Vec3::from(series.gyro_rad_s[i]) - (ga * (1.0 - w) + gb * w)
             })
             .collect();
-        let dt_s = vec![period_s; i1 - i0];
         let duration_s = period_s * (i1 - i0) as f64;
         // Integrals of the interpolation weights over the move, for the bias error.
         let (mut int_a, mut int_b) = (0.0, 0.0);
@@ -717,23 +718,23 @@ fn prepare_moves(
             int_a += (1.0 - w) * period_s;
             int_b += w * period_s;
         }
-        let axis_mean = |v: Vec3| (v[0] + v[1] + v[2]) / 3.0;
-        let sq = |v: [f64; 3]| Vec3::from(v.map(|x| x * x));
-        let white_var = axis_mean(sq(a.std_gyro_rad_s) + sq(b.std_gyro_rad_s)) / 2.0;
-        let se_a = mean_se(a.std_gyro_rad_s, a.n).component_mul(&mean_se(a.std_gyro_rad_s, a.n));
-        let se_b = mean_se(b.std_gyro_rad_s, b.n).component_mul(&mean_se(b.std_gyro_rad_s, b.n));
-        let acc_a = mean_se(a.std_accel_m_s2, a.n).component_mul(&mean_se(a.std_accel_m_s2, a.n));
-        let acc_b = mean_se(b.std_accel_m_s2, b.n).component_mul(&mean_se(b.std_accel_m_s2, b.n));
+        // Per-axis variances averaged over the axes: white gyro noise integrated over the
+        // move, the error of the two pose rates weighted by their share of the interpolation,
+        // and the error of the two gravity directions.
+        let mean_sq = |v: Vec3| v.norm_squared() / 3.0;
+        let white_var =
+            (mean_sq(Vec3::from(a.std_gyro_rad_s)) + mean_sq(Vec3::from(b.std_gyro_rad_s))) / 2.0;
         let var_rad2 = white_var * period_s * duration_s
-            + int_a * int_a * axis_mean(se_a)
-            + int_b * int_b * axis_mean(se_b)
-            + (axis_mean(acc_a) + axis_mean(acc_b)) / (g_m_s2 * g_m_s2);
+            + int_a * int_a * mean_sq(mean_se(a.std_gyro_rad_s, a.n))
+            + int_b * int_b * mean_sq(mean_se(b.std_gyro_rad_s, b.n))
+            + (mean_sq(mean_se(a.std_accel_m_s2, a.n)) + mean_sq(mean_se(b.std_accel_m_s2, b.n)))
+                / (g_m_s2 * g_m_s2);
         let (e1, e2) = normal_basis(up[k + 1]);
         out.push(MoveData {
             from_pose: k,
             to_pose: k + 1,
             rate_rad_s,
-            dt_s,
+            step_s: period_s,
             up_before: up[k],
             e1,
             e2,
@@ -954,7 +955,7 @@ pub fn calibrate_reference_free(
             Move {
                 from_pose: m.from_pose,
                 to_pose: m.to_pose,
-                duration_s: m.dt_s.iter().sum(),
+                duration_s: m.step_s * (m.rate_rad_s.len() - 1) as f64,
                 angle_rad: q.angle(),
                 error_rad: a.hypot(b),
                 std_rad: m.sigma_rad,
