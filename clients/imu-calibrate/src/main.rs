@@ -1,31 +1,51 @@
 //! `imu-calibrate`: fit accel and gyro error models (bias, scale, misalignment, optionally
 //! g-sensitivity and more) from the static positions and rate plateaus of a recording, against
-//! a reference giving the true input, and write an imud calibration file.
+//! a reference giving the true input (`--reference`), or from many hand-held still poses and
+//! the moves between them without any reference (`--reference-free`), and write an imud
+//! calibration file.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::Parser;
+use clap::{ArgGroup, Parser};
 use imu_analysis::Source;
 use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::reference_free::{
+    ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
+};
 use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
-/// Command line.
+/// Command line. Exactly one procedure (the `procedure` group) says where the true input
+/// comes from.
 #[derive(Debug, Parser)]
 #[command(version, about)]
+#[command(group(ArgGroup::new("procedure").required(true).multiple(false)))]
 struct Cli {
     /// Recording: imud MCAP log (the raw stream is fitted), rosbag2 MCAP or CSV.
     recording: PathBuf,
     /// Reference for the true input: the simulator's truth MCAP of this recording.
-    #[arg(long, value_name = "TRUTH.mcap")]
-    reference: PathBuf,
+    #[arg(long, value_name = "TRUTH.mcap", group = "procedure")]
+    reference: Option<PathBuf>,
+    /// No reference: the unit was held still in many (30 or more) orientations and turned
+    /// between them. The accelerometer is fitted to the gravity magnitude (its axes define the
+    /// body frame), the gyro bias to the still poses, the gyro gains to the integrated moves.
+    #[arg(long, group = "procedure")]
+    reference_free: bool,
+    /// Local gravity for --reference-free, m/s^2 (default: WGS-84 normal gravity at
+    /// --latitude-deg, else 9.80665).
+    #[arg(long, value_name = "M_S2")]
+    gravity_m_s2: Option<f64>,
+    /// Geodetic latitude for --reference-free, degrees: local gravity (unless given) and the
+    /// vertical part of Earth's rate, removed from the gyro bias.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    latitude_deg: Option<f64>,
     /// Calibration-format file whose accel and gyro effects say what to fit (values are the
     /// starting point; default: bias + scale + misalignment for both). Its `[accel.noise]` and
     /// `[gyro.noise]` (e.g. from imu-noise) widen the bias standard errors by the bias wander.
@@ -52,6 +72,16 @@ struct TruthRow {
     truth: f64,
     std_error: Option<f64>,
     error_in_se: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct JsonOutReferenceFree<'a> {
+    recording: String,
+    procedure: &'static str,
+    output: Option<String>,
+    fit: &'a ReferenceFreeFit,
+    /// The truth is expressed in the body frame the accelerometer defines (the fit's gauge).
+    truth_comparison: Option<Vec<TruthRow>>,
 }
 
 #[derive(Debug, Serialize)]
@@ -135,27 +165,46 @@ fn effects_only(m: &TriadModel) -> TriadModel {
     out
 }
 
-fn truth_rows(fit: &FitResult, truth: &TriadModel) -> Vec<TruthRow> {
-    let names = truth.param_names(fit.triad);
+/// Fitted vs true for every parameter (an effect absent from the truth has truth 0).
+fn compare(
+    triad: Triad,
+    names: &[String],
+    units: &[String],
+    params: &[f64],
+    std_errors: &[Option<f64>],
+    truth: &TriadModel,
+) -> Vec<TruthRow> {
+    let truth_names = truth.param_names(triad);
     let values = truth.params();
-    (0..fit.params.len())
+    (0..params.len())
         .map(|i| {
-            let t = names
+            let t = truth_names
                 .iter()
-                .position(|n| *n == fit.names[i])
+                .position(|n| *n == names[i])
                 .map_or(0.0, |k| values[k]);
-            let se = fit.std_errors[i];
+            let se = std_errors[i];
             TruthRow {
-                triad: fit.triad,
-                name: fit.names[i].clone(),
-                unit: fit.units[i].clone(),
-                fitted: fit.params[i],
+                triad,
+                name: names[i].clone(),
+                unit: units[i].clone(),
+                fitted: params[i],
                 truth: t,
                 std_error: se,
-                error_in_se: se.map(|s| (fit.params[i] - t) / s),
+                error_in_se: se.map(|s| (params[i] - t) / s),
             }
         })
         .collect()
+}
+
+fn truth_rows(fit: &FitResult, truth: &TriadModel) -> Vec<TruthRow> {
+    compare(
+        fit.triad,
+        &fit.names,
+        &fit.units,
+        &fit.params,
+        &fit.std_errors,
+        truth,
+    )
 }
 
 fn print_fit(out: &mut impl Write, fit: &FitResult) -> std::io::Result<()> {
@@ -216,6 +265,13 @@ fn print_tables(
     print_fit(out, &fit.gyro)?;
     if let Some(rows) = truth {
         writeln!(out, "\nfitted vs truth")?;
+        print_truth(out, rows)?;
+    }
+    Ok(())
+}
+
+fn print_truth(out: &mut impl Write, rows: &[TruthRow]) -> std::io::Result<()> {
+    {
         writeln!(
             out,
             "  {:<5} {:<36} {:>13} {:>13} {:>8}  unit",
@@ -240,52 +296,93 @@ fn print_tables(
     Ok(())
 }
 
-fn run(cli: &Cli) -> Result<()> {
-    let series = read_any(&cli.recording, Source::Raw, &CsvOptions::default())
-        .with_context(|| format!("reading {}", cli.recording.display()))?;
-    if series.is_empty() {
-        bail!("{}: no samples", cli.recording.display());
+/// One reference-free triad fit (parameters, standard errors, residuals, warnings).
+fn print_triad_fit(out: &mut impl Write, fit: &TriadFit) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "\n{} ({} residuals, {} free parameters, reduced chi2 {:.2}, smallest normalised eigenvalue {:.1e}, {} iterations{})",
+        fit.triad,
+        fit.n_residuals,
+        fit.free.len(),
+        fit.reduced_chi2,
+        fit.min_eigenvalue,
+        fit.iterations,
+        if fit.converged { "" } else { ", NOT converged" }
+    )?;
+    writeln!(
+        out,
+        "  {:<36} {:>13} {:>11}  unit",
+        "parameter", "value", "std error"
+    )?;
+    for i in 0..fit.params.len() {
+        let se = fit.std_errors[i].map_or_else(|| "held".to_string(), |s| format!("{s:.3e}"));
+        writeln!(
+            out,
+            "  {:<36} {:>13.5e} {:>11}  {}",
+            fit.names[i], fit.params[i], se, fit.units[i]
+        )?;
     }
-    let truth = imu_analysis::reference::Reference::Truth(
-        imu_bus::truth::read_truth(&cli.reference)
-            .with_context(|| format!("reading reference {}", cli.reference.display()))?,
-    );
-    let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
-    let opts = options(cli.model.as_deref(), duration_s)?;
-    let mut fit = calibrate(&series, &truth, &opts)
-        .with_context(|| format!("calibrating {}", cli.recording.display()))?;
+    writeln!(
+        out,
+        "  residual RMS {:.3e} {} ({})",
+        fit.residual_rms, fit.residual_unit, fit.residual
+    )?;
+    for u in &fit.unobservable {
+        writeln!(out, "  held: {}: {}", u.name, u.reason)?;
+    }
+    for w in &fit.warnings {
+        writeln!(out, "  warning: {w}")?;
+    }
+    Ok(())
+}
 
-    let cal = &mut fit.calibration;
-    cal.description = Some(format!(
-        "accel and gyro fitted from {} static segments and {} rate plateaus",
-        fit.segmentation.count(SegmentKind::Static),
-        fit.segmentation.count(SegmentKind::Plateau)
-    ));
+fn print_reference_free(
+    out: &mut impl Write,
+    fit: &ReferenceFreeFit,
+    truth: Option<&[TruthRow]>,
+) -> std::io::Result<()> {
+    let s = &fit.segmentation;
+    writeln!(
+        out,
+        "reference-free: {} still poses, {} moves (window {} samples; thresholds: accel std {:.3e} m/s^2, gyro std {:.3e} rad/s); g = {:.6} m/s^2",
+        fit.poses.len(),
+        fit.moves.len(),
+        s.window_samples,
+        s.accel_std_threshold_m_s2,
+        s.gyro_std_threshold_rad_s,
+        fit.gravity_m_s2
+    )?;
+    for n in &fit.notes {
+        writeln!(out, "note: {n}")?;
+    }
+    print_triad_fit(out, &fit.accel)?;
+    print_triad_fit(out, &fit.gyro)?;
+    if let Some(rows) = truth {
+        writeln!(
+            out,
+            "\nfitted vs truth (truth re-expressed in the body frame the accelerometer defines)"
+        )?;
+        print_truth(out, rows)?;
+    }
+    Ok(())
+}
+
+/// Provenance shared by both procedures: when, which tool, which inputs, and the notes with
+/// the parameters that were held.
+fn stamp(
+    cal: &mut Calibration,
+    inputs: &[&Path],
+    notes: &[String],
+    held: Vec<String>,
+) -> Result<()> {
     cal.provenance.created = Some(now_rfc3339());
     cal.provenance.tool = Some(format!("imu-calibrate {}", env!("CARGO_PKG_VERSION")));
-    cal.provenance.procedure = Some(
-        "automatic static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means \
-         to the reference's true input (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)"
-            .into(),
-    );
-    cal.provenance.inputs = vec![input_file(&cli.recording)?, input_file(&cli.reference)?];
-    if !fit.notes.is_empty()
-        || !fit.accel.unobservable.is_empty()
-        || !fit.gyro.unobservable.is_empty()
-    {
-        let held: Vec<String> = fit
-            .accel
-            .unobservable
-            .iter()
-            .map(|u| format!("accel {}", u.name))
-            .chain(
-                fit.gyro
-                    .unobservable
-                    .iter()
-                    .map(|u| format!("gyro {}", u.name)),
-            )
-            .collect();
-        let mut text = fit.notes.join("; ");
+    cal.provenance.inputs = inputs
+        .iter()
+        .map(|p| input_file(p))
+        .collect::<Result<Vec<_>>>()?;
+    if !notes.is_empty() || !held.is_empty() {
+        let mut text = notes.join("; ");
         if !held.is_empty() {
             if !text.is_empty() {
                 text.push_str("; ");
@@ -297,6 +394,131 @@ fn run(cli: &Cli) -> Result<()> {
         }
         cal.provenance.notes = Some(text);
     }
+    Ok(())
+}
+
+fn run(cli: &Cli) -> Result<()> {
+    // (clap's `requires` counts a flag's implicit `false` as present, so this is checked here.)
+    if !cli.reference_free && (cli.gravity_m_s2.is_some() || cli.latitude_deg.is_some()) {
+        bail!("--gravity-m-s2 and --latitude-deg apply to --reference-free only");
+    }
+    let series = read_any(&cli.recording, Source::Raw, &CsvOptions::default())
+        .with_context(|| format!("reading {}", cli.recording.display()))?;
+    if series.is_empty() {
+        bail!("{}: no samples", cli.recording.display());
+    }
+    match &cli.reference {
+        Some(reference) => run_reference(cli, &series, reference),
+        None => run_reference_free(cli, &series),
+    }
+}
+
+fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries) -> Result<()> {
+    let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
+    let base = options(cli.model.as_deref(), duration_s)?;
+    let opts = ReferenceFreeOptions {
+        accel: base.accel,
+        gyro: base.gyro,
+        gravity_m_s2: cli.gravity_m_s2,
+        latitude_deg: cli.latitude_deg,
+        accel_bias_drift_m_s2: base.accel_bias_drift_m_s2,
+        gyro_bias_drift_rad_s: base.gyro_bias_drift_rad_s,
+        ..ReferenceFreeOptions::default()
+    };
+    let mut fit = calibrate_reference_free(series, &opts)
+        .with_context(|| format!("calibrating {} (reference-free)", cli.recording.display()))?;
+    // The gauge is a convention, not a limit of the data: listed in the notes, not as held.
+    let held: Vec<String> = [&fit.accel, &fit.gyro]
+        .iter()
+        .flat_map(|f| {
+            f.unobservable
+                .iter()
+                .filter(|u| !u.reason.starts_with("gauge"))
+                .map(|u| format!("{} {}", f.triad, u.name))
+        })
+        .collect();
+    stamp(&mut fit.calibration, &[&cli.recording], &fit.notes, held)?;
+    if let Some(path) = &cli.output {
+        fit.calibration
+            .save(path)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    let truth_rows = match &cli.truth {
+        Some(path) => {
+            let t = Calibration::load(path)
+                .with_context(|| format!("loading truth {}", path.display()))?;
+            let t = in_accel_frame(&t);
+            let mut rows = Vec::new();
+            for (f, m) in [(&fit.accel, &t.accel), (&fit.gyro, &t.gyro)] {
+                rows.extend(compare(
+                    f.triad,
+                    &f.names,
+                    &f.units,
+                    &f.params,
+                    &f.std_errors,
+                    m,
+                ));
+            }
+            Some(rows)
+        }
+        None => None,
+    };
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if cli.json {
+        let j = JsonOutReferenceFree {
+            recording: cli.recording.display().to_string(),
+            procedure: "reference-free",
+            output: cli.output.as_ref().map(|p| p.display().to_string()),
+            fit: &fit,
+            truth_comparison: truth_rows,
+        };
+        serde_json::to_writer_pretty(&mut out, &j)?;
+        writeln!(out)?;
+    } else {
+        print_reference_free(&mut out, &fit, truth_rows.as_deref())?;
+        if let Some(p) = &cli.output {
+            writeln!(out, "\nwrote {}", p.display())?;
+        }
+    }
+    out.flush()?;
+    Ok(())
+}
+
+fn run_reference(cli: &Cli, series: &imu_analysis::ImuSeries, reference: &Path) -> Result<()> {
+    let truth = imu_analysis::reference::Reference::Truth(
+        imu_bus::truth::read_truth(reference)
+            .with_context(|| format!("reading reference {}", reference.display()))?,
+    );
+    let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
+    let opts = options(cli.model.as_deref(), duration_s)?;
+    let mut fit = calibrate(series, &truth, &opts)
+        .with_context(|| format!("calibrating {}", cli.recording.display()))?;
+
+    let cal = &mut fit.calibration;
+    cal.description = Some(format!(
+        "accel and gyro fitted from {} static segments and {} rate plateaus",
+        fit.segmentation.count(SegmentKind::Static),
+        fit.segmentation.count(SegmentKind::Plateau)
+    ));
+    cal.provenance.procedure = Some(
+        "automatic static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means \
+         to the reference's true input (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)"
+            .into(),
+    );
+    let held: Vec<String> = fit
+        .accel
+        .unobservable
+        .iter()
+        .map(|u| format!("accel {}", u.name))
+        .chain(
+            fit.gyro
+                .unobservable
+                .iter()
+                .map(|u| format!("gyro {}", u.name)),
+        )
+        .collect();
+    stamp(cal, &[&cli.recording, reference], &fit.notes, held)?;
     if let Some(path) = &cli.output {
         cal.save(path)
             .with_context(|| format!("writing {}", path.display()))?;
@@ -318,7 +540,7 @@ fn run(cli: &Cli) -> Result<()> {
     if cli.json {
         let j = JsonOut {
             recording: cli.recording.display().to_string(),
-            reference: cli.reference.display().to_string(),
+            reference: reference.display().to_string(),
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
             truth_comparison: truth_rows,
