@@ -708,9 +708,11 @@ pub fn calibrate(
     opts: &CalibrateOptions,
 ) -> Result<CalibrationFit, CalibrateError> {
     use crate::segment::SegmentKind;
-    let segmentation = crate::segment::detect(series, &opts.segment)?;
+    let segmentation = reference.segmentation(series, &opts.segment)?;
     let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
-    let mut notes = Vec::new();
+    let caveats = reference.caveats(series, &segmentation.segments)?;
+    let mut notes = caveats.notes.clone();
+    let gyro_bias_drift_rad_s = caveats.widen_gyro_bias_drift(opts.gyro_bias_drift_rad_s);
     let fit_opts = |drift| FitOptions {
         fixed: Vec::new(),
         bias_drift: drift,
@@ -781,7 +783,7 @@ pub fn calibrate(
         &gyro_model,
         Triad::Gyro,
         &gyro_points,
-        &fit_opts(opts.gyro_bias_drift_rad_s),
+        &fit_opts(gyro_bias_drift_rad_s),
     )?;
 
     let mut calibration = imu_model::Calibration::identity();
