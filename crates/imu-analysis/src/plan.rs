@@ -410,20 +410,27 @@ fn edit_distance(a: &str, b: &str) -> usize {
     prev[b.len()]
 }
 
-/// ` (did you mean `x`?)` for the closest of `candidates` within 3 edits, else "".
+/// ` (did you mean `x`?)` for the closest of `candidates` within 3 edits (a key missing only
+/// its unit suffix, `latitude` for `latitude-deg`, counts as 1), else "".
 pub(crate) fn did_you_mean(name: &str, candidates: &[&str]) -> String {
     candidates
         .iter()
-        .map(|c| (edit_distance(name, c), *c))
+        .map(|c| {
+            let prefix = name.len() >= 3 && c.starts_with(name);
+            (if prefix { 1 } else { edit_distance(name, c) }, *c)
+        })
         .filter(|(d, _)| *d <= 3)
         .min()
         .map(|(_, c)| format!(" (did you mean `{c}`?)"))
         .unwrap_or_default()
 }
 
-/// The `[[step]]` (1-based) a byte offset falls in, by counting step headers before it.
+/// The `[[step]]` (1-based) a byte offset falls in, by counting the step headers up to the
+/// end of its line (an error on a whole table points at its header).
 fn step_at(text: &str, offset: usize) -> Option<usize> {
-    let before = text.get(..offset.min(text.len())).unwrap_or(text);
+    let offset = offset.min(text.len());
+    let end = text[offset..].find('\n').map_or(text.len(), |i| offset + i);
+    let before = text.get(..end).unwrap_or(text);
     let n = before
         .lines()
         .filter(|l| l.trim_start().starts_with("[[step]]"))
@@ -578,6 +585,230 @@ fn step_frame(s: &StepFile) -> Result<(Vec3, Option<Vec3>), String> {
     }
 }
 
+/// Check step `i` (0-based) of a plan and append the entries it expands to. `any_explicit`
+/// is the first step that gives time ranges by hand, if any (then every step must).
+fn expand_step(
+    file: &str,
+    text: &str,
+    i: usize,
+    s: &StepFile,
+    any_explicit: Option<usize>,
+    entries: &mut Vec<PlanEntry>,
+) -> Result<(), PlanError> {
+    let n = i + 1;
+    let bad = |k: &str, m: String| PlanError::Invalid {
+        file: file.to_string(),
+        line: imu_model::line_of_key(text, &format!("step[{i}].{k}"))
+            .or_else(|| imu_model::line_of_key(text, &format!("step[{i}]"))),
+        context: format!("step {n} ({})", s.kind.name()),
+        message: m,
+    };
+    let allowed = keys_of(s.kind);
+    for k in s.present() {
+        if !allowed.contains(&k) {
+            return Err(bad(
+                k,
+                format!(
+                    "`{k}` does not apply to a {} step (its keys: kind, label, {})",
+                    s.kind.name(),
+                    allowed.join(", ")
+                ),
+            ));
+        }
+    }
+    if let Some(first) = any_explicit
+        && !s.has_windows()
+    {
+        return Err(bad(
+            "kind",
+            format!(
+                "step {} gives its time range by hand, so every step must (start-s/end-s, or \
+                 windows-s with one [start, end] per position or rate); detection is used only \
+                 when no step gives one",
+                first + 1
+            ),
+        ));
+    }
+    let (up, north) = step_frame(s).map_err(|m| bad("up", m))?;
+    let label = s
+        .label
+        .as_deref()
+        .map(|l| format!("{l}: "))
+        .unwrap_or_default();
+    let windows = |count: usize| -> Result<Vec<Option<[f64; 2]>>, PlanError> {
+        let Some(w) = &s.windows_s else {
+            return Ok(vec![None; count]);
+        };
+        if w.len() != count {
+            return Err(bad(
+                "windows-s",
+                format!(
+                    "windows-s has {} [start, end] pairs, the step expands to {count} segments",
+                    w.len()
+                ),
+            ));
+        }
+        if let Some(p) = w.iter().find(|p| !(p[0].is_finite() && p[1] > p[0])) {
+            return Err(bad(
+                "windows-s",
+                format!("window {p:?} must have start < end (seconds)"),
+            ));
+        }
+        Ok(w.iter().map(|p| Some(*p)).collect())
+    };
+    let axis = |what: &str| {
+        s.axis.map(|a| a.0).ok_or_else(|| {
+            bad(
+                "axis",
+                format!("missing `axis` (the table axis in sensor axes, e.g. {what})"),
+            )
+        })
+    };
+    let frame_text = |up: &Vec3, north: &Option<Vec3>| match north {
+        Some(nv) => format!(
+            "up {}, north {}",
+            format_direction(up),
+            format_direction(nv)
+        ),
+        None => format!("up {}", format_direction(up)),
+    };
+    let base = PlanEntry {
+        step: n,
+        position: None,
+        of: 1,
+        line: imu_model::line_of_key(text, &format!("step[{i}]")),
+        kind: SegmentKind::Static,
+        description: String::new(),
+        up_sensor: up.into(),
+        north_sensor: north.map(Into::into),
+        axis_sensor: None,
+        rate_rad_s: 0.0,
+        window_s: None,
+    };
+    match s.kind {
+        StepKind::Static => {
+            let window_s = match (s.start_s, s.end_s) {
+                (None, None) => None,
+                (Some(a), Some(b)) if a.is_finite() && b > a => Some([a, b]),
+                (Some(_), Some(_)) => {
+                    return Err(bad("start-s", "start-s must be before end-s".into()));
+                }
+                _ => {
+                    return Err(bad(
+                        "start-s",
+                        "give both start-s and end-s (seconds from the recording's first \
+                         sample), or neither"
+                            .into(),
+                    ));
+                }
+            };
+            entries.push(PlanEntry {
+                description: format!("{label}static, {}", frame_text(&up, &north)),
+                window_s,
+                ..base
+            });
+        }
+        StepKind::IndexTable => {
+            let axis = axis("\"x\" or \"-y\"")?;
+            let step_deg = s.step_deg.filter(|x| x.is_finite()).ok_or_else(|| {
+                bad(
+                    "step-deg",
+                    "missing `step-deg` (the angle between positions, degrees)".into(),
+                )
+            })?;
+            let positions = s.positions.filter(|&p| p > 0).ok_or_else(|| {
+                bad(
+                    "positions",
+                    "missing or zero `positions` (the number of table positions, 12 for a \
+                     full turn in 30-degree steps)"
+                        .into(),
+                )
+            })? as usize;
+            let start_deg = s.start_deg.unwrap_or(0.0);
+            let unit = Unit::new_normalize(axis);
+            for (p, window_s) in windows(positions)?.into_iter().enumerate() {
+                let angle_deg = start_deg + step_deg * p as f64;
+                // The unit turns by +angle about its own axis (as the simulator's index
+                // table does: enu_from_sensor = q0 * R(axis, angle)), so directions fixed in
+                // space turn by -angle in sensor axes.
+                let r = Rotation3::from_axis_angle(&unit, -angle_deg.to_radians());
+                let (up_p, north_p) = (r * up, north.map(|nv| r * nv));
+                entries.push(PlanEntry {
+                    position: Some(p + 1),
+                    of: positions,
+                    description: format!(
+                        "{label}index-table, {angle_deg} deg about {}: {}",
+                        format_direction(&axis),
+                        frame_text(&up_p, &north_p)
+                    ),
+                    up_sensor: up_p.into(),
+                    north_sensor: north_p.map(Into::into),
+                    window_s,
+                    ..base.clone()
+                });
+            }
+        }
+        StepKind::RateSteps => {
+            let axis = axis("\"z\"")?;
+            let rates = s.rates_deg_s.clone().unwrap_or_default();
+            if rates.is_empty() || rates.iter().any(|r| !r.is_finite()) {
+                return Err(bad(
+                    "rates-deg-s",
+                    "missing or empty `rates-deg-s` (the plateau rates in order, deg/s; 0 for \
+                     a stop)"
+                        .into(),
+                ));
+            }
+            let vertical = axis.dot(&up).abs() > 1f64.to_radians().cos();
+            if !vertical && rates.contains(&0.0) {
+                return Err(bad(
+                    "rates-deg-s",
+                    format!(
+                        "the table axis {} is not vertical (up is {}), so where the table \
+                         stops (rate 0) gravity is at an unknown angle; plan the stops as \
+                         separate static steps",
+                        format_direction(&axis),
+                        format_direction(&up)
+                    ),
+                ));
+            }
+            for (p, (r, window_s)) in rates.iter().zip(windows(rates.len())?).enumerate() {
+                let entry = PlanEntry {
+                    position: Some(p + 1),
+                    of: rates.len(),
+                    window_s,
+                    ..base.clone()
+                };
+                entries.push(if *r == 0.0 {
+                    // The table stopped at an angle nobody logged: north is lost (the axis is
+                    // vertical here, so north is never along it).
+                    PlanEntry {
+                        description: format!(
+                            "{label}rate-steps stop (0 deg/s) about {}: up {}, north unknown",
+                            format_direction(&axis),
+                            format_direction(&up)
+                        ),
+                        north_sensor: None,
+                        ..entry
+                    }
+                } else {
+                    PlanEntry {
+                        kind: SegmentKind::Plateau,
+                        description: format!(
+                            "{label}rate-steps, {r} deg/s about {}",
+                            format_direction(&axis)
+                        ),
+                        axis_sensor: Some(axis.into()),
+                        rate_rad_s: r.to_radians(),
+                        ..entry
+                    }
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
 impl Plan {
     /// Reads and validates a plan file.
     pub fn load(path: &Path) -> Result<Plan, PlanError> {
@@ -697,252 +928,10 @@ impl Plan {
                 "a plan needs at least one [[step]]".into(),
             ));
         }
-        let explicit = raw
-            .steps
-            .iter()
-            .map(StepFile::has_windows)
-            .collect::<Vec<_>>();
+        let any_explicit = raw.steps.iter().position(StepFile::has_windows);
         let mut entries = Vec::new();
-        for (i, s) in raw.steps.iter().enumerate() {
-            let n = i + 1;
-            let key = |k: &str| format!("step[{i}].{k}");
-            let context = format!("step {n} ({})", s.kind.name());
-            let bad = |k: &str, m: String| PlanError::Invalid {
-                file: file.to_string(),
-                line: imu_model::line_of_key(text, &key(k))
-                    .or_else(|| imu_model::line_of_key(text, &format!("step[{i}]"))),
-                context: context.clone(),
-                message: m,
-            };
-            let allowed = keys_of(s.kind);
-            for k in s.present() {
-                if !allowed.contains(&k) {
-                    return Err(bad(
-                        k,
-                        format!(
-                            "`{k}` does not apply to a {} step (its keys: kind, label, {})",
-                            s.kind.name(),
-                            allowed.join(", ")
-                        ),
-                    ));
-                }
-            }
-            if explicit.iter().any(|&e| e) && !explicit[i] {
-                let first = explicit.iter().position(|&e| e).unwrap_or(0) + 1;
-                return Err(bad(
-                    "kind",
-                    format!(
-                        "step {first} gives its time range by hand, so every step must \
-                         (start-s/end-s, or windows-s with one [start, end] per position or \
-                         rate); detection is used only when no step gives one"
-                    ),
-                ));
-            }
-            let (up, north) = step_frame(s).map_err(|m| bad("up", m))?;
-            let line = imu_model::line_of_key(text, &format!("step[{i}]"));
-            let label = s
-                .label
-                .as_deref()
-                .map(|l| format!("{l}: "))
-                .unwrap_or_default();
-            let require = |v: Option<f64>, k: &str, what: &str| {
-                v.filter(|x| x.is_finite())
-                    .ok_or_else(|| bad(k, format!("missing `{k}` ({what})")))
-            };
-            let windows = |count: usize| -> Result<Vec<Option<[f64; 2]>>, PlanError> {
-                let Some(w) = &s.windows_s else {
-                    return Ok(vec![None; count]);
-                };
-                if w.len() != count {
-                    return Err(bad(
-                        "windows-s",
-                        format!(
-                            "windows-s has {} [start, end] pairs, the step expands to {count} \
-                             segments",
-                            w.len()
-                        ),
-                    ));
-                }
-                for p in w {
-                    if !(p[0].is_finite() && p[1] > p[0]) {
-                        return Err(bad(
-                            "windows-s",
-                            format!("window {p:?} must have start < end (seconds)"),
-                        ));
-                    }
-                }
-                Ok(w.iter().map(|p| Some(*p)).collect())
-            };
-            let mut push = |position: Option<usize>,
-                            of: usize,
-                            kind: SegmentKind,
-                            description: String,
-                            up: Vec3,
-                            north: Option<Vec3>,
-                            axis: Option<Vec3>,
-                            rate_rad_s: f64,
-                            window_s: Option<[f64; 2]>| {
-                entries.push(PlanEntry {
-                    step: n,
-                    position,
-                    of,
-                    line,
-                    kind,
-                    description,
-                    up_sensor: up.into(),
-                    north_sensor: north.map(Into::into),
-                    axis_sensor: axis.map(Into::into),
-                    rate_rad_s,
-                    window_s,
-                });
-            };
-            let frame_text = |up: &Vec3, north: &Option<Vec3>| match north {
-                Some(nv) => format!(
-                    "up {}, north {}",
-                    format_direction(up),
-                    format_direction(nv)
-                ),
-                None => format!("up {}", format_direction(up)),
-            };
-            match s.kind {
-                StepKind::Static => {
-                    let window = match (s.start_s, s.end_s) {
-                        (None, None) => None,
-                        (Some(a), Some(b)) if a.is_finite() && b > a => Some([a, b]),
-                        (Some(_), Some(_)) => {
-                            return Err(bad("start-s", "start-s must be before end-s".into()));
-                        }
-                        _ => {
-                            return Err(bad(
-                                "start-s",
-                                "give both start-s and end-s (seconds from the recording's \
-                                 first sample), or neither"
-                                    .into(),
-                            ));
-                        }
-                    };
-                    push(
-                        None,
-                        1,
-                        SegmentKind::Static,
-                        format!("{label}static, {}", frame_text(&up, &north)),
-                        up,
-                        north,
-                        None,
-                        0.0,
-                        window,
-                    );
-                }
-                StepKind::IndexTable => {
-                    let axis = s
-                        .axis
-                        .ok_or_else(|| bad("axis", "missing `axis` (the table axis in sensor axes, e.g. \"x\" or \"-y\")".into()))?
-                        .0;
-                    let step_deg = require(
-                        s.step_deg,
-                        "step-deg",
-                        "the angle between positions, degrees",
-                    )?;
-                    let positions = s
-                        .positions
-                        .filter(|&p| p > 0)
-                        .ok_or_else(|| bad("positions", "missing or zero `positions` (the number of table positions, 12 for a full turn in 30-degree steps)".into()))?
-                        as usize;
-                    let start_deg = s.start_deg.unwrap_or(0.0);
-                    let ws = windows(positions)?;
-                    let unit = Unit::new_normalize(axis);
-                    for (p, window) in ws.into_iter().enumerate() {
-                        let angle_deg = start_deg + step_deg * p as f64;
-                        // The unit turns by +angle about its own axis: fixed directions turn
-                        // by -angle in sensor axes.
-                        let r = Rotation3::from_axis_angle(&unit, -angle_deg.to_radians());
-                        let up_p = r * up;
-                        let north_p = north.map(|nv| r * nv);
-                        push(
-                            Some(p + 1),
-                            positions,
-                            SegmentKind::Static,
-                            format!(
-                                "{label}index-table, {angle_deg} deg about {}: {}",
-                                format_direction(&axis),
-                                frame_text(&up_p, &north_p)
-                            ),
-                            up_p,
-                            north_p,
-                            None,
-                            0.0,
-                            window,
-                        );
-                    }
-                }
-                StepKind::RateSteps => {
-                    let axis = s
-                        .axis
-                        .ok_or_else(|| {
-                            bad(
-                                "axis",
-                                "missing `axis` (the table axis in sensor axes, e.g. \"z\")".into(),
-                            )
-                        })?
-                        .0;
-                    let rates = s.rates_deg_s.clone().unwrap_or_default();
-                    if rates.is_empty() || rates.iter().any(|r| !r.is_finite()) {
-                        return Err(bad(
-                            "rates-deg-s",
-                            "missing or empty `rates-deg-s` (the plateau rates in order, deg/s; 0 for a stop)".into(),
-                        ));
-                    }
-                    let vertical = axis.dot(&up).abs() > 1f64.to_radians().cos();
-                    if !vertical && rates.contains(&0.0) {
-                        return Err(bad(
-                            "rates-deg-s",
-                            format!(
-                                "the table axis {} is not vertical (up is {}), so where the \
-                                 table stops (rate 0) gravity is at an unknown angle; plan the \
-                                 stops as separate static steps",
-                                format_direction(&axis),
-                                format_direction(&up)
-                            ),
-                        ));
-                    }
-                    let ws = windows(rates.len())?;
-                    for (p, (r, window)) in rates.iter().zip(ws).enumerate() {
-                        let (kind, description, north_p) = if *r == 0.0 {
-                            // The table stopped at an angle nobody logged: north is lost unless
-                            // it lies along the axis (which is vertical here, so never).
-                            (
-                                SegmentKind::Static,
-                                format!(
-                                    "{label}rate-steps stop (0 deg/s) about {}: up {}, north unknown",
-                                    format_direction(&axis),
-                                    format_direction(&up)
-                                ),
-                                None,
-                            )
-                        } else {
-                            (
-                                SegmentKind::Plateau,
-                                format!(
-                                    "{label}rate-steps, {r} deg/s about {}",
-                                    format_direction(&axis)
-                                ),
-                                north,
-                            )
-                        };
-                        push(
-                            Some(p + 1),
-                            rates.len(),
-                            kind,
-                            description,
-                            up,
-                            north_p,
-                            (*r != 0.0).then_some(axis),
-                            r.to_radians(),
-                            window,
-                        );
-                    }
-                }
-            }
+        for (i, step) in raw.steps.iter().enumerate() {
+            expand_step(file, text, i, step, any_explicit, &mut entries)?;
         }
         Ok(Plan {
             file: file.to_string(),
@@ -1519,6 +1508,18 @@ up = "z"
         .unwrap_err()
         .to_string();
         assert!(e.contains("b.toml:12:") && e.contains("statc"), "{e}");
+        let e = Plan::from_toml_str(&PLAN.replace("kind = \"static\"\n", ""), "b.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("missing field `kind` in [[step]] 2"), "{e}");
+        let e = Plan::from_toml_str(&PLAN.replace("latitude-deg", "latitude"), "b.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("b.toml:2:1: unknown key `latitude` at the top level"),
+            "{e}"
+        );
+        assert!(e.contains("did you mean `latitude-deg`"), "{e}");
         let e = Plan::from_toml_str(&PLAN.replace("latitude-deg = 40.0\n", ""), "b.toml")
             .unwrap_err()
             .to_string();
