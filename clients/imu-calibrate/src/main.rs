@@ -1,18 +1,22 @@
 //! `imu-calibrate`: fit accel and gyro error models (bias, scale, misalignment, optionally
 //! g-sensitivity and more) from the static positions and rate plateaus of a recording, against
-//! a reference giving the true input, and write an imud calibration file.
+//! a reference giving the true input (a test plan, a time-stamped reference log, or the
+//! simulator's truth), and write an imud calibration file.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::Parser;
+use clap::{ArgGroup, Parser};
 use imu_analysis::Source;
 use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::plan::Plan;
+use imu_analysis::reference::Reference;
+use imu_analysis::reference_log::ReferenceLog;
 use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
@@ -20,12 +24,32 @@ use serde::Serialize;
 /// Command line.
 #[derive(Debug, Parser)]
 #[command(version, about)]
+// Where the true input comes from: exactly one of these (a new kind of reference is one more
+// member of the group).
+#[command(group(ArgGroup::new("truth-source").required(true).args(["plan", "reference"])))]
 struct Cli {
     /// Recording: imud MCAP log (the raw stream is fitted), rosbag2 MCAP or CSV.
     recording: PathBuf,
-    /// Reference for the true input: the simulator's truth MCAP of this recording.
-    #[arg(long, value_name = "TRUTH.mcap")]
-    reference: PathBuf,
+    /// Test plan: the procedure and its nominal inputs, in order (format imud-plan/1; see
+    /// config/plans/). Its steps are matched to the recording's segments and checked.
+    #[arg(long, value_name = "PLAN.toml")]
+    plan: Option<PathBuf>,
+    /// Reference for the true input: the simulator's truth MCAP of this recording, or a
+    /// time-stamped reference log (CSV with a header such as
+    /// `t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_m_s2,fy_m_s2,fz_m_s2`), aligned in time with the
+    /// recording by cross-correlation. Told apart by content (MCAP magic bytes).
+    #[arg(long, value_name = "TRUTH.mcap|LOG.csv")]
+    reference: Option<PathBuf>,
+    /// Clock offset of a reference log (log clock minus recording clock, seconds from the
+    /// recording's first sample) instead of finding it by cross-correlation.
+    #[arg(
+        long,
+        value_name = "S",
+        requires = "reference",
+        conflicts_with = "plan",
+        allow_negative_numbers = true
+    )]
+    reference_offset_s: Option<f64>,
     /// Calibration-format file whose accel and gyro effects say what to fit (values are the
     /// starting point; default: bias + scale + misalignment for both). Its `[accel.noise]` and
     /// `[gyro.noise]` (e.g. from imu-noise) widen the bias standard errors by the bias wander.
@@ -58,6 +82,7 @@ struct TruthRow {
 struct JsonOut<'a> {
     recording: String,
     reference: String,
+    reference_description: String,
     output: Option<String>,
     fit: &'a CalibrationFit,
     truth_comparison: Option<Vec<TruthRow>>,
@@ -240,19 +265,57 @@ fn print_tables(
     Ok(())
 }
 
+/// True if the file starts with the MCAP magic bytes.
+fn is_mcap(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    let mut file =
+        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let n = file
+        .read(&mut magic)
+        .with_context(|| format!("reading {}", path.display()))?;
+    Ok(n == 8 && magic == *b"\x89MCAP0\r\n")
+}
+
+/// The reference named on the command line, and its file (for provenance).
+fn load_reference(cli: &Cli, series: &imu_analysis::ImuSeries) -> Result<(Reference, PathBuf)> {
+    if let Some(path) = &cli.plan {
+        // Plan errors name the file and line themselves.
+        return Ok((Reference::Plan(Plan::load(path)?), path.clone()));
+    }
+    let path = cli
+        .reference
+        .as_ref()
+        .context("no reference: give --plan or --reference")?;
+    if is_mcap(path)? {
+        if cli.reference_offset_s.is_some() {
+            bail!(
+                "{}: --reference-offset-s applies to a reference log (CSV), not to a truth MCAP",
+                path.display()
+            );
+        }
+        let truth = imu_bus::truth::read_truth(path)
+            .with_context(|| format!("reading reference {}", path.display()))?;
+        return Ok((Reference::Truth(truth), path.clone()));
+    }
+    let log = ReferenceLog::load(path)?;
+    let aligned = match cli.reference_offset_s {
+        Some(offset_s) => log.with_offset(offset_s),
+        None => log.align(series)?,
+    };
+    Ok((Reference::Log(aligned), path.clone()))
+}
+
 fn run(cli: &Cli) -> Result<()> {
     let series = read_any(&cli.recording, Source::Raw, &CsvOptions::default())
         .with_context(|| format!("reading {}", cli.recording.display()))?;
     if series.is_empty() {
         bail!("{}: no samples", cli.recording.display());
     }
-    let truth = imu_analysis::reference::Reference::Truth(
-        imu_bus::truth::read_truth(&cli.reference)
-            .with_context(|| format!("reading reference {}", cli.reference.display()))?,
-    );
+    let (reference, reference_path) = load_reference(cli, &series)?;
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let opts = options(cli.model.as_deref(), duration_s)?;
-    let mut fit = calibrate(&series, &truth, &opts)
+    let mut fit = calibrate(&series, &reference, &opts)
         .with_context(|| format!("calibrating {}", cli.recording.display()))?;
 
     let cal = &mut fit.calibration;
@@ -263,12 +326,12 @@ fn run(cli: &Cli) -> Result<()> {
     ));
     cal.provenance.created = Some(now_rfc3339());
     cal.provenance.tool = Some(format!("imu-calibrate {}", env!("CARGO_PKG_VERSION")));
-    cal.provenance.procedure = Some(
-        "automatic static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means \
-         to the reference's true input (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)"
-            .into(),
-    );
-    cal.provenance.inputs = vec![input_file(&cli.recording)?, input_file(&cli.reference)?];
+    cal.provenance.procedure = Some(format!(
+        "static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means to the \
+         true input from the {} (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)",
+        reference.describe()
+    ));
+    cal.provenance.inputs = vec![input_file(&cli.recording)?, input_file(&reference_path)?];
     if !fit.notes.is_empty()
         || !fit.accel.unobservable.is_empty()
         || !fit.gyro.unobservable.is_empty()
@@ -318,7 +381,8 @@ fn run(cli: &Cli) -> Result<()> {
     if cli.json {
         let j = JsonOut {
             recording: cli.recording.display().to_string(),
-            reference: cli.reference.display().to_string(),
+            reference: reference_path.display().to_string(),
+            reference_description: reference.describe(),
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
             truth_comparison: truth_rows,
@@ -326,6 +390,7 @@ fn run(cli: &Cli) -> Result<()> {
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
+        writeln!(out, "reference: {}", reference.describe())?;
         print_tables(&mut out, &fit, truth_rows.as_deref())?;
         if let Some(p) = &cli.output {
             writeln!(out, "\nwrote {}", p.display())?;
