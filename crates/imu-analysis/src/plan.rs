@@ -12,7 +12,10 @@
 //! the table rate, and Earth's rate in the sensor frame where the plan fixes north. Where it
 //! does not (no `north`, or the table stopped at an unknown angle), the vertical part of
 //! Earth's rate is still used and the unknown horizontal part is carried as a systematic gyro
-//! bias uncertainty ([`PlanCaveats`]). Temperature and time since power-on come from the
+//! bias uncertainty ([`PlanCaveats`]). On an index table that part turns with gravity, so it
+//! can also bias a fitted g-sensitivity, by up to `Omega cos L / g` (5.7e-6 (rad/s)/(m/s^2) at
+//! 40 deg): that is not carried in the standard errors, only said in a note; plan north where
+//! g-sensitivity matters (Table 1). Temperature and time since power-on come from the
 //! recording.
 //!
 //! ```toml
@@ -1033,11 +1036,15 @@ impl Plan {
                 "Earth's rate is not fully known in {n_unknown} of {} segments (no north in the \
                  plan, a table stopped at an unlogged angle, no latitude, or a plateau's \
                  partial turn): up to [{:.1e}, {:.1e}, {:.1e}] rad/s per axis, carried as a \
-                 systematic gyro bias uncertainty",
+                 systematic gyro bias uncertainty; a g-sensitivity fitted from these segments \
+                 can be off by up to {:.1e} (rad/s)/(m/s^2) more than its standard error says \
+                 (give north in the plan where it matters)",
                 resolved.len(),
                 sd[0],
                 sd[1],
-                sd[2]
+                sd[2],
+                EARTH_RATE_RAD_S * self.latitude_deg.map_or(1.0, |l| l.to_radians().cos())
+                    / self.gravity_m_s2
             ));
         }
         if series.temp.is_empty() {
