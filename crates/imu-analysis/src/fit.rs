@@ -698,8 +698,10 @@ fn point(
     }
 }
 
-/// Detect segments in `series`, take the true input of each from `reference`, and fit the accel
-/// model to the static segments and the gyro model to the static segments and rate plateaus.
+/// Detect segments in `series` (or take them from `reference`: a plan's time ranges), take the
+/// true input of each from `reference` (its unknown part widens the gyro bias errors), and fit
+/// the accel model to the static segments and the gyro model to the static segments and rate
+/// plateaus.
 /// Without plateaus the gyro gain effects (scale, misalignment, asymmetry, nonlinearity) are
 /// left out of the gyro fit (a note says so): Earth rate is too small to excite them.
 pub fn calibrate(

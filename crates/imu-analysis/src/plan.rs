@@ -1287,8 +1287,13 @@ impl Plan {
             )
         } else {
             format!(
-                "the recording does not follow the plan ({ne} segments each, {} do not match)",
-                problems.len()
+                "the recording does not follow the plan ({ne} segments each; {} {})",
+                problems.len(),
+                if problems.len() == 1 {
+                    "mismatch"
+                } else {
+                    "mismatches"
+                }
             )
         };
         Err(PlanMismatch {
