@@ -1,5 +1,6 @@
-//! Every file under config/ parses, and every scenario compiles to a sensible timeline: a typo in
-//! a shipped example is caught here, not by a user.
+//! Every file under config/ parses, every scenario compiles to a sensible timeline, and every
+//! test plan describes the scenario of the same name: a typo in a shipped example is caught
+//! here, not by a user.
 
 use imu_model::Calibration;
 use imu_sim::Scenario;
@@ -118,5 +119,90 @@ fn earth_rate_scenario_matches_table_1() {
                 k + 1
             );
         }
+    }
+}
+
+#[test]
+fn every_plan_parses_and_describes_its_scenario() {
+    use imu_analysis::plan::Plan;
+    use imu_analysis::segment::SegmentKind;
+    let files = config_files("plans", "toml");
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| f.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    for wanted in ["index-table-12pos", "earth-rate-8pos", "rate-table"] {
+        assert!(
+            names.iter().any(|n| n == wanted),
+            "config/plans/{wanted}.toml is missing"
+        );
+    }
+    for (f, name) in files.iter().zip(&names) {
+        let plan = Plan::load(f).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            plan.description.is_some(),
+            "{}: describe the plan",
+            f.display()
+        );
+        // A plan is named after the scenario it calibrates. The scenario's still and rate
+        // segments, with consecutive still ones merged where no move separates them (a
+        // mounting static and the table's first position), are the plan's entries: same kind,
+        // same gravity direction, same table axis and rate.
+        let scenario = repo_root()
+            .join("config/scenarios")
+            .join(format!("{name}.toml"));
+        let opts = imu_sim::SimOptions::from_files(&scenario, None)
+            .unwrap_or_else(|e| panic!("{}: no scenario of that name: {e}", f.display()));
+        let timeline = opts.scenario.compile(opts.seed);
+        let mut expected: Vec<&imu_sim::motion::SegmentInfo> = Vec::new();
+        for seg in timeline.segments() {
+            let merges = expected.last().is_some_and(|last| {
+                seg.kind == "static" && last.kind == "static" && last.end_s == Some(seg.start_s)
+            });
+            if (seg.kind == "static" || seg.kind == "rate") && !merges {
+                expected.push(seg);
+            }
+        }
+        assert_eq!(
+            plan.entries.len(),
+            expected.len(),
+            "{}: the plan has {} entries, the scenario {} segments",
+            f.display(),
+            plan.entries.len(),
+            expected.len()
+        );
+        for (e, seg) in plan.entries.iter().zip(&expected) {
+            let what = format!("{}: {} vs {}", f.display(), e.name(), seg.label);
+            let kind = if seg.kind == "rate" {
+                SegmentKind::Plateau
+            } else {
+                SegmentKind::Static
+            };
+            assert_eq!(e.kind, kind, "{what}");
+            let up = -seg.gravity_dir_sensor;
+            let planned = imu_model::Vec3::from(e.up_sensor);
+            assert!(
+                (planned - up).norm() < 1e-9,
+                "{what}: up {planned:?} vs {up:?}"
+            );
+            if let Some(rate) = seg.table_rate_rad_s.filter(|r| *r != 0.0) {
+                let axis = imu_model::Vec3::from(e.axis_sensor.expect("a plateau has an axis"));
+                assert!((axis - seg.axis_sensor.unwrap()).norm() < 1e-12, "{what}");
+                assert!((e.rate_rad_s - rate).abs() < 1e-12, "{what}");
+            }
+        }
+        // The plans for the simulated runs state the simulator's gravity.
+        assert_eq!(
+            plan.gravity_m_s2,
+            opts.scenario.gravity_m_s2,
+            "{}",
+            f.display()
+        );
+        assert_eq!(
+            plan.latitude_deg,
+            Some(opts.scenario.latitude_deg),
+            "{}",
+            f.display()
+        );
     }
 }

@@ -1,6 +1,7 @@
 //! `imu-calibrate`: fit accel and gyro error models (bias, scale, misalignment, optionally
 //! g-sensitivity and more) from the static positions and rate plateaus of a recording, against
-//! a reference giving the true input (`--reference`), or from many hand-held still poses and
+//! a reference giving the true input (a test plan, a time-stamped reference log, or the
+//! simulator's truth), or from many hand-held still poses and
 //! the moves between them without any reference (`--reference-free`), and write an imud
 //! calibration file.
 
@@ -15,9 +16,12 @@ use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::plan::Plan;
+use imu_analysis::reference::Reference;
 use imu_analysis::reference_free::{
     ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
 };
+use imu_analysis::reference_log::ReferenceLog;
 use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
@@ -30,9 +34,26 @@ use serde::Serialize;
 struct Cli {
     /// Recording: imud MCAP log (the raw stream is fitted), rosbag2 MCAP or CSV.
     recording: PathBuf,
-    /// Reference for the true input: the simulator's truth MCAP of this recording.
-    #[arg(long, value_name = "TRUTH.mcap", group = "procedure")]
+    /// Test plan: the procedure and its nominal inputs, in order (format imud-plan/1; see
+    /// config/plans/). Its steps are matched to the recording's segments and checked.
+    #[arg(long, value_name = "PLAN.toml", group = "procedure")]
+    plan: Option<PathBuf>,
+    /// Reference for the true input: the simulator's truth MCAP of this recording, or a
+    /// time-stamped reference log (CSV with a header such as
+    /// `t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_m_s2,fy_m_s2,fz_m_s2`), aligned in time with the
+    /// recording by cross-correlation. Told apart by content (MCAP magic bytes).
+    #[arg(long, value_name = "TRUTH.mcap|LOG.csv", group = "procedure")]
     reference: Option<PathBuf>,
+    /// Clock offset of a reference log (log clock minus recording clock, seconds from the
+    /// recording's first sample) instead of finding it by cross-correlation.
+    #[arg(
+        long,
+        value_name = "S",
+        requires = "reference",
+        conflicts_with = "plan",
+        allow_negative_numbers = true
+    )]
+    reference_offset_s: Option<f64>,
     /// No reference: the unit was held still in many (30 or more) orientations and turned
     /// between them. The accelerometer is fitted to the gravity magnitude (its axes define the
     /// body frame), the gyro bias to the still poses, the gyro gains to the integrated moves.
@@ -88,6 +109,7 @@ struct JsonOutReferenceFree<'a> {
 struct JsonOut<'a> {
     recording: String,
     reference: String,
+    reference_description: String,
     output: Option<String>,
     fit: &'a CalibrationFit,
     truth_comparison: Option<Vec<TruthRow>>,
@@ -397,6 +419,49 @@ fn stamp(
     Ok(())
 }
 
+/// True if the file starts with the MCAP magic bytes.
+fn is_mcap(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    let mut file =
+        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let n = file
+        .read(&mut magic)
+        .with_context(|| format!("reading {}", path.display()))?;
+    Ok(n == 8 && magic == *b"\x89MCAP0\r\n")
+}
+
+/// The reference named on the command line (a plan or a --reference file), and its file.
+fn load_reference(
+    cli: &Cli,
+    series: &imu_analysis::ImuSeries,
+) -> Result<Option<(Reference, PathBuf)>> {
+    if let Some(path) = &cli.plan {
+        // Plan errors name the file and line themselves.
+        return Ok(Some((Reference::Plan(Plan::load(path)?), path.clone())));
+    }
+    let Some(path) = cli.reference.as_ref() else {
+        return Ok(None);
+    };
+    if is_mcap(path)? {
+        if cli.reference_offset_s.is_some() {
+            bail!(
+                "{}: --reference-offset-s applies to a reference log (CSV), not to a truth MCAP",
+                path.display()
+            );
+        }
+        let truth = imu_bus::truth::read_truth(path)
+            .with_context(|| format!("reading reference {}", path.display()))?;
+        return Ok(Some((Reference::Truth(truth), path.clone())));
+    }
+    let log = ReferenceLog::load(path)?;
+    let aligned = match cli.reference_offset_s {
+        Some(offset_s) => log.with_offset(offset_s),
+        None => log.align(series)?,
+    };
+    Ok(Some((Reference::Log(aligned), path.clone())))
+}
+
 fn run(cli: &Cli) -> Result<()> {
     // (clap's `requires` counts a flag's implicit `false` as present, so this is checked here.)
     if !cli.reference_free && (cli.gravity_m_s2.is_some() || cli.latitude_deg.is_some()) {
@@ -407,8 +472,8 @@ fn run(cli: &Cli) -> Result<()> {
     if series.is_empty() {
         bail!("{}: no samples", cli.recording.display());
     }
-    match &cli.reference {
-        Some(reference) => run_reference(cli, &series, reference),
+    match load_reference(cli, &series)? {
+        Some((reference, path)) => run_reference(cli, &series, &reference, &path),
         None => run_reference_free(cli, &series),
     }
 }
@@ -485,14 +550,15 @@ fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries) -> Result<()>
     Ok(())
 }
 
-fn run_reference(cli: &Cli, series: &imu_analysis::ImuSeries, reference: &Path) -> Result<()> {
-    let truth = imu_analysis::reference::Reference::Truth(
-        imu_bus::truth::read_truth(reference)
-            .with_context(|| format!("reading reference {}", reference.display()))?,
-    );
+fn run_reference(
+    cli: &Cli,
+    series: &imu_analysis::ImuSeries,
+    truth: &Reference,
+    reference: &Path,
+) -> Result<()> {
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let opts = options(cli.model.as_deref(), duration_s)?;
-    let mut fit = calibrate(series, &truth, &opts)
+    let mut fit = calibrate(series, truth, &opts)
         .with_context(|| format!("calibrating {}", cli.recording.display()))?;
 
     let cal = &mut fit.calibration;
@@ -501,11 +567,11 @@ fn run_reference(cli: &Cli, series: &imu_analysis::ImuSeries, reference: &Path) 
         fit.segmentation.count(SegmentKind::Static),
         fit.segmentation.count(SegmentKind::Plateau)
     ));
-    cal.provenance.procedure = Some(
-        "automatic static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means \
-         to the reference's true input (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)"
-            .into(),
-    );
+    cal.provenance.procedure = Some(format!(
+        "static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means to the \
+         true input from the {} (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)",
+        truth.describe()
+    ));
     let held: Vec<String> = fit
         .accel
         .unobservable
@@ -541,6 +607,7 @@ fn run_reference(cli: &Cli, series: &imu_analysis::ImuSeries, reference: &Path) 
         let j = JsonOut {
             recording: cli.recording.display().to_string(),
             reference: reference.display().to_string(),
+            reference_description: truth.describe(),
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
             truth_comparison: truth_rows,
@@ -548,6 +615,7 @@ fn run_reference(cli: &Cli, series: &imu_analysis::ImuSeries, reference: &Path) 
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
+        writeln!(out, "reference: {}", truth.describe())?;
         print_tables(&mut out, &fit, truth_rows.as_deref())?;
         if let Some(p) = &cli.output {
             writeln!(out, "\nwrote {}", p.display())?;

@@ -2,6 +2,7 @@
 //! the daemon's offline pipeline, calibrated against the simulator's truth; the written file
 //! loads, and every fitted parameter is within 3 standard errors of the truth model.
 
+use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -193,4 +194,234 @@ fn calibrates_a_simulated_recording_within_its_standard_errors() {
         assert_eq!(input.sha256.as_deref(), Some(want), "{}", input.path);
     }
     assert!(cal.provenance.created.as_ref().unwrap().ends_with('Z'));
+}
+
+/// What to fit from an index table alone: the accel model with its nonlinearity, and only the
+/// gyro bias (g-sensitivity from statics needs north known, as in the Table 1 plan; the gains
+/// need rate plateaus).
+const INDEX_MODEL: &str = r#"
+format = "imud-calibration/1"
+[accel.bias]
+value = [0.0, 0.0, 0.0]
+[accel.scale]
+value = [0.0, 0.0, 0.0]
+[accel.misalignment]
+[accel.scale-nonlinearity]
+quadratic = [0.0, 0.0, 0.0]
+cubic = [0.0, 0.0, 0.0]
+[gyro.bias]
+value = [0.0, 0.0, 0.0]
+[accel.noise]
+white-density = [1.5e-3, 1.5e-3, 1.8e-3]
+bias-instability = [1.27e-3, 9.8e-4, 4.2e-4]
+bias-instability-tau-max-s = 1000.0
+random-walk = [2.0e-5, 2.0e-5, 2.0e-5]
+quantization-lsb = [2.1e-3, 2.1e-3, 2.1e-3]
+[gyro.noise]
+white-density = [1.0e-3, 1.0e-3, 1.0e-3]
+bias-instability = [2.4e-4, 2.4e-4, 2.4e-4]
+bias-instability-tau-max-s = 1000.0
+random-walk = [1.0e-5, 1.0e-5, 1.0e-5]
+quantization-lsb = [2.6e-4, 2.6e-4, 2.6e-4]
+"#;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Records a shipped scenario through the offline pipeline: (dir, recording, truth file).
+fn record_shipped(scenario: &str, seed: u64) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = repo().join("config/scenarios").join(scenario);
+    let mut sim = imu_sim::SimOptions::from_files(&path, None).unwrap();
+    sim.seed = seed;
+    let truth_path = dir.path().join("truth.mcap");
+    sim.truth_out = Some(truth_path.clone());
+    let mut c = imud::config::Config::default();
+    c.log.dir = dir.path().join("log");
+    c.name = "t".into();
+    let out = imud::offline::record(sim, &c).unwrap();
+    assert_eq!(out.files.len(), 1);
+    let rec = out.files[0].clone();
+    (dir, rec, truth_path)
+}
+
+/// Runs the binary; (success, stdout, stderr).
+fn run_cli(args: &[OsString]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_imu-calibrate"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8(o.stdout).unwrap(),
+        String::from_utf8(o.stderr).unwrap(),
+    )
+}
+
+/// Every fitted parameter of a `--json --truth` run within 3 standard errors; returns how
+/// many were fitted.
+fn fitted_within_3_se(json: &serde_json::Value) -> usize {
+    let mut fitted = 0;
+    for r in json["truth_comparison"].as_array().unwrap() {
+        if let Some(z) = r["error_in_se"].as_f64() {
+            fitted += 1;
+            assert!(z.abs() < 3.0, "{} {}: {r}", r["triad"], r["name"]);
+        }
+    }
+    fitted
+}
+
+#[test]
+fn calibrates_real_hardware_style_with_a_plan_or_a_reference_log() {
+    // The shipped index-table scenario and its shipped plan: no truth file involved.
+    let (dir, rec, truth_path) = record_shipped("index-table-12pos.toml", 11);
+    let plan = repo().join("config/plans/index-table-12pos.toml");
+    let model = dir.path().join("model.toml");
+    std::fs::write(&model, INDEX_MODEL).unwrap();
+    let cal_path = dir.path().join("cal.toml");
+    let truth_model = model_path();
+    let base: Vec<OsString> = vec![
+        rec.clone().into(),
+        "--model".into(),
+        model.clone().into(),
+        "--truth".into(),
+        truth_model.into(),
+    ];
+    let with = |extra: &[&OsStr]| -> Vec<OsString> {
+        base.iter()
+            .cloned()
+            .chain(extra.iter().map(|s| s.to_os_string()))
+            .collect()
+    };
+
+    let (ok, table, err) = run_cli(&with(&["--plan".as_ref(), plan.as_os_str()]));
+    assert!(ok, "{err}");
+    eprintln!("{table}");
+    assert!(table.contains("reference: test plan"), "{table}");
+    assert!(
+        table.contains("segments: 24 static, 0 rate plateaus"),
+        "{table}"
+    );
+    assert!(
+        table.contains("note: Earth's rate is not fully known"),
+        "{table}"
+    );
+
+    let (ok, out, err) = run_cli(&with(&[
+        "--plan".as_ref(),
+        plan.as_os_str(),
+        "--json".as_ref(),
+        "-o".as_ref(),
+        cal_path.as_os_str(),
+    ]));
+    assert!(ok, "{err}");
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    // accel 18 (cubic nonlinearity is observable with 30-degree steps), gyro bias.
+    assert_eq!(fitted_within_3_se(&j), 18 + 3);
+    // The same as against the simulator's truth (the accel exactly; the gyro bias within the
+    // Earth rate the plan cannot know without north).
+    let (ok, out, err) = run_cli(&with(&[
+        "--reference".as_ref(),
+        truth_path.as_os_str(),
+        "--json".as_ref(),
+    ]));
+    assert!(ok, "{err}");
+    let by_truth: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let rows = |v: &serde_json::Value| v["truth_comparison"].as_array().unwrap().clone();
+    for (a, b) in rows(&j).iter().zip(&rows(&by_truth)) {
+        assert_eq!(a["name"], b["name"]);
+        let d = (a["fitted"].as_f64().unwrap() - b["fitted"].as_f64().unwrap()).abs()
+            / b["std_error"].as_f64().unwrap();
+        let max = if a["triad"] == "accel" { 1e-3 } else { 1.0 };
+        assert!(d < max, "{} {}: {d} SE apart", a["triad"], a["name"]);
+    }
+    assert!(
+        j["reference_description"]
+            .as_str()
+            .unwrap()
+            .starts_with("test plan"),
+        "{}",
+        j["reference_description"]
+    );
+    let cal = imu_model::Calibration::load(&cal_path).unwrap();
+    let inputs = &cal.provenance.inputs;
+    assert_eq!(inputs[1].path, plan.display().to_string());
+    assert!(
+        cal.provenance
+            .procedure
+            .as_deref()
+            .unwrap()
+            .contains("test plan")
+    );
+
+    // The same recording against a reference log on a clock 12.5 s ahead (written from the
+    // truth in deg/s and g, as a rate table's or a motion capture's log could be).
+    let truth = imu_bus::truth::read_truth(&truth_path).unwrap();
+    let mut csv = String::from("t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_g,fy_g,fz_g\n");
+    let first_t_s = truth
+        .samples
+        .iter()
+        .find(|s| s.command == 0x01)
+        .unwrap()
+        .t_s;
+    for s in truth.samples.iter().filter(|s| s.command == 0x01) {
+        let w = s.angular_rate_rad_s.map(f64::to_degrees);
+        let f = s
+            .specific_force_m_s2
+            .map(|x| x / imu_model::units::STANDARD_GRAVITY_M_S2);
+        csv.push_str(&format!(
+            "{:.4},{:.9},{:.9},{:.9},{:.9},{:.9},{:.9}\n",
+            s.t_s - first_t_s + 12.5,
+            w[0],
+            w[1],
+            w[2],
+            f[0],
+            f[1],
+            f[2]
+        ));
+    }
+    let log = dir.path().join("log.csv");
+    std::fs::write(&log, csv).unwrap();
+    let (ok, out, err) = run_cli(&with(&[
+        "--reference".as_ref(),
+        log.as_os_str(),
+        "--json".as_ref(),
+    ]));
+    assert!(ok, "{err}");
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let notes = j["fit"]["notes"].to_string();
+    assert!(
+        notes.contains("log clock = recording clock +12.5"),
+        "{notes}"
+    );
+    assert_eq!(fitted_within_3_se(&j), 18 + 3);
+
+    // A plan whose table turns the other way: refused, naming the step and the directions.
+    let wrong = dir.path().join("wrong.toml");
+    let text = std::fs::read_to_string(&plan).unwrap();
+    std::fs::write(&wrong, text.replacen("axis = \"x\"", "axis = \"-x\"", 1)).unwrap();
+    let (ok, _, err) = run_cli(&with(&["--plan".as_ref(), wrong.as_os_str()]));
+    assert!(!ok);
+    assert!(
+        err.starts_with("imu-calibrate: error: calibrating"),
+        "{err}"
+    );
+    assert!(
+        err.contains("wrong.toml: the recording does not follow the plan"),
+        "{err}"
+    );
+    assert!(err.contains("step 1 (line 17) position 2 of 12"), "{err}");
+    assert!(err.contains("from the planned"), "{err}");
+
+    // --plan and --reference exclude each other; one of them is required.
+    let (ok, _, err) = run_cli(&with(&[
+        "--plan".as_ref(),
+        plan.as_os_str(),
+        "--reference".as_ref(),
+        log.as_os_str(),
+    ]));
+    assert!(!ok && err.contains("cannot be used with"), "{err}");
+    let (ok, _, err) = run_cli(&base);
+    assert!(!ok && err.contains("required"), "{err}");
 }

@@ -782,7 +782,8 @@ pub struct Observations {
 }
 
 impl Observations {
-    /// Detect segments in `series` and take the true input of each from `reference`. Accel
+    /// Detect segments in `series` (or take a plan's time ranges) and take the true input of
+    /// each from `reference`. Accel
     /// points come from the static segments, plus, with `accel_on_plateaus`, from the rate
     /// plateaus whose accel is as steady as at rest (a table turning about the vertical: the
     /// centripetal term of a lever arm shows there); gyro points from every segment.
@@ -793,7 +794,7 @@ impl Observations {
         accel_on_plateaus: bool,
     ) -> Result<Observations, CalibrateError> {
         use crate::segment::SegmentKind;
-        let segmentation = crate::segment::detect(series, segment)?;
+        let segmentation = reference.segmentation(series, segment)?;
         let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
         // Steadiness bound for plateau accel: 3x the largest per-axis accel std at rest.
         let static_std = segmentation
@@ -877,8 +878,9 @@ impl Observations {
     }
 }
 
-/// Detect segments in `series`, take the true input of each from `reference`, and fit the
-/// accel model to the static segments and the gyro model to the static segments and rate
+/// Detect segments in `series` (or take them from `reference`: a plan's time ranges), take the
+/// true input of each from `reference` (its unknown part widens the gyro bias errors), and fit
+/// the accel model to the static segments and the gyro model to the static segments and rate
 /// plateaus. Without plateaus the gyro gain effects (scale, misalignment, asymmetry,
 /// nonlinearity) are left out of the gyro fit (a note says so): Earth rate is too small to
 /// excite them.
@@ -889,7 +891,9 @@ pub fn calibrate(
 ) -> Result<CalibrationFit, CalibrateError> {
     use crate::segment::SegmentKind;
     let obs = Observations::from_recording(series, reference, &opts.segment, false)?;
-    let mut notes = Vec::new();
+    let caveats = reference.caveats(series, &obs.segmentation.segments)?;
+    let mut notes = caveats.notes.clone();
+    let gyro_bias_drift_rad_s = caveats.widen_gyro_bias_drift(opts.gyro_bias_drift_rad_s);
     let fit_opts = |drift| FitOptions {
         fixed: Vec::new(),
         bias_drift: drift,
@@ -914,7 +918,7 @@ pub fn calibrate(
         &gyro_model,
         Triad::Gyro,
         &obs.points(Triad::Gyro),
-        &fit_opts(opts.gyro_bias_drift_rad_s),
+        &fit_opts(gyro_bias_drift_rad_s),
     )?;
 
     let mut calibration = imu_model::Calibration::identity();

@@ -1,19 +1,61 @@
 //! References: where the TRUE input of each detected segment comes from. A calibration fit
 //! compares each segment's measured mean with the input the sensor really had; that input is
-//! known from a reference. Today: the simulator's truth recording (sample-aligned with an
-//! offline recording).
+//! known from a reference: the simulator's truth recording (sample-aligned with an offline
+//! recording), a test plan stating the procedure's nominal inputs ([`crate::plan`]), or a
+//! time-stamped reference log such as a rate table's ([`crate::reference_log`]).
 
 use crate::ImuSeries;
-use crate::segment::Segment;
+use crate::plan::{Plan, PlanMismatch};
+use crate::reference_log::{AlignedLog, ReferenceLogError};
+use crate::segment::{Segment, SegmentError, SegmentOptions, Segmentation};
 
 /// A source of the true input over segments.
 #[derive(Clone, Debug)]
 pub enum Reference {
     /// The simulator's truth MCAP of this very recording (one truth sample per data sample).
     Truth(imu_bus::truth::Truth),
+    /// A test plan: the procedure's nominal inputs, matched in order to the segments.
+    Plan(Plan),
+    /// A time-stamped reference log (CSV), aligned in time with the recording.
+    Log(AlignedLog),
+}
+
+/// What a reference cannot tell about the true input, and remarks for the report.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReferenceCaveats {
+    /// Systematic uncertainty of the gyro's true input common to the segments, per axis,
+    /// rad/s (e.g. Earth's rate where a plan does not fix north); the fit adds it in
+    /// quadrature to the gyro bias standard errors, like a bias drift.
+    pub gyro_bias_std_rad_s: Option<[f64; 3]>,
+    /// Remarks (gravity used, time offset found, assumptions).
+    pub notes: Vec<String>,
+}
+
+impl ReferenceCaveats {
+    /// `drift` widened by the reference's own systematic uncertainty (in quadrature).
+    pub fn widen_gyro_bias_drift(&self, drift: Option<[f64; 3]>) -> Option<[f64; 3]> {
+        match (drift, self.gyro_bias_std_rad_s) {
+            (d, None) => d,
+            (None, r) => r,
+            (Some(d), Some(r)) => Some(std::array::from_fn(|a| d[a].hypot(r[a]))),
+        }
+    }
 }
 
 impl Reference {
+    /// The segments of `series` to fit: detected with `opts`, unless the reference gives them
+    /// (a plan with time ranges set by hand).
+    pub fn segmentation(
+        &self,
+        series: &ImuSeries,
+        opts: &SegmentOptions,
+    ) -> Result<Segmentation, ReferenceError> {
+        match self {
+            Reference::Plan(p) => p.segmentation(series, opts),
+            Reference::Truth(_) | Reference::Log(_) => Ok(crate::segment::detect(series, opts)?),
+        }
+    }
+
     /// The mean true input over each of `segments` of `series`.
     pub fn segment_truth(
         &self,
@@ -22,6 +64,30 @@ impl Reference {
     ) -> Result<Vec<SegmentTruth>, ReferenceError> {
         match self {
             Reference::Truth(t) => truth_for_segments(series, segments, t),
+            Reference::Plan(p) => Ok(p.segment_truth(series, segments)?),
+            Reference::Log(l) => Ok(l.segment_truth(series, segments)?),
+        }
+    }
+
+    /// What the reference leaves unknown about the true input of `segments`, and notes.
+    pub fn caveats(
+        &self,
+        series: &ImuSeries,
+        segments: &[Segment],
+    ) -> Result<ReferenceCaveats, ReferenceError> {
+        match self {
+            Reference::Truth(_) => Ok(ReferenceCaveats::default()),
+            Reference::Plan(p) => {
+                let c = p.caveats(series, segments)?;
+                Ok(ReferenceCaveats {
+                    gyro_bias_std_rad_s: c.gyro_bias_std_rad_s,
+                    notes: c.notes,
+                })
+            }
+            Reference::Log(l) => Ok(ReferenceCaveats {
+                gyro_bias_std_rad_s: None,
+                notes: l.notes(series),
+            }),
         }
     }
 
@@ -29,6 +95,8 @@ impl Reference {
     pub fn describe(&self) -> String {
         match self {
             Reference::Truth(t) => format!("simulator truth ({} samples)", t.samples.len()),
+            Reference::Plan(p) => p.describe(),
+            Reference::Log(l) => l.describe(),
         }
     }
 }
@@ -46,6 +114,25 @@ pub struct SegmentTruth {
     pub time_since_power_on_s: f64,
 }
 
+/// Mean temperature and time since power-on over segment `s`, from the recording itself: its
+/// temperature readings (else `fallback_temp_c`, else [`crate::plan::FALLBACK_TEMP_C`]) and its
+/// time since the first sample plus `powered_on_before_s`.
+pub(crate) fn recording_conditions(
+    series: &ImuSeries,
+    s: &Segment,
+    fallback_temp_c: Option<f64>,
+    powered_on_before_s: f64,
+) -> (f64, f64) {
+    let times = &series.t_s[s.range()];
+    let n = times.len().max(1) as f64;
+    let temp_c = if series.temp.is_empty() {
+        fallback_temp_c.unwrap_or(crate::plan::FALLBACK_TEMP_C)
+    } else {
+        times.iter().map(|&t| series.temp_at(t)).sum::<f64>() / n
+    };
+    (temp_c, powered_on_before_s + times.iter().sum::<f64>() / n)
+}
+
 /// Failures of the reference alignment.
 #[derive(Debug, thiserror::Error)]
 pub enum ReferenceError {
@@ -60,6 +147,15 @@ pub enum ReferenceError {
         /// Samples in the series.
         series_samples: usize,
     },
+    /// Segmentation failed.
+    #[error(transparent)]
+    Segment(#[from] SegmentError),
+    /// The recording does not follow the test plan.
+    #[error(transparent)]
+    Plan(#[from] PlanMismatch),
+    /// The reference log does not cover or fit the recording.
+    #[error(transparent)]
+    Log(#[from] ReferenceLogError),
 }
 
 /// Mean truth over each segment's samples. In an offline recording the k-th data sample is the

@@ -787,6 +787,7 @@ fn fit_gyro_static(
         fixed: held(Triad::Gyro, &model.param_names(Triad::Gyro), &opts.hold),
         bias_drift: Some(drift.map(|d| (d * d + horizontal_rad_s * horizontal_rad_s).sqrt())),
         drift_model: false,
+        shared_noise: None,
     };
     fit_triad(model, Triad::Gyro, &points, &fit_opts)
 }

@@ -94,6 +94,28 @@ impl Segment {
     pub fn mean_gyro(&self) -> Vec3 {
         Vec3::from(self.mean_gyro_rad_s)
     }
+
+    /// A segment of `kind` over the samples `range` of `series` (given by hand rather than
+    /// detected), with its statistics. `range` must be non-empty and inside the series.
+    pub fn from_samples(
+        series: &ImuSeries,
+        range: std::ops::Range<usize>,
+        kind: SegmentKind,
+    ) -> Segment {
+        let (mean_a, std_a) = stats(&series.accel_m_s2[range.clone()]);
+        let (mean_g, std_g) = stats(&series.gyro_rad_s[range.clone()]);
+        Segment {
+            kind,
+            start_s: series.t_s[range.start],
+            end_s: series.t_s[range.end - 1],
+            first_sample: range.start,
+            n: range.len(),
+            mean_accel_m_s2: mean_a,
+            mean_gyro_rad_s: mean_g,
+            std_accel_m_s2: std_a,
+            std_gyro_rad_s: std_g,
+        }
+    }
 }
 
 /// What [`detect`] found, with the thresholds it chose.
