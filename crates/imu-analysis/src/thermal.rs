@@ -557,14 +557,14 @@ pub(crate) fn poly_fit(x: &[f64], y: &[f64], degree: usize) -> PolyFit {
             white.max(coloured).sqrt()
         })
         .collect();
-    let r1 = lag1_autocorr(&resid).clamp(0.0, 0.95);
+    let r1 = crate::stats::lag1_autocorrelation(&resid).clamp(0.0, 0.95);
     let inflation = ((1.0 + r1) / (1.0 - r1))
         .max((std_errors[p - 1] * std_errors[p - 1] / (cov[p - 1][p - 1] * s2)).min(n as f64));
     let dof = ((n as f64) / inflation - p as f64).max(2.0);
     let t_stats: Vec<f64> = c.iter().zip(&std_errors).map(|(c, s)| c / s).collect();
     let p_values = t_stats
         .iter()
-        .map(|&t| student_t_two_sided_p(t, dof))
+        .map(|&t| crate::stats::student_t_two_sided_p(t, dof))
         .collect();
     PolyFit {
         coefficients: c,
@@ -574,7 +574,7 @@ pub(crate) fn poly_fit(x: &[f64], y: &[f64], degree: usize) -> PolyFit {
         residual_std: s2
             .sqrt()
             .max(gamma.iter().cloned().fold(0.0, f64::max).sqrt()),
-        residual_lag1_corr: lag1_autocorr(&resid),
+        residual_lag1_corr: crate::stats::lag1_autocorrelation(&resid),
         dof_effective: dof,
     }
 }
@@ -682,112 +682,6 @@ fn variogram_envelope(e: &[f64]) -> Vec<f64> {
     g
 }
 
-fn lag1_autocorr(r: &[f64]) -> f64 {
-    if r.len() < 3 {
-        return 0.0;
-    }
-    let m = mean(r);
-    let den: f64 = r.iter().map(|v| (v - m).powi(2)).sum();
-    if den == 0.0 {
-        return 0.0;
-    }
-    r.windows(2).map(|w| (w[0] - m) * (w[1] - m)).sum::<f64>() / den
-}
-
-/// Two-sided p-value of a Student t statistic with `dof` degrees of freedom.
-pub(crate) fn student_t_two_sided_p(t: f64, dof: f64) -> f64 {
-    if !t.is_finite() {
-        return if t.is_nan() { 1.0 } else { 0.0 };
-    }
-    let x = dof / (dof + t * t);
-    incomplete_beta(0.5 * dof, 0.5, x).clamp(0.0, 1.0)
-}
-
-/// Regularized incomplete beta function I_x(a, b) (continued fraction, Lentz).
-fn incomplete_beta(a: f64, b: f64, x: f64) -> f64 {
-    if x <= 0.0 {
-        return 0.0;
-    }
-    if x >= 1.0 {
-        return 1.0;
-    }
-    let ln_front = ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln();
-    if x < (a + 1.0) / (a + b + 2.0) {
-        ln_front.exp() * beta_cf(a, b, x) / a
-    } else {
-        1.0 - ln_front.exp() * beta_cf(b, a, 1.0 - x) / b
-    }
-}
-
-fn beta_cf(a: f64, b: f64, x: f64) -> f64 {
-    const TINY: f64 = 1e-300;
-    let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
-    let mut c = 1.0;
-    let mut d = 1.0 - qab * x / qap;
-    if d.abs() < TINY {
-        d = TINY;
-    }
-    d = 1.0 / d;
-    let mut h = d;
-    for m in 1..300 {
-        let m = f64::from(m);
-        let m2 = 2.0 * m;
-        let aa = m * (b - m) * x / ((qam + m2) * (a + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < TINY {
-            d = TINY;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
-        d = 1.0 / d;
-        h *= d * c;
-        let aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < TINY {
-            d = TINY;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
-        d = 1.0 / d;
-        let del = d * c;
-        h *= del;
-        if (del - 1.0).abs() < 1e-14 {
-            break;
-        }
-    }
-    h
-}
-
-/// ln Gamma(x) for x > 0 (Lanczos, g = 7).
-fn ln_gamma(x: f64) -> f64 {
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x < 0.5 {
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = C[0];
-    let t = x + 7.5;
-    for (i, c) in C.iter().enumerate().skip(1) {
-        a += c / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-}
-
 /// Charts like the paper's Figures 4-6: temperature versus time with the warm-up fit, and the
 /// binned outputs (offset from their mean) versus time and versus temperature.
 pub fn charts(report: &ThermalReport) -> Vec<Chart> {
@@ -881,9 +775,9 @@ mod tests {
     #[test]
     fn t_distribution_p_values() {
         // Known quantiles: t = 2.228 at 10 dof -> p = 0.05; t = 1.96 at large dof -> 0.05.
-        assert!((student_t_two_sided_p(2.228, 10.0) - 0.05).abs() < 1e-3);
-        assert!((student_t_two_sided_p(1.96, 1e6) - 0.05).abs() < 1e-3);
-        assert!((student_t_two_sided_p(0.0, 5.0) - 1.0).abs() < 1e-12);
+        assert!((crate::stats::student_t_two_sided_p(2.228, 10.0) - 0.05).abs() < 1e-3);
+        assert!((crate::stats::student_t_two_sided_p(1.96, 1e6) - 0.05).abs() < 1e-3);
+        assert!((crate::stats::student_t_two_sided_p(0.0, 5.0) - 1.0).abs() < 1e-12);
     }
 
     #[test]
