@@ -366,8 +366,8 @@ fn print_diagnosis(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<
 fn print_ladder(out: &mut impl Write, steps: &[LadderStep]) -> std::io::Result<()> {
     writeln!(
         out,
-        "{:<4} {:<26} {:<47} {}",
-        "step", "added", "accel RMS / floor x y z [m/s^2], p", "gyro RMS / floor x y z [rad/s], p"
+        "{:<4} {:<26} {:<47} gyro RMS / floor x y z [rad/s], p",
+        "step", "added", "accel RMS / floor x y z [m/s^2], p"
     )?;
     for (i, s) in steps.iter().enumerate() {
         let added = s
