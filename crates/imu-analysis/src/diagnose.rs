@@ -605,6 +605,15 @@ impl<'a> Workbench<'a> {
         self.series
     }
 
+    /// The explanatory signals (true input, specific force, temperature, time since power-on,
+    /// rotation rate, table angle) per observation of `triad`, as (name with unit, values), the
+    /// values in the order of [`TriadDiagnosis::segments`]; the names are those of
+    /// [`Correlate::signal`].
+    pub fn signal_values(&self, triad: Triad) -> Vec<(String, Vec<f64>)> {
+        let (points, _, _) = self.points(triad);
+        signals(points, triad)
+    }
+
     fn points(&self, t: Triad) -> (&[FitPoint], &[usize], &NoiseFloor) {
         if t == Triad::Gyro {
             (&self.gyro_points, &self.gyro_index, &self.gyro_floor)

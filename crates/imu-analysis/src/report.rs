@@ -1,12 +1,14 @@
-//! HTML report sections for the thermal, impact and dynamic analyses: self-contained fragments
-//! (tables and inline SVG charts, no external assets) that a workbench report embeds, plus a
-//! minimal standalone page around them.
+//! HTML report sections for the thermal, impact and dynamic analyses and the model workbench
+//! (verdict, ladder, per-triad diagnosis): self-contained fragments (tables and inline SVG
+//! charts, no external assets) that a workbench report embeds, plus a minimal standalone page
+//! around them.
 
 use std::fmt::Write as _;
 
+use crate::diagnose::{LadderStep, StepSummary, TriadDiagnosis};
 use crate::dynamic::{DynamicReport, DynamicRun};
 use crate::impact::{ImpactReport, Stats};
-use crate::plot::{Chart, render_svg};
+use crate::plot::{Chart, Series, Style, render_svg};
 use crate::thermal::ThermalReport;
 
 /// One titled HTML fragment.
@@ -273,6 +275,401 @@ pub fn dynamic_section(r: &DynamicReport, charts: &[Chart]) -> Section {
     }
 }
 
+const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
+
+fn yes_no(b: bool) -> &'static str {
+    if b { "yes" } else { "no" }
+}
+
+/// The verdict per triad in plain words, for the top of a workbench report.
+pub fn verdict_section(diagnoses: &[&TriadDiagnosis]) -> Section {
+    let mut h = String::new();
+    for d in diagnoses {
+        let state = if d.consistent {
+            "consistent with its noise floor"
+        } else if d.consistent_with_drift {
+            "consistent with its noise floor plus a slow bias drift"
+        } else {
+            "NOT consistent with its noise floor: something is missing from the model"
+        };
+        let _ = writeln!(
+            h,
+            "<p><strong>{}: {}.</strong> {}</p>",
+            escape(&d.triad.to_string()),
+            escape(state),
+            escape(&d.verdict)
+        );
+        if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
+            let _ = writeln!(
+                h,
+                "<p>Add <code>{}</code> to the {} model (p = {}, &Delta;AIC = {:.1}).</p>",
+                escape(top.effect.id()),
+                escape(&d.triad.to_string()),
+                g(top.p_value),
+                top.delta_aic
+            );
+        }
+    }
+    Section {
+        title: "Verdict".into(),
+        html: h,
+    }
+}
+
+fn step_cells(s: &StepSummary) -> Vec<String> {
+    let mut v: Vec<String> = (0..3)
+        .map(|a| format!("{} / {}", g(s.residual_rms[a]), g(s.noise_floor_rms[a])))
+        .collect();
+    v.push(g(s.p_value));
+    v.push(yes_no(s.consistent_with_drift).into());
+    v
+}
+
+fn ladder_chart(
+    steps: &[LadderStep],
+    triad: &str,
+    unit: &str,
+    pick: fn(&LadderStep) -> &StepSummary,
+) -> Chart {
+    let mut series = Vec::new();
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
+        series.push(Series {
+            name: format!("residual {name}"),
+            points: steps
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (i as f64, pick(s).residual_rms[a]))
+                .collect(),
+            style: Style::Points,
+        });
+    }
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
+        series.push(Series {
+            name: format!("noise floor {name}"),
+            points: steps
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (i as f64, pick(s).noise_floor_rms[a]))
+                .collect(),
+            style: Style::Line,
+        });
+    }
+    Chart {
+        title: format!("{triad}: residual RMS per ladder step vs the noise floor"),
+        x_label: "ladder step".into(),
+        y_label: format!("RMS [{unit}]"),
+        log_y: true,
+        series,
+        ..Chart::default()
+    }
+}
+
+/// The ladder: each step (effect added, residual RMS against the noise floor per axis, p) as a
+/// table, and a chart per triad of the residual RMS per axis at each step with the noise floor
+/// drawn as a line.
+pub fn ladder_section(steps: &[LadderStep]) -> Section {
+    let mut h = String::new();
+    h.push_str(
+        "<p>From the base model, the workbench adds the best claimed effect of a triad that is \
+         not yet consistent with its noise floor, one at a time, until both are consistent or \
+         nothing more is claimed. Cells: residual RMS / noise floor RMS per axis \
+         (accel m/s^2, gyro rad/s).</p>\n",
+    );
+    let rows: Vec<Vec<String>> = steps
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let mut r = vec![
+                i.to_string(),
+                s.added.map_or("base model".into(), |(t, k)| {
+                    escape(&format!("{t} {}", k.id()))
+                }),
+            ];
+            r.extend(step_cells(&s.accel));
+            r.extend(step_cells(&s.gyro));
+            r
+        })
+        .collect();
+    table(
+        &mut h,
+        &[
+            "step",
+            "added",
+            "accel x",
+            "accel y",
+            "accel z",
+            "accel p",
+            "accel ok (drift)",
+            "gyro x",
+            "gyro y",
+            "gyro z",
+            "gyro p",
+            "gyro ok (drift)",
+        ],
+        &rows,
+    );
+    figures(
+        &mut h,
+        &[
+            ladder_chart(steps, "accel", "m/s^2", |s| &s.accel),
+            ladder_chart(steps, "gyro", "rad/s", |s| &s.gyro),
+        ],
+    );
+    Section {
+        title: "The ladder".into(),
+        html: h,
+    }
+}
+
+/// One triad's diagnosis: verdict, residual RMS against the noise floor per axis, the worst
+/// segments, residual charts (against time and against the signal each axis correlates with
+/// most), the pooled Allan deviation of the noise floor, spectral lines, the ranked candidates
+/// and ambiguities, and the model change for the top claimed candidate. `signals` are the
+/// workbench's explanatory signals for this triad
+/// ([`Workbench::signal_values`](crate::diagnose::Workbench::signal_values)), in the order of
+/// `d.segments`; pass an empty slice to leave the correlate charts out.
+pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Section {
+    let triad = d.triad.to_string();
+    let unit = d.triad.unit();
+    let mut h = String::new();
+    let _ = writeln!(h, "<p><strong>{}</strong></p>", escape(&d.verdict));
+    let effects: Vec<&str> = d.effects.iter().map(|k| k.id()).collect();
+    let _ = writeln!(
+        h,
+        "<p>Model: {}. chi2 {:.1} on {} degrees of freedom, p = {} (with drift p = {}).</p>",
+        escape(&effects.join(" + ")),
+        d.chi2,
+        d.dof,
+        g(d.p_value),
+        g(d.p_value_with_drift)
+    );
+    let rows: Vec<Vec<String>> = d
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(a, v)| {
+            vec![
+                AXIS_NAMES[a].into(),
+                g(v.residual_rms),
+                g(v.noise_floor_rms),
+                g(v.noise_floor_with_drift_rms),
+                g(v.residual_rms / v.noise_floor_rms),
+                format!("{:.1} / {:.0}", v.chi2, v.dof),
+                g(v.p_value),
+            ]
+        })
+        .collect();
+    table(
+        &mut h,
+        &[
+            "axis",
+            &format!("residual RMS [{unit}]"),
+            &format!("noise floor RMS [{unit}]"),
+            &format!("floor with drift [{unit}]"),
+            "ratio",
+            "chi2 / dof",
+            "p",
+        ],
+        &rows,
+    );
+
+    h.push_str("<h3>Worst segments</h3>\n");
+    let rows: Vec<Vec<String>> = d
+        .worst
+        .iter()
+        .filter_map(|&i| d.segments.get(i))
+        .map(|s| {
+            vec![
+                s.segment.to_string(),
+                format!("{:?}", s.kind).to_lowercase(),
+                format!("{:.1} &ndash; {:.1}", s.start_s, s.end_s),
+                s.residual
+                    .iter()
+                    .map(|v| g(*v))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                s.z.iter()
+                    .map(|v| format!("{v:.1}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ]
+        })
+        .collect();
+    table(
+        &mut h,
+        &[
+            "segment",
+            "kind",
+            "time [s]",
+            &format!("residual x, y, z [{unit}]"),
+            "z x, y, z",
+        ],
+        &rows,
+    );
+
+    let mut charts = vec![Chart {
+        title: format!("{triad}: segment residual vs time"),
+        x_label: "time [s]".into(),
+        y_label: format!("residual [{unit}]"),
+        series: AXIS_NAMES
+            .iter()
+            .enumerate()
+            .map(|(a, name)| Series {
+                name: (*name).into(),
+                points: d
+                    .segments
+                    .iter()
+                    .map(|s| (0.5 * (s.start_s + s.end_s), s.residual[a]))
+                    .collect(),
+                style: Style::Points,
+            })
+            .collect(),
+        ..Chart::default()
+    }];
+    // Residual against the strongest correlate, one chart per signal (axes sharing it together).
+    let mut by_signal: Vec<(String, Vec<(usize, f64)>)> = Vec::new();
+    for (a, st) in d.structure.iter().enumerate() {
+        if let Some(c) = st.correlates.first() {
+            match by_signal.iter_mut().find(|(n, _)| *n == c.signal) {
+                Some((_, v)) => v.push((a, c.r)),
+                None => by_signal.push((c.signal.clone(), vec![(a, c.r)])),
+            }
+        }
+    }
+    for (name, axes) in by_signal {
+        let Some((_, values)) = signals.iter().find(|(n, _)| *n == name) else {
+            continue;
+        };
+        if values.len() != d.segments.len() {
+            continue;
+        }
+        charts.push(Chart {
+            title: format!("{triad}: residual vs {name}"),
+            x_label: name.clone(),
+            y_label: format!("residual [{unit}]"),
+            series: axes
+                .iter()
+                .map(|&(a, r)| Series {
+                    name: format!("{} (r = {r:.2})", AXIS_NAMES[a]),
+                    points: values
+                        .iter()
+                        .zip(&d.segments)
+                        .map(|(x, s)| (*x, s.residual[a]))
+                        .collect(),
+                    style: Style::Points,
+                })
+                .collect(),
+            ..Chart::default()
+        });
+    }
+    charts.push(Chart {
+        title: format!(
+            "{triad}: Allan deviation of the noise floor ({})",
+            d.noise_floor.source
+        ),
+        x_label: "tau [s]".into(),
+        y_label: format!("Allan deviation [{unit}]"),
+        log_x: true,
+        log_y: true,
+        series: AXIS_NAMES
+            .iter()
+            .enumerate()
+            .map(|(a, name)| Series {
+                name: (*name).into(),
+                points: d.noise_floor.allan[a].clone(),
+                style: Style::Line,
+            })
+            .collect(),
+    });
+    figures(&mut h, &charts);
+
+    if !d.spectral_lines.is_empty() {
+        h.push_str("<h3>Spectral lines</h3>\n");
+        let rows: Vec<Vec<String>> = d
+            .spectral_lines
+            .iter()
+            .map(|l| {
+                vec![
+                    AXIS_NAMES.get(l.axis).copied().unwrap_or("?").into(),
+                    g(l.frequency_hz),
+                    g(l.amplitude),
+                    format!("{:.1}", l.ratio),
+                ]
+            })
+            .collect();
+        table(
+            &mut h,
+            &[
+                "axis",
+                "frequency [Hz]",
+                &format!("amplitude [{unit}]"),
+                "x noise",
+            ],
+            &rows,
+        );
+    }
+
+    h.push_str("<h3>Candidates</h3>\n");
+    let rows: Vec<Vec<String>> = d
+        .candidates
+        .iter()
+        .map(|c| {
+            vec![
+                escape(c.effect.id()),
+                c.new_params.to_string(),
+                g(c.f),
+                g(c.p_value),
+                format!("{:.1}", c.delta_aic),
+                format!("{:.2}", c.share_of_excess),
+                if c.claimed {
+                    "<strong>claimed</strong>".into()
+                } else if c.significant {
+                    "significant".into()
+                } else {
+                    "no".into()
+                },
+                escape(&c.explanation),
+            ]
+        })
+        .collect();
+    table(
+        &mut h,
+        &[
+            "effect",
+            "new params",
+            "F",
+            "p",
+            "\u{0394}AIC",
+            "share of excess",
+            "significant / claimed",
+            "explanation",
+        ],
+        &rows,
+    );
+    for a in &d.ambiguities {
+        let _ = writeln!(
+            h,
+            "<p>Ambiguous: {} and {} explain the residual alike (pattern correlation {:.2}); \
+             separate them with {}.</p>",
+            escape(a.effects[0].id()),
+            escape(a.effects[1].id()),
+            a.correlation,
+            escape(&a.separating_recording)
+        );
+    }
+    if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
+        let _ = writeln!(
+            h,
+            "<h3>Model change</h3>\n<p>Add to the model file:</p>\n<pre>{}</pre>",
+            escape(&top.model_change)
+        );
+    }
+    Section {
+        title: format!("{triad} diagnosis"),
+        html: h,
+    }
+}
+
 /// A standalone HTML page holding `sections` (inline CSS only).
 pub fn page(title: &str, sections: &[Section]) -> String {
     let mut h = String::new();
@@ -296,4 +693,52 @@ pub fn page(title: &str, sections: &[Section]) -> String {
     }
     h.push_str("</body></html>\n");
     h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use imu_model::{EffectKind, Triad};
+
+    fn summary(rms: f64, floor: f64) -> StepSummary {
+        StepSummary {
+            effects: vec![
+                EffectKind::Bias,
+                EffectKind::Scale,
+                EffectKind::Misalignment,
+            ],
+            residual_rms: [rms; 3],
+            noise_floor_rms: [floor; 3],
+            noise_floor_with_drift_rms: [floor; 3],
+            chi2: 10.0,
+            dof: 10,
+            p_value: 0.4,
+            consistent: rms <= floor,
+            consistent_with_drift: rms <= floor,
+        }
+    }
+
+    #[test]
+    fn ladder_section_has_the_table_and_a_chart() {
+        let steps = vec![
+            LadderStep {
+                added: None,
+                accel: summary(1e-3, 1e-3),
+                gyro: summary(5e-4, 1e-5),
+            },
+            LadderStep {
+                added: Some((Triad::Gyro, EffectKind::GSensitivity)),
+                accel: summary(1e-3, 1e-3),
+                gyro: summary(1e-5, 1e-5),
+            },
+        ];
+        let s = ladder_section(&steps);
+        assert!(s.html.contains("<table"), "{}", s.html);
+        assert!(s.html.contains("gyro g-sensitivity"), "{}", s.html);
+        assert!(s.html.contains("base model"));
+        assert!(s.html.contains("<svg"));
+        let p = page("workbench", &[s]);
+        assert!(p.contains("The ladder"));
+        assert!(!p.contains("http://") || p.contains("http://www.w3.org/2000/svg"));
+    }
 }

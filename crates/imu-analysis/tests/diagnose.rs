@@ -570,3 +570,38 @@ fn ladder_finds_two_hidden_effects() {
     assert!(ladder.calibration.gyro.has(EffectKind::GSensitivity));
     assert!(ladder.calibration.accel.has(EffectKind::ScaleNonlinearity));
 }
+
+#[test]
+fn report_sections_show_the_verdict_the_ladder_and_charts() {
+    use imu_analysis::report::{diagnose_section, escape, ladder_section, page, verdict_section};
+    let run = record(
+        INDEX_TABLE,
+        "[gyro.g-sensitivity]\nmatrix = [[1.5e-4, 0.0, 0.5e-4], [0.0, -1.2e-4, 0.0], [0.6e-4, 0.0, 2.0e-4]]\n",
+        11,
+    );
+    let wb = Workbench::new(&run.series, &run.reference, DiagnoseOptions::default()).unwrap();
+    let gyro = wb.diagnose(Triad::Gyro, &base_model()).unwrap();
+    let accel = wb.diagnose(Triad::Accel, &base_model()).unwrap();
+    let signals = wb.signal_values(Triad::Gyro);
+    assert!(signals.iter().all(|(_, v)| v.len() == gyro.segments.len()));
+    let verdict = verdict_section(&[&accel, &gyro]);
+    assert!(
+        verdict.html.contains(&escape(&gyro.verdict)),
+        "{}",
+        verdict.html
+    );
+    assert!(verdict.html.contains("NOT consistent"), "{}", verdict.html);
+    let section = diagnose_section(&gyro, &signals);
+    assert!(section.html.contains(&escape(&gyro.verdict)));
+    assert!(section.html.contains("<svg"));
+    assert!(section.html.contains("residual vs"), "no correlate chart");
+    assert!(section.html.contains("Allan deviation"));
+    assert!(section.html.contains("g-sensitivity"));
+    assert!(section.html.contains("Model change"));
+    let ladder = wb.ladder(&base_calibration()).unwrap();
+    let ls = ladder_section(&ladder.steps);
+    assert!(ls.html.contains("<table") && ls.html.contains("gyro g-sensitivity"));
+    let html = page("workbench", &[verdict, ls, section]);
+    assert!(html.contains("The ladder") && html.contains("<svg"));
+    assert!(!html.contains("<script") && !html.contains("src=\""));
+}

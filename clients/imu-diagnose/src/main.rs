@@ -1,0 +1,617 @@
+//! `imu-diagnose`: the model workbench on the command line. Holds a calibration model against a
+//! recording (is the residual consistent with the noise floor?), ranks the library effects that
+//! would explain what is left, and runs the ladder that adds them one at a time, writing the
+//! final calibration and a self-contained HTML report.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::str::FromStr;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use imu_analysis::Source;
+use imu_analysis::diagnose::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
+use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::reference::Reference;
+use imu_analysis::report::{Section, diagnose_section, ladder_section, page, verdict_section};
+use imu_analysis::{ImuSeries, segment::SegmentKind};
+use imu_model::{Calibration, EffectKind, InputFile, Triad, TriadModel};
+use serde::Serialize;
+
+/// Command line: `imu-diagnose RECORDING ...` diagnoses a model, `imu-diagnose ladder
+/// RECORDING ...` runs the ladder.
+#[derive(Debug, Parser)]
+#[command(
+    version,
+    about,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    diagnose: DiagnoseArgs,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// From the base model, add the best claimed effect one at a time until accel and gyro are
+    /// consistent with their noise floors; write the final calibration.
+    Ladder(LadderArgs),
+}
+
+/// Arguments of the default (diagnose) command.
+#[derive(Debug, Args)]
+struct DiagnoseArgs {
+    /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or CSV.
+    #[arg(required = true)]
+    recording: Option<PathBuf>,
+    /// Reference for the true input: the simulator's truth MCAP of this recording.
+    #[arg(long, value_name = "TRUTH.mcap", required = true)]
+    reference: Option<PathBuf>,
+    /// Calibration-format file whose accel and gyro effects are the model under test (default:
+    /// bias + scale + misalignment for both).
+    #[arg(long, value_name = "MODEL.toml")]
+    model: Option<PathBuf>,
+    /// Add an effect to the model: `gyro:g-sensitivity`, `accel:scale-nonlinearity`, or a bare
+    /// effect id for every triad it applies to. Repeatable.
+    #[arg(long = "add", value_name = "EFFECT")]
+    add: Vec<String>,
+    /// Write a self-contained HTML report here.
+    #[arg(long, value_name = "REPORT.html")]
+    report: Option<PathBuf>,
+    /// Print one JSON document instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Arguments of `imu-diagnose ladder`.
+#[derive(Debug, Args)]
+struct LadderArgs {
+    /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or CSV.
+    recording: PathBuf,
+    /// Reference for the true input: the simulator's truth MCAP of this recording.
+    #[arg(long, value_name = "TRUTH.mcap")]
+    reference: PathBuf,
+    /// Calibration-format file whose accel and gyro effects are the first rung (default: bias +
+    /// scale + misalignment for both).
+    #[arg(long, value_name = "MODEL.toml")]
+    base: Option<PathBuf>,
+    /// Write the final calibration here (loadable by imud).
+    #[arg(short, long, value_name = "CALIBRATION.toml")]
+    output: Option<PathBuf>,
+    /// Write a self-contained HTML report here.
+    #[arg(long, value_name = "REPORT.html")]
+    report: Option<PathBuf>,
+    /// Print one JSON document instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One ranked candidate, flattened for JSON consumers.
+#[derive(Debug, Serialize)]
+struct CandidateRow {
+    triad: Triad,
+    effect: EffectKind,
+    new_params: usize,
+    f: f64,
+    p_value: f64,
+    delta_aic: f64,
+    share_of_excess: f64,
+    significant: bool,
+    claimed: bool,
+    explanation: String,
+    model_change: String,
+}
+
+#[derive(Debug, Serialize)]
+struct Verdicts {
+    accel: String,
+    gyro: String,
+}
+
+#[derive(Debug, Serialize)]
+struct DiagnoseJson<'a> {
+    recording: String,
+    reference: String,
+    model: Option<String>,
+    added: Vec<(Triad, EffectKind)>,
+    verdict: Verdicts,
+    candidates: Vec<CandidateRow>,
+    diagnoses: [&'a TriadDiagnosis; 2],
+    report: Option<String>,
+}
+
+#[derive(Debug, Serialize)]
+struct LadderJson<'a> {
+    recording: String,
+    reference: String,
+    base: Option<String>,
+    output: Option<String>,
+    report: Option<String>,
+    added: Vec<(Triad, EffectKind)>,
+    steps: &'a [LadderStep],
+    verdict: Verdicts,
+    calibration: &'a Calibration,
+}
+
+/// The base model: bias + scale + misalignment.
+fn base_model() -> TriadModel {
+    let mut m = TriadModel::default();
+    for k in [
+        EffectKind::Bias,
+        EffectKind::Scale,
+        EffectKind::Misalignment,
+    ] {
+        m.add(k);
+    }
+    m
+}
+
+/// The effects and values of a model, without its noise and residual statistics.
+fn effects_only(m: &TriadModel) -> TriadModel {
+    let mut out = m.clone();
+    out.noise = None;
+    out.residual_rms = None;
+    out.set_std_errors(None);
+    out
+}
+
+/// The model file's accel and gyro effects (a triad without effects gets the base model), and
+/// the file itself (for its id and description).
+fn load_model(path: Option<&Path>) -> Result<Calibration> {
+    let mut cal = match path {
+        Some(p) => {
+            Calibration::load(p).with_context(|| format!("loading model {}", p.display()))?
+        }
+        None => Calibration::identity(),
+    };
+    cal.accel = if cal.accel.kinds().is_empty() {
+        base_model()
+    } else {
+        effects_only(&cal.accel)
+    };
+    cal.gyro = if cal.gyro.kinds().is_empty() {
+        base_model()
+    } else {
+        effects_only(&cal.gyro)
+    };
+    Ok(cal)
+}
+
+/// Parses `--add`: `triad:effect` or a bare effect id (every triad of accel and gyro it applies
+/// to).
+fn parse_add(spec: &str) -> Result<Vec<(Triad, EffectKind)>> {
+    let (triads, id) = match spec.split_once(':') {
+        Some((t, id)) => {
+            let t = Triad::from_str(t.trim()).map_err(|e| anyhow::anyhow!("--add {spec}: {e}"))?;
+            if t == Triad::Mag {
+                bail!("--add {spec}: imu-diagnose works on accel and gyro");
+            }
+            (vec![t], id.trim())
+        }
+        None => (vec![Triad::Accel, Triad::Gyro], spec.trim()),
+    };
+    let k = EffectKind::from_str(id).map_err(|e| anyhow::anyhow!("--add {spec}: {e}"))?;
+    let out: Vec<(Triad, EffectKind)> = triads
+        .into_iter()
+        .filter(|t| k.applies_to(*t))
+        .map(|t| (t, k))
+        .collect();
+    if out.is_empty() {
+        bail!("--add {spec}: {id} does not apply to that triad");
+    }
+    Ok(out)
+}
+
+/// The input's path and SHA-256, hashed as a stream.
+fn input_file(path: &Path) -> Result<InputFile> {
+    use sha2::Digest;
+    let mut file =
+        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut hasher = sha2::Sha256::new();
+    std::io::copy(&mut file, &mut hasher).with_context(|| format!("reading {}", path.display()))?;
+    let digest = hasher.finalize();
+    Ok(InputFile {
+        path: path.display().to_string(),
+        sha256: Some(digest.iter().map(|b| format!("{b:02x}")).collect()),
+    })
+}
+
+/// Current UTC time as RFC 3339 text (whole seconds).
+fn now_rfc3339() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60
+    )
+}
+
+/// Reads the recording and the reference.
+fn read_inputs(recording: &Path, reference: &Path) -> Result<(ImuSeries, Reference)> {
+    let series = read_any(recording, Source::Raw, &CsvOptions::default())
+        .with_context(|| format!("reading {}", recording.display()))?;
+    if series.is_empty() {
+        bail!("{}: no samples", recording.display());
+    }
+    let truth = Reference::Truth(
+        imu_bus::truth::read_truth(reference)
+            .with_context(|| format!("reading reference {}", reference.display()))?,
+    );
+    Ok((series, truth))
+}
+
+fn effects_text(m: &[EffectKind]) -> String {
+    m.iter().map(|k| k.id()).collect::<Vec<_>>().join(" + ")
+}
+
+fn print_diagnosis(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<()> {
+    let unit = d.triad.unit();
+    writeln!(out, "\n== {}: {} ==", d.triad, effects_text(&d.effects))?;
+    writeln!(out, "{}", d.verdict)?;
+    writeln!(
+        out,
+        "  axis {:>13} {:>13} {:>13} {:>7} {:>10}   [{unit}]",
+        "residual RMS", "noise floor", "with drift", "ratio", "p"
+    )?;
+    for (a, v) in d.axes.iter().enumerate() {
+        writeln!(
+            out,
+            "  {:<4} {:>13.3e} {:>13.3e} {:>13.3e} {:>7.2} {:>10.2e}",
+            ["x", "y", "z"][a],
+            v.residual_rms,
+            v.noise_floor_rms,
+            v.noise_floor_with_drift_rms,
+            v.residual_rms / v.noise_floor_rms,
+            v.p_value
+        )?;
+    }
+    writeln!(out, "  worst segments:")?;
+    for &i in &d.worst {
+        let s = &d.segments[i];
+        writeln!(
+            out,
+            "    #{:<4} {:<7} {:>8.1}-{:<8.1} s  residual {:>10.3e} {:>10.3e} {:>10.3e}  z {:>6.1} {:>6.1} {:>6.1}",
+            s.segment,
+            if s.kind == SegmentKind::Static {
+                "static"
+            } else {
+                "plateau"
+            },
+            s.start_s,
+            s.end_s,
+            s.residual[0],
+            s.residual[1],
+            s.residual[2],
+            s.z[0],
+            s.z[1],
+            s.z[2]
+        )?;
+    }
+    for l in &d.spectral_lines {
+        writeln!(
+            out,
+            "  spectral line: axis {} {:.4} Hz amplitude {:.3e} {unit} ({:.1}x noise)",
+            ["x", "y", "z"].get(l.axis).copied().unwrap_or("?"),
+            l.frequency_hz,
+            l.amplitude,
+            l.ratio
+        )?;
+    }
+    writeln!(out, "  candidates:")?;
+    writeln!(
+        out,
+        "    {:<22} {:>3} {:>10} {:>9} {:>9} {:>6}  {:<11}  explanation",
+        "effect", "new", "F", "p", "dAIC", "share", "sig/claimed"
+    )?;
+    for c in &d.candidates {
+        let state = if c.claimed {
+            "CLAIMED"
+        } else if c.significant {
+            "significant"
+        } else {
+            "-"
+        };
+        writeln!(
+            out,
+            "    {:<22} {:>3} {:>10.3} {:>9.2e} {:>9.1} {:>6.2}  {:<11}  {}",
+            c.effect.id(),
+            c.new_params,
+            c.f,
+            c.p_value,
+            c.delta_aic,
+            c.share_of_excess,
+            state,
+            c.explanation
+        )?;
+    }
+    for a in &d.ambiguities {
+        writeln!(
+            out,
+            "  ambiguous: {} and {} (pattern correlation {:.2}); separate them with {}",
+            a.effects[0], a.effects[1], a.correlation, a.separating_recording
+        )?;
+    }
+    if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
+        writeln!(
+            out,
+            "  model change: add to the model file\n{}",
+            top.model_change
+                .lines()
+                .map(|l| format!("    {l}"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        )?;
+    }
+    Ok(())
+}
+
+fn print_ladder(out: &mut impl Write, steps: &[LadderStep]) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{:<4} {:<26} {:<47} gyro RMS / floor x y z [rad/s], p",
+        "step", "added", "accel RMS / floor x y z [m/s^2], p"
+    )?;
+    for (i, s) in steps.iter().enumerate() {
+        let added = s
+            .added
+            .map_or_else(|| "base model".to_string(), |(t, k)| format!("{t} {k}"));
+        let cell = |x: &imu_analysis::diagnose::StepSummary| {
+            let axes: Vec<String> = (0..3)
+                .map(|a| format!("{:.2e}/{:.2e}", x.residual_rms[a], x.noise_floor_rms[a]))
+                .collect();
+            format!("{} p {:.1e}", axes.join(" "), x.p_value)
+        };
+        writeln!(
+            out,
+            "{i:<4} {added:<26} {}\n{:<31} {}",
+            cell(&s.accel),
+            "",
+            cell(&s.gyro)
+        )?;
+    }
+    Ok(())
+}
+
+fn write_report(path: &Path, title: &str, sections: &[Section]) -> Result<()> {
+    std::fs::write(path, page(title, sections))
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+fn candidate_rows(d: &TriadDiagnosis) -> impl Iterator<Item = CandidateRow> + '_ {
+    d.candidates.iter().map(|c| CandidateRow {
+        triad: c.triad,
+        effect: c.effect,
+        new_params: c.new_params,
+        f: c.f,
+        p_value: c.p_value,
+        delta_aic: c.delta_aic,
+        share_of_excess: c.share_of_excess,
+        significant: c.significant,
+        claimed: c.claimed,
+        explanation: c.explanation.clone(),
+        model_change: c.model_change.clone(),
+    })
+}
+
+fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
+    let (Some(recording), Some(reference)) = (&a.recording, &a.reference) else {
+        bail!("a RECORDING and --reference TRUTH.mcap are required");
+    };
+    let mut model = load_model(a.model.as_deref())?;
+    let mut added = Vec::new();
+    for spec in &a.add {
+        for (t, k) in parse_add(spec)? {
+            let m = if t == Triad::Gyro {
+                &mut model.gyro
+            } else {
+                &mut model.accel
+            };
+            if !m.has(k) {
+                m.add(k);
+                added.push((t, k));
+            }
+        }
+    }
+    let (series, truth) = read_inputs(recording, reference)?;
+    let wb = Workbench::new(&series, &truth, DiagnoseOptions::default())
+        .with_context(|| format!("segmenting {}", recording.display()))?;
+    let accel = wb.diagnose(Triad::Accel, &model.accel)?;
+    let gyro = wb.diagnose(Triad::Gyro, &model.gyro)?;
+
+    if let Some(path) = &a.report {
+        let sections = vec![
+            verdict_section(&[&accel, &gyro]),
+            diagnose_section(&accel, &wb.signal_values(Triad::Accel)),
+            diagnose_section(&gyro, &wb.signal_values(Triad::Gyro)),
+        ];
+        write_report(
+            path,
+            &format!("imu-diagnose: {}", recording.display()),
+            &sections,
+        )?;
+    }
+
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if a.json {
+        let j = DiagnoseJson {
+            recording: recording.display().to_string(),
+            reference: reference.display().to_string(),
+            model: a.model.as_ref().map(|p| p.display().to_string()),
+            added,
+            verdict: Verdicts {
+                accel: accel.verdict.clone(),
+                gyro: gyro.verdict.clone(),
+            },
+            candidates: candidate_rows(&accel)
+                .chain(candidate_rows(&gyro))
+                .collect(),
+            diagnoses: [&accel, &gyro],
+            report: a.report.as_ref().map(|p| p.display().to_string()),
+        };
+        serde_json::to_writer_pretty(&mut out, &j)?;
+        writeln!(out)?;
+    } else {
+        let s = &wb.obs.segmentation;
+        writeln!(
+            out,
+            "{}: {} static segments, {} rate plateaus",
+            recording.display(),
+            s.count(SegmentKind::Static),
+            s.count(SegmentKind::Plateau)
+        )?;
+        for (t, k) in &added {
+            writeln!(out, "added {t} {k}")?;
+        }
+        print_diagnosis(&mut out, &accel)?;
+        print_diagnosis(&mut out, &gyro)?;
+        if let Some(p) = &a.report {
+            writeln!(out, "\nwrote {}", p.display())?;
+        }
+    }
+    out.flush()?;
+    Ok(())
+}
+
+fn run_ladder(a: &LadderArgs) -> Result<()> {
+    let base = load_model(a.base.as_deref())?;
+    let (series, truth) = read_inputs(&a.recording, &a.reference)?;
+    let wb = Workbench::new(&series, &truth, DiagnoseOptions::default())
+        .with_context(|| format!("segmenting {}", a.recording.display()))?;
+    let Ladder {
+        steps,
+        final_diagnoses,
+        mut calibration,
+    } = wb.ladder(&base)?;
+    let added: Vec<(Triad, EffectKind)> = steps.iter().filter_map(|s| s.added).collect();
+
+    let cal = &mut calibration;
+    if a.base.is_none() {
+        cal.id = Some("imu-diagnose-ladder".into());
+    }
+    cal.description = Some(format!(
+        "accel {}; gyro {} (model workbench ladder)",
+        effects_text(&final_diagnoses[0].effects),
+        effects_text(&final_diagnoses[1].effects)
+    ));
+    cal.provenance.created = Some(now_rfc3339());
+    cal.provenance.tool = Some(format!("imu-diagnose {}", env!("CARGO_PKG_VERSION")));
+    cal.provenance.procedure = Some("imu-diagnose ladder".into());
+    let mut inputs = vec![input_file(&a.recording)?, input_file(&a.reference)?];
+    if let Some(b) = &a.base {
+        inputs.push(input_file(b)?);
+    }
+    cal.provenance.inputs = inputs;
+    cal.provenance.notes = Some(format!(
+        "added: {}; accel: {} gyro: {}",
+        if added.is_empty() {
+            "nothing".to_string()
+        } else {
+            added
+                .iter()
+                .map(|(t, k)| format!("{t} {k}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        },
+        final_diagnoses[0].verdict,
+        final_diagnoses[1].verdict
+    ));
+    if let Some(path) = &a.output {
+        cal.save(path)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &a.report {
+        let [accel, gyro] = &final_diagnoses;
+        let sections = vec![
+            verdict_section(&[accel, gyro]),
+            ladder_section(&steps),
+            diagnose_section(accel, &wb.signal_values(Triad::Accel)),
+            diagnose_section(gyro, &wb.signal_values(Triad::Gyro)),
+        ];
+        write_report(
+            path,
+            &format!("imu-diagnose ladder: {}", a.recording.display()),
+            &sections,
+        )?;
+    }
+
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if a.json {
+        let j = LadderJson {
+            recording: a.recording.display().to_string(),
+            reference: a.reference.display().to_string(),
+            base: a.base.as_ref().map(|p| p.display().to_string()),
+            output: a.output.as_ref().map(|p| p.display().to_string()),
+            report: a.report.as_ref().map(|p| p.display().to_string()),
+            added,
+            steps: &steps,
+            verdict: Verdicts {
+                accel: final_diagnoses[0].verdict.clone(),
+                gyro: final_diagnoses[1].verdict.clone(),
+            },
+            calibration: &calibration,
+        };
+        serde_json::to_writer_pretty(&mut out, &j)?;
+        writeln!(out)?;
+    } else {
+        print_ladder(&mut out, &steps)?;
+        writeln!(out)?;
+        for d in &final_diagnoses {
+            writeln!(out, "{}", d.verdict)?;
+        }
+        if let Some(p) = &a.output {
+            writeln!(out, "\nwrote {}", p.display())?;
+        }
+        if let Some(p) = &a.report {
+            writeln!(out, "wrote {}", p.display())?;
+        }
+    }
+    out.flush()?;
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Some(Command::Ladder(a)) => run_ladder(a),
+        None => run_diagnose(&cli.diagnose),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let broken_pipe = e.chain().any(|c| {
+                c.downcast_ref::<std::io::Error>()
+                    .map(std::io::Error::kind)
+                    .or_else(|| {
+                        c.downcast_ref::<serde_json::Error>()
+                            .and_then(serde_json::Error::io_error_kind)
+                    })
+                    == Some(std::io::ErrorKind::BrokenPipe)
+            });
+            if broken_pipe {
+                return ExitCode::SUCCESS;
+            }
+            eprintln!("imu-diagnose: error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
