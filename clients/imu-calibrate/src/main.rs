@@ -16,12 +16,10 @@ use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{CsvOptions, read_any};
-use imu_analysis::plan::Plan;
 use imu_analysis::reference::Reference;
 use imu_analysis::reference_free::{
     ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
 };
-use imu_analysis::reference_log::ReferenceLog;
 use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
@@ -115,42 +113,10 @@ struct JsonOut<'a> {
     truth_comparison: Option<Vec<TruthRow>>,
 }
 
-/// The input's path and SHA-256, hashed as a stream (recordings can be hundreds of MB).
+/// The input's path and SHA-256.
 fn input_file(path: &Path) -> Result<InputFile> {
-    use sha2::Digest;
-    let mut file =
-        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut hasher = sha2::Sha256::new();
-    std::io::copy(&mut file, &mut hasher).with_context(|| format!("reading {}", path.display()))?;
-    let digest = hasher.finalize();
-    Ok(InputFile {
-        path: path.display().to_string(),
-        sha256: Some(digest.iter().map(|b| format!("{b:02x}")).collect()),
-    })
-}
-
-/// Current UTC time as RFC 3339 text (whole seconds).
-fn now_rfc3339() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        rem / 3600,
-        rem / 60 % 60,
-        rem % 60
-    )
+    imu_analysis::provenance::input_file(path)
+        .with_context(|| format!("reading {}", path.display()))
 }
 
 /// Fit options from the model file: its accel and gyro effects, and, from its noise tables (a
@@ -397,7 +363,7 @@ fn stamp(
     notes: &[String],
     held: Vec<String>,
 ) -> Result<()> {
-    cal.provenance.created = Some(now_rfc3339());
+    cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
     cal.provenance.tool = Some(format!("imu-calibrate {}", env!("CARGO_PKG_VERSION")));
     cal.provenance.inputs = inputs
         .iter()
@@ -419,47 +385,19 @@ fn stamp(
     Ok(())
 }
 
-/// True if the file starts with the MCAP magic bytes.
-fn is_mcap(path: &Path) -> Result<bool> {
-    use std::io::Read;
-    let mut magic = [0u8; 8];
-    let mut file =
-        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
-    let n = file
-        .read(&mut magic)
-        .with_context(|| format!("reading {}", path.display()))?;
-    Ok(n == 8 && magic == *b"\x89MCAP0\r\n")
-}
-
 /// The reference named on the command line (a plan or a --reference file), and its file.
 fn load_reference(
     cli: &Cli,
     series: &imu_analysis::ImuSeries,
 ) -> Result<Option<(Reference, PathBuf)>> {
-    if let Some(path) = &cli.plan {
-        // Plan errors name the file and line themselves.
-        return Ok(Some((Reference::Plan(Plan::load(path)?), path.clone())));
-    }
-    let Some(path) = cli.reference.as_ref() else {
-        return Ok(None);
-    };
-    if is_mcap(path)? {
-        if cli.reference_offset_s.is_some() {
-            bail!(
-                "{}: --reference-offset-s applies to a reference log (CSV), not to a truth MCAP",
-                path.display()
-            );
-        }
-        let truth = imu_bus::truth::read_truth(path)
-            .with_context(|| format!("reading reference {}", path.display()))?;
-        return Ok(Some((Reference::Truth(truth), path.clone())));
-    }
-    let log = ReferenceLog::load(path)?;
-    let aligned = match cli.reference_offset_s {
-        Some(offset_s) => log.with_offset(offset_s),
-        None => log.align(series)?,
-    };
-    Ok(Some((Reference::Log(aligned), path.clone())))
+    let r = Reference::open(
+        cli.plan.as_deref(),
+        cli.reference.as_deref(),
+        cli.reference_offset_s,
+        series,
+    )?;
+    let path = cli.plan.clone().or_else(|| cli.reference.clone());
+    Ok(r.zip(path))
 }
 
 fn run(cli: &Cli) -> Result<()> {

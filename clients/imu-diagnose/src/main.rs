@@ -48,9 +48,8 @@ struct DiagnoseArgs {
     /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or CSV.
     #[arg(required = true)]
     recording: Option<PathBuf>,
-    /// Reference for the true input: the simulator's truth MCAP of this recording.
-    #[arg(long, value_name = "TRUTH.mcap", required = true)]
-    reference: Option<PathBuf>,
+    #[command(flatten)]
+    reference: RefArgs,
     /// Calibration-format file whose accel and gyro effects are the model under test (default:
     /// bias + scale + misalignment for both).
     #[arg(long, value_name = "MODEL.toml")]
@@ -67,14 +66,48 @@ struct DiagnoseArgs {
     json: bool,
 }
 
+/// Where the true input comes from, as for imu-calibrate: exactly one of a test plan or a
+/// reference file.
+#[derive(Debug, Args)]
+#[group(id = "truth-source", required = true, multiple = false)]
+struct RefArgs {
+    /// Test plan: the procedure and its nominal inputs, in order (format imud-plan/1; see
+    /// config/plans/).
+    #[arg(long, value_name = "PLAN.toml")]
+    plan: Option<PathBuf>,
+    /// The simulator's truth MCAP of this recording, or a time-stamped reference log (CSV,
+    /// e.g. `t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_m_s2,fy_m_s2,fz_m_s2`) aligned in time by
+    /// cross-correlation.
+    #[arg(long, value_name = "TRUTH.mcap|LOG.csv")]
+    reference: Option<PathBuf>,
+    /// Clock offset of a reference log (log clock minus recording clock), s, instead of
+    /// finding it.
+    #[arg(
+        long,
+        value_name = "S",
+        requires = "reference",
+        allow_negative_numbers = true
+    )]
+    reference_offset_s: Option<f64>,
+}
+
+impl RefArgs {
+    /// The file that holds the reference.
+    fn path(&self) -> &Path {
+        self.plan
+            .as_deref()
+            .or(self.reference.as_deref())
+            .expect("clap requires one of --plan and --reference")
+    }
+}
+
 /// Arguments of `imu-diagnose ladder`.
 #[derive(Debug, Args)]
 struct LadderArgs {
     /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or CSV.
     recording: PathBuf,
-    /// Reference for the true input: the simulator's truth MCAP of this recording.
-    #[arg(long, value_name = "TRUTH.mcap")]
-    reference: PathBuf,
+    #[command(flatten)]
+    reference: RefArgs,
     /// Calibration-format file whose accel and gyro effects are the first rung (default: bias +
     /// scale + misalignment for both).
     #[arg(long, value_name = "MODEL.toml")]
@@ -206,56 +239,27 @@ fn parse_add(spec: &str) -> Result<Vec<(Triad, EffectKind)>> {
     Ok(out)
 }
 
-/// The input's path and SHA-256, hashed as a stream.
+/// The input's path and SHA-256.
 fn input_file(path: &Path) -> Result<InputFile> {
-    use sha2::Digest;
-    let mut file =
-        std::fs::File::open(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut hasher = sha2::Sha256::new();
-    std::io::copy(&mut file, &mut hasher).with_context(|| format!("reading {}", path.display()))?;
-    let digest = hasher.finalize();
-    Ok(InputFile {
-        path: path.display().to_string(),
-        sha256: Some(digest.iter().map(|b| format!("{b:02x}")).collect()),
-    })
-}
-
-/// Current UTC time as RFC 3339 text (whole seconds).
-fn now_rfc3339() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        rem / 3600,
-        rem / 60 % 60,
-        rem % 60
-    )
+    imu_analysis::provenance::input_file(path)
+        .with_context(|| format!("reading {}", path.display()))
 }
 
 /// Reads the recording and the reference.
-fn read_inputs(recording: &Path, reference: &Path) -> Result<(ImuSeries, Reference)> {
+fn read_inputs(recording: &Path, r: &RefArgs) -> Result<(ImuSeries, Reference)> {
     let series = read_any(recording, Source::Raw, &CsvOptions::default())
         .with_context(|| format!("reading {}", recording.display()))?;
     if series.is_empty() {
         bail!("{}: no samples", recording.display());
     }
-    let truth = Reference::Truth(
-        imu_bus::truth::read_truth(reference)
-            .with_context(|| format!("reading reference {}", reference.display()))?,
-    );
-    Ok((series, truth))
+    let reference = Reference::open(
+        r.plan.as_deref(),
+        r.reference.as_deref(),
+        r.reference_offset_s,
+        &series,
+    )?
+    .context("no reference: give --plan or --reference")?;
+    Ok((series, reference))
 }
 
 fn effects_text(m: &[EffectKind]) -> String {
@@ -412,9 +416,10 @@ fn candidate_rows(d: &TriadDiagnosis) -> impl Iterator<Item = CandidateRow> + '_
 }
 
 fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
-    let (Some(recording), Some(reference)) = (&a.recording, &a.reference) else {
-        bail!("a RECORDING and --reference TRUTH.mcap are required");
+    let Some(recording) = &a.recording else {
+        bail!("a RECORDING and --plan or --reference are required");
     };
+    let reference = &a.reference;
     let mut model = load_model(a.model.as_deref())?;
     let mut added = Vec::new();
     for spec in &a.add {
@@ -454,7 +459,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     if a.json {
         let j = DiagnoseJson {
             recording: recording.display().to_string(),
-            reference: reference.display().to_string(),
+            reference: reference.path().display().to_string(),
             model: a.model.as_ref().map(|p| p.display().to_string()),
             added,
             verdict: Verdicts {
@@ -512,10 +517,10 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
         effects_text(&final_diagnoses[0].effects),
         effects_text(&final_diagnoses[1].effects)
     ));
-    cal.provenance.created = Some(now_rfc3339());
+    cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
     cal.provenance.tool = Some(format!("imu-diagnose {}", env!("CARGO_PKG_VERSION")));
     cal.provenance.procedure = Some("imu-diagnose ladder".into());
-    let mut inputs = vec![input_file(&a.recording)?, input_file(&a.reference)?];
+    let mut inputs = vec![input_file(&a.recording)?, input_file(a.reference.path())?];
     if let Some(b) = &a.base {
         inputs.push(input_file(b)?);
     }
@@ -558,7 +563,7 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
     if a.json {
         let j = LadderJson {
             recording: a.recording.display().to_string(),
-            reference: a.reference.display().to_string(),
+            reference: a.reference.path().display().to_string(),
             base: a.base.as_ref().map(|p| p.display().to_string()),
             output: a.output.as_ref().map(|p| p.display().to_string()),
             report: a.report.as_ref().map(|p| p.display().to_string()),

@@ -14,6 +14,7 @@ pub mod lsq;
 pub mod noise;
 pub mod plan;
 pub mod plot;
+pub mod provenance;
 pub mod reference;
 pub mod reference_free;
 pub mod reference_log;

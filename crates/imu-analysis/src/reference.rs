@@ -20,6 +20,90 @@ pub enum Reference {
     Log(AlignedLog),
 }
 
+/// Failures of [`Reference::open`].
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    /// The test plan file is invalid (its message names file and line).
+    #[error(transparent)]
+    Plan(#[from] crate::plan::PlanError),
+    /// The reference file could not be read.
+    #[error("reading reference {path}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The truth MCAP could not be read.
+    #[error("reading reference {path}")]
+    Truth {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: imu_bus::mcap_read::McapReadError,
+    },
+    /// The reference log is invalid or cannot be aligned.
+    #[error(transparent)]
+    Log(#[from] ReferenceLogError),
+    /// A clock offset was given for a truth MCAP.
+    #[error("{path}: a clock offset applies to a reference log (CSV), not to a truth MCAP")]
+    OffsetOnTruth {
+        /// The file.
+        path: std::path::PathBuf,
+    },
+}
+
+/// True if the file starts with the MCAP magic bytes.
+fn is_mcap(path: &std::path::Path) -> std::io::Result<bool> {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    let n = std::fs::File::open(path)?.read(&mut magic)?;
+    Ok(n == 8 && magic == *b"\x89MCAP0\r\n")
+}
+
+impl Reference {
+    /// The reference the command-line tools were given: a test plan, or a reference file
+    /// that is either the simulator's truth MCAP or a reference log (CSV, told apart by the
+    /// MCAP magic bytes), aligned with `series` by cross-correlation unless `offset_s` (log
+    /// clock minus recording clock) is given. None when neither is given.
+    pub fn open(
+        plan: Option<&std::path::Path>,
+        reference: Option<&std::path::Path>,
+        offset_s: Option<f64>,
+        series: &ImuSeries,
+    ) -> Result<Option<Reference>, OpenError> {
+        if let Some(path) = plan {
+            return Ok(Some(Reference::Plan(Plan::load(path)?)));
+        }
+        let Some(path) = reference else {
+            return Ok(None);
+        };
+        let io = |source| OpenError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        if is_mcap(path).map_err(io)? {
+            if offset_s.is_some() {
+                return Err(OpenError::OffsetOnTruth {
+                    path: path.to_path_buf(),
+                });
+            }
+            let truth = imu_bus::truth::read_truth(path).map_err(|source| OpenError::Truth {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            return Ok(Some(Reference::Truth(truth)));
+        }
+        let log = crate::reference_log::ReferenceLog::load(path)?;
+        Ok(Some(Reference::Log(match offset_s {
+            Some(o) => log.with_offset(o),
+            None => log.align(series)?,
+        })))
+    }
+}
+
 /// What a reference cannot tell about the true input, and remarks for the report.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ReferenceCaveats {
