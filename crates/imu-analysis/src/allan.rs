@@ -20,6 +20,8 @@
 //! Abramowitz-Stegun 26.2.23 rational approximation (|error| < 4.5e-4 in z); together they are
 //! within about 1% of the exact quantile for nu >= 2, amply good for error bars.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use pulp::{Arch, Simd, WithSimd};
 use serde::Serialize;
 use thiserror::Error;
@@ -539,8 +541,10 @@ impl WithSimd for BlockedPass<'_> {
 
 /// All OADEV second-difference sums for increasing `ms` (each `m <= (x.len() - 1) / 2`), with
 /// the widest SIMD the CPU has (runtime dispatch through `pulp`: AVX2 + FMA on x86-64 v3, the
-/// baseline instructions otherwise), on two threads for long series. The threads split `i` where
-/// they get equal numbers of terms (the long taus have none near the end of the series).
+/// baseline instructions otherwise), on two threads for long series. The threads take chunks of
+/// `i` from a shared counter, so a thread that loses its core to another process does not hold
+/// the other one up, and both read neighbouring parts of `x`; the chunks' sums are added in
+/// chunk order, so the result does not depend on which thread took which chunk.
 fn oadev_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
     let Some(&m_min) = ms.first() else {
         return Vec::new();
@@ -551,24 +555,32 @@ fn oadev_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
     if x.len() < PARALLEL_MIN_PHASE_POINTS {
         return pass(0..end);
     }
-    let terms_below = |s: usize| -> usize { ms.iter().map(|&m| s.min(x.len() - 2 * m)).sum() };
-    let half = terms_below(end) / 2;
-    let (mut lo, mut hi) = (0, end);
-    while lo < hi {
-        let s = lo + (hi - lo) / 2;
-        if terms_below(s) < half {
-            lo = s + 1;
-        } else {
-            hi = s;
+    const CHUNK: usize = 4 * BLOCK;
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut done = Vec::new();
+        loop {
+            let c = next.fetch_add(1, Ordering::Relaxed);
+            if c * CHUNK >= end {
+                return done;
+            }
+            done.push((c, pass(c * CHUNK..((c + 1) * CHUNK).min(end))));
         }
-    }
-    let mid = lo;
-    let (a, b) = std::thread::scope(|scope| {
-        let other = scope.spawn(|| pass(mid..end));
-        let mine = pass(0..mid);
+    };
+    let (mut chunks, theirs) = std::thread::scope(|scope| {
+        let other = scope.spawn(work);
+        let mine = work();
         (mine, other.join().expect("deviation worker panicked"))
     });
-    a.iter().zip(&b).map(|(p, q)| p + q).collect()
+    chunks.extend(theirs);
+    chunks.sort_unstable_by_key(|&(c, _)| c);
+    let mut sums = vec![0.0; ms.len()];
+    for (_, part) in &chunks {
+        for (s, p) in sums.iter_mut().zip(part) {
+            *s += p;
+        }
+    }
+    sums
 }
 
 fn check(n_y: usize, tau0_s: f64) -> Result<(), AllanError> {
@@ -1060,8 +1072,8 @@ mod tests {
         }
     }
 
-    /// A long series (phase on two threads, in the huge-page array) gives the same curve as its
-    /// phase in a plain `Vec`.
+    /// A long series (phase on two threads, in the huge-page array, sums on two threads) gives
+    /// the same curve as its phase in a plain `Vec`, and the same sums as one thread.
     #[test]
     fn long_series_phase_array_equals_the_vec_phase() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
@@ -1082,6 +1094,16 @@ mod tests {
         let a = deviation(Kind::Oadev, &y, 0.01, &o).expect("long");
         let b = deviation_from_phase(Kind::Oadev, &plain, 0.01, &o).expect("long");
         assert_eq!(a, b);
+        // The two-thread chunked sums equal one single-threaded pass.
+        let ms = TauSet::Octave.factors(Kind::Oadev.max_m(plain.len()));
+        let one = Arch::new().dispatch(BlockedPass {
+            x: &plain,
+            ms: &ms,
+            range: 0..plain.len() - 2,
+        });
+        for (p, q) in oadev_sums(&plain, &ms).iter().zip(&one) {
+            assert!((p / q - 1.0).abs() < 1e-12, "{p} vs {q}");
+        }
     }
 
     #[test]
