@@ -268,7 +268,7 @@ fn integrate_into(y: &[f64], tau0_s: f64, x: &mut [f64]) {
     });
 }
 
-/// Scratch `f64` array for a long series (the phase, its cumulative sum). Long ones live in
+/// Scratch `f64` array for the phase of a series. Long ones (the two-thread sizes) live in
 /// anonymous memory with a transparent-huge-page hint: a fresh 80 MB array costs some 20 000
 /// page faults at 4 KiB, which took about as long as all the OADEV arithmetic, and some 40 at
 /// 2 MiB. Where the kernel gives no huge pages it is ordinary memory; if mapping fails, a `Vec`.
@@ -342,7 +342,7 @@ const BLOCK: usize = 16384;
 
 /// Second-difference sums of an octave run of taus `m, 2m, ..., 2^(G-1) m` over `i` in `lo..hi`
 /// (`hi + 2^G m <= x.len()`). With `e_k = x[i + 2^k m] - x[i]` the run's second differences are
-/// `e_(k+1) - 2 e_k`, so one vector step loads `G + 1` offsets (not `3 G`) and spends a
+/// `e_(k+1) - 2 e_k`, so one vector step loads `G + 2` vectors (not `3 G`) and spends a
 /// subtraction and two multiply-adds per tau. Written on `pulp` SIMD vectors so it compiles to
 /// AVX2/FMA where the CPU has it (see [`oadev_sums`]); the scalar instance of `S` is the plain
 /// code the baseline target vectorizes on its own.
