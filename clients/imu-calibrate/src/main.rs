@@ -103,7 +103,7 @@ fn now_rfc3339() -> String {
 
 /// Fit options from the model file: its accel and gyro effects, and, from its noise tables (a
 /// noise characterisation such as imu-noise's), the bias wander over a recording of
-/// `duration_s` that no residual can show.
+/// `duration_s` that no residual can show and the covariance of the segment means.
 fn options(model: Option<&Path>, duration_s: f64) -> Result<CalibrateOptions> {
     let mut opts = CalibrateOptions::default();
     if let Some(path) = model {
@@ -122,6 +122,8 @@ fn options(model: Option<&Path>, duration_s: f64) -> Result<CalibrateOptions> {
         };
         opts.accel_bias_drift_m_s2 = drift(&m.accel);
         opts.gyro_bias_drift_rad_s = drift(&m.gyro);
+        opts.accel_noise = m.accel.noise.clone();
+        opts.gyro_noise = m.gyro.noise.clone();
     }
     Ok(opts)
 }

@@ -5,11 +5,13 @@
 //! reference), the MEASURED mean and the standard error of that mean. The residual is
 //! `forward(true) - measured`, weighted by the standard error; the Jacobian is numeric (central
 //! differences), so any effect of the model library can be fitted. Parameter standard errors
-//! come from `(J^T W J)^-1` scaled by the reduced chi-square (the segment means carry drift and
-//! unmodelled effects that their white-noise standard errors do not show). Parameters the data
-//! cannot separate (a zero or collinear column of the normalised normal matrix) are held at
-//! their starting values and reported as unobservable instead of being given a meaningless
-//! number.
+//! come from `(J^T W J)^-1`, where `W` is the inverse covariance of the segment means: their
+//! white standard errors plus, given the triad's noise model, the bias's wander under bias
+//! instability and random walk, correlated between segments; the result is scaled up by the
+//! reduced chi-square when above 1 (unmodelled effects, or drift without a noise model).
+//! Parameters the data cannot separate (a zero or collinear column of the normalised normal
+//! matrix) are held at their starting values and reported as unobservable instead of being
+//! given a meaningless number.
 
 use imu_model::nalgebra::{DMatrix, DVector, SymmetricEigen};
 use imu_model::{Conditions, EffectKind, Triad, TriadModel, Vec3};
@@ -27,6 +29,9 @@ pub struct FitPoint {
     pub conditions: Conditions,
     /// Time of the segment (its middle), s; orders the segments for the drift model.
     pub t_s: f64,
+    /// Length of the segment, s (0: an instant). With [`FitOptions::noise`] the covariance of
+    /// two segment means under bias instability depends on it.
+    pub duration_s: f64,
 }
 
 /// Settings of [`fit_triad`].
@@ -47,6 +52,17 @@ pub struct FitOptions {
     /// exactly like bias, so no residual shows it: it must come from a noise characterisation
     /// (see [`bias_drift_from_noise`]).
     pub bias_drift: Option<[f64; 3]>,
+    /// The triad's noise (from a noise characterisation such as imu-noise's), for the
+    /// covariance of the segment means: besides each mean's white standard error, the bias
+    /// wanders under bias instability `B` (the Gauss-Markov bank of
+    /// [`imu_model::NoiseModel::flicker_bank`], correlated between nearby segments and more
+    /// different between distant ones) and random walk `K` (`K^2 min(t_k, t_l)`). Without it
+    /// that wander shows only in the residuals, and the one reduced chi-square that scales the
+    /// covariance spreads it evenly over the axes and over near and distant segments: too small
+    /// standard errors on a noisy axis and for contrasts between distant segments, too large on
+    /// a quiet axis. The covariance carries the bias's wander over the recording too, so
+    /// `bias_drift` is not added when this is given.
+    pub noise: Option<imu_model::NoiseModel>,
     /// Model excess scatter of the segment means as a random-walk drift in time (so contrasts
     /// between early and late segments get the larger uncertainty they have) instead of white
     /// scatter; the drift rate is estimated per axis from the residuals. Off by default: on
@@ -73,6 +89,7 @@ impl Default for FitOptions {
             min_eigenvalue: 1e-8,
             fixed: Vec::new(),
             bias_drift: None,
+            noise: None,
             drift_model: false,
         }
     }
@@ -175,9 +192,44 @@ pub enum FitError {
     },
 }
 
+/// Sample period the flicker bank of [`FitOptions::noise`] is built for, s. Only processes
+/// slower than about a second matter for segment means, and the bank is scaled to the same
+/// Allan floor whatever the period.
+const FLICKER_BANK_DT_S: f64 = 0.01;
+
+/// Covariance of the means over two segments (`mid`, `len`) of a unit-variance first-order
+/// Gauss-Markov process with correlation time `t_s`.
+fn gauss_markov_mean_cov(mid_k: f64, len_k: f64, mid_l: f64, len_l: f64, t_s: f64) -> f64 {
+    // Average of exp(-|u| / T) over an interval of length L (-> 1 as L -> 0).
+    let shrink = |len: f64| {
+        let x = len / t_s;
+        if x < 1e-6 {
+            1.0 - x / 2.0
+        } else {
+            -(-x).exp_m1() / x
+        }
+    };
+    if mid_k == mid_l && len_k == len_l {
+        // Within one segment: 2 (x - 1 + e^-x) / x^2.
+        let x = len_k / t_s;
+        return if x < 1e-4 {
+            1.0 - x / 3.0
+        } else {
+            2.0 * (x + (-x).exp_m1()) / (x * x)
+        };
+    }
+    let gap = (mid_k - mid_l).abs() - 0.5 * (len_k + len_l);
+    if gap < 0.0 {
+        // Overlapping segments (not produced by segmentation): treat as instants.
+        return (-(mid_k - mid_l).abs() / t_s).exp();
+    }
+    shrink(len_k) * shrink(len_l) * (-gap / t_s).exp()
+}
+
 /// Per-axis whitening of the residuals: `L_a^-1` of the covariance of the segment means on
-/// axis `a`, `C_kl = se_k^2 delta_kl + q_a min(t_k, t_l)` (white error of each mean plus a
-/// random-walk drift of rate variance `q_a` shared by all segments of that axis).
+/// axis `a`, `C_kl = se_k^2 delta_kl + q_a min(t_k, t_l) + sum_j b_aj c_j(k, l)` (white error
+/// of each mean, a random-walk drift of rate variance `q_a` and the Gauss-Markov processes of
+/// variance `b_aj` of a bias-instability bank, all shared by the segments of that axis).
 #[derive(Clone, Debug)]
 struct Whitener {
     l_inv: [DMatrix<f64>; 3],
@@ -185,10 +237,31 @@ struct Whitener {
 
 impl Whitener {
     fn new(points: &[FitPoint], q: [f64; 3]) -> Whitener {
+        Whitener::with_flicker(points, q, &[[0.0; 3]], &[])
+    }
+
+    /// With a bias-instability bank: correlation times `bank_t_s` and per-axis variances
+    /// `bank_var[j][axis]`.
+    fn with_flicker(
+        points: &[FitPoint],
+        q: [f64; 3],
+        bank_var: &[[f64; 3]],
+        bank_t_s: &[f64],
+    ) -> Whitener {
         let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
         let n = points.len();
+        // Unit covariances of the bank processes between segments, shared by the axes.
+        let unit: Vec<DMatrix<f64>> = bank_t_s
+            .iter()
+            .map(|&t| {
+                DMatrix::from_fn(n, n, |k, l| {
+                    let (pk, pl) = (&points[k], &points[l]);
+                    gauss_markov_mean_cov(pk.t_s, pk.duration_s, pl.t_s, pl.duration_s, t)
+                })
+            })
+            .collect();
         let l_inv = std::array::from_fn(|a| {
-            let c = DMatrix::from_fn(n, n, |k, l| {
+            let mut c = DMatrix::from_fn(n, n, |k, l| {
                 let white = if k == l {
                     points[k].std_error[a].powi(2)
                 } else {
@@ -196,6 +269,9 @@ impl Whitener {
                 };
                 white + q[a] * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0)
             });
+            for (u, v) in unit.iter().zip(bank_var) {
+                c += u * v[a];
+            }
             let l = c.cholesky().expect("diagonal > 0 plus a PSD term").l();
             l.try_inverse()
                 .expect("triangular with a positive diagonal")
@@ -478,8 +554,19 @@ pub fn fit_triad(
 
     // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
     // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
-    let mut q = [0.0; 3];
-    let mut w = Whitener::new(points, q);
+    let (mut q, bank_var, bank_t_s) = match &opts.noise {
+        Some(n) => {
+            let bank = n.flicker_bank(FLICKER_BANK_DT_S);
+            let var: Vec<[f64; 3]> = bank
+                .iter()
+                .map(|&(_, u)| n.bias_instability.map(|b| b * b * u))
+                .collect();
+            let t: Vec<f64> = bank.iter().map(|&(t, _)| t).collect();
+            (n.random_walk.map(|k| k * k), var, t)
+        }
+        None => ([0.0; 3], Vec::new(), Vec::new()),
+    };
+    let mut w = Whitener::with_flicker(points, q, &bank_var, &bank_t_s);
     let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
     if opts.drift_model {
         let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
@@ -488,7 +575,7 @@ pub fn fit_triad(
             let next: [f64; 3] = std::array::from_fn(|a| drift_q(points, &raw, q, a, dof_axis));
             let settled = (0..3).all(|a| (next[a] - q[a]).abs() <= 1e-3 * next[a].max(1e-300));
             q = next;
-            w = Whitener::new(points, q);
+            w = Whitener::with_flicker(points, q, &bank_var, &bank_t_s);
             let (c, it, conv) = solve(&mut m, &mut p, &free, points, &w, opts);
             cost = c;
             iterations += it;
@@ -512,7 +599,7 @@ pub fn fit_triad(
             DMatrix::from_element(free.len(), free.len(), f64::NAN)
         }
     };
-    if let Some(drift) = opts.bias_drift {
+    if let Some(drift) = opts.bias_drift.filter(|_| opts.noise.is_none()) {
         for (c, &i) in free.iter().enumerate() {
             let axis = ["bias.x", "bias.y", "bias.z"]
                 .iter()
@@ -601,12 +688,16 @@ pub struct CalibrateOptions {
     pub gyro: TriadModel,
     /// Segmentation settings.
     pub segment: crate::segment::SegmentOptions,
-    /// Fit settings (the `fixed` mask and `bias_drift` are ignored here).
+    /// Fit settings (the `fixed` mask, `bias_drift` and `noise` are ignored here).
     pub fit: FitOptions,
     /// Accel bias wander over the recording (m/s^2), see [`FitOptions::bias_drift`].
     pub accel_bias_drift_m_s2: Option<[f64; 3]>,
     /// Gyro bias wander over the recording (rad/s), see [`FitOptions::bias_drift`].
     pub gyro_bias_drift_rad_s: Option<[f64; 3]>,
+    /// Accel noise for the weights of the segment means, see [`FitOptions::noise`].
+    pub accel_noise: Option<imu_model::NoiseModel>,
+    /// Gyro noise for the weights of the segment means, see [`FitOptions::noise`].
+    pub gyro_noise: Option<imu_model::NoiseModel>,
 }
 
 impl Default for CalibrateOptions {
@@ -627,6 +718,8 @@ impl Default for CalibrateOptions {
             fit: FitOptions::default(),
             accel_bias_drift_m_s2: None,
             gyro_bias_drift_rad_s: None,
+            accel_noise: None,
+            gyro_noise: None,
         }
     }
 }
@@ -695,6 +788,7 @@ fn point(
             angular_accel_rad_s2: Vec3::zeros(),
         },
         t_s: 0.5 * (seg.start_s + seg.end_s),
+        duration_s: seg.end_s - seg.start_s,
     }
 }
 
@@ -711,9 +805,10 @@ pub fn calibrate(
     let segmentation = crate::segment::detect(series, &opts.segment)?;
     let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
     let mut notes = Vec::new();
-    let fit_opts = |drift| FitOptions {
+    let fit_opts = |drift, noise: &Option<imu_model::NoiseModel>| FitOptions {
         fixed: Vec::new(),
         bias_drift: drift,
+        noise: noise.clone(),
         ..opts.fit.clone()
     };
 
@@ -738,7 +833,7 @@ pub fn calibrate(
         &opts.accel,
         Triad::Accel,
         &accel_points,
-        &fit_opts(opts.accel_bias_drift_m_s2),
+        &fit_opts(opts.accel_bias_drift_m_s2, &opts.accel_noise),
     )?;
 
     let mut gyro_model = opts.gyro.clone();
@@ -781,7 +876,7 @@ pub fn calibrate(
         &gyro_model,
         Triad::Gyro,
         &gyro_points,
-        &fit_opts(opts.gyro_bias_drift_rad_s),
+        &fit_opts(opts.gyro_bias_drift_rad_s, &opts.gyro_noise),
     )?;
 
     let mut calibration = imu_model::Calibration::identity();
@@ -838,6 +933,7 @@ mod tests {
                     std_error: Vec3::repeat(1e-3),
                     conditions: Conditions::default(),
                     t_s: 0.0,
+                    duration_s: 0.0,
                 }
             })
             .collect();
@@ -866,6 +962,7 @@ mod tests {
                     ..Conditions::default()
                 },
                 t_s: k as f64,
+                duration_s: 0.0,
             })
             .collect();
         let r = fit_triad(&gyro, Triad::Gyro, &pts, &FitOptions::default()).unwrap();
