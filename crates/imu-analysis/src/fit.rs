@@ -757,6 +757,76 @@ pub enum CalibrateError {
     /// A fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
+    /// The fitted model cannot be inverted over the validation range, so imud would reject it.
+    #[error("the fitted {triad} model is not valid at `{key}`: {message}; fit fewer effects")]
+    InvalidModel {
+        /// Triad.
+        triad: Triad,
+        /// The offending key.
+        key: String,
+        /// What validation said.
+        message: String,
+    },
+}
+
+/// [`fit_triad`], then make sure the fitted model is one imud can load: while validation
+/// rejects a fitted parameter (in practice a cubic nonlinearity that data within +/-1 g cannot
+/// pin down, extrapolated to the +/-20 g over which the model must stay invertible), that
+/// parameter is held at its start value, reported as unobservable, and the rest refitted.
+fn fit_loadable(
+    model: &TriadModel,
+    triad: Triad,
+    points: &[FitPoint],
+    opts: &FitOptions,
+) -> Result<FitResult, CalibrateError> {
+    let mut fixed = vec![false; model.n_params()];
+    let mut held: Vec<Unobservable> = Vec::new();
+    loop {
+        let o = FitOptions {
+            fixed: fixed.clone(),
+            ..opts.clone()
+        };
+        let mut r = fit_triad(model, triad, points, &o)?;
+        let Err(e) = r.model.validate(triad) else {
+            for u in &held {
+                r.warnings
+                    .push(format!("{} not fitted: {}", u.name, u.reason));
+            }
+            r.unobservable.extend(held);
+            return Ok(r);
+        };
+        // `effect.name[i]` names parameter `effect.name.<axis i>`.
+        let name = match e.key.strip_suffix(']').and_then(|k| k.rsplit_once('[')) {
+            Some((base, i)) => match i {
+                "0" => format!("{base}.x"),
+                "1" => format!("{base}.y"),
+                "2" => format!("{base}.z"),
+                _ => e.key.clone(),
+            },
+            None => e.key.clone(),
+        };
+        let Some(i) = r
+            .names
+            .iter()
+            .position(|n| *n == name)
+            .filter(|&i| !fixed[i])
+        else {
+            return Err(CalibrateError::InvalidModel {
+                triad,
+                key: e.key,
+                message: e.message,
+            });
+        };
+        let se = r.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
+        held.push(Unobservable {
+            name,
+            reason: format!(
+                "fitted to {:.3e}{se}, it makes the model invalid ({}); held at its start value",
+                r.params[i], e.message
+            ),
+        });
+        fixed[i] = true;
+    }
 }
 
 /// Effects whose parameters only a large input excites (held without rate plateaus).
@@ -829,7 +899,7 @@ pub fn calibrate(
             )
         })
         .collect();
-    let accel = fit_triad(
+    let accel = fit_loadable(
         &opts.accel,
         Triad::Accel,
         &accel_points,
@@ -872,7 +942,7 @@ pub fn calibrate(
         })
         .collect();
     segmentation.require(SegmentKind::Static, 1, "gyro fit")?;
-    let gyro = fit_triad(
+    let gyro = fit_loadable(
         &gyro_model,
         Triad::Gyro,
         &gyro_points,
@@ -902,6 +972,37 @@ mod tests {
             m.add(*k);
         }
         m
+    }
+
+    #[test]
+    fn a_cubic_that_would_make_the_model_non_invertible_is_held() {
+        use EffectKind::*;
+        // Measurements with a strong cubic term (x - 1e-5 x^3): fitted as it is, the curve
+        // would fold over well inside +/-20 g.
+        let g = 9.8;
+        let points: Vec<FitPoint> = [-1.0, -0.7, -0.35, 0.0, 0.35, 0.7, 1.0]
+            .iter()
+            .enumerate()
+            .map(|(k, &c)| {
+                let x = Vec3::new(c * g, 0.5 * c * g, -0.8 * c * g);
+                FitPoint {
+                    true_input: x,
+                    measured: x.map(|v| v - 1e-5 * v * v * v),
+                    std_error: Vec3::repeat(1e-3),
+                    conditions: Conditions::default(),
+                    t_s: k as f64,
+                    duration_s: 0.0,
+                }
+            })
+            .collect();
+        let m = model(&[Bias, Scale, ScaleNonlinearity]);
+        let r = fit_loadable(&m, Triad::Accel, &points, &FitOptions::default()).unwrap();
+        assert!(!r.unobservable.is_empty(), "{:?}", r.warnings);
+        for u in &r.unobservable {
+            assert!(u.name.starts_with("scale-nonlinearity.cubic"), "{u:?}");
+        }
+        assert!(r.model.validate(Triad::Accel).is_ok());
+        assert!(r.unobservable[0].reason.contains("invalid"), "{:?}", r.unobservable);
     }
 
     #[test]
