@@ -1002,7 +1002,11 @@ mod tests {
             assert!(u.name.starts_with("scale-nonlinearity.cubic"), "{u:?}");
         }
         assert!(r.model.validate(Triad::Accel).is_ok());
-        assert!(r.unobservable[0].reason.contains("invalid"), "{:?}", r.unobservable);
+        assert!(
+            r.unobservable[0].reason.contains("invalid"),
+            "{:?}",
+            r.unobservable
+        );
     }
 
     #[test]
