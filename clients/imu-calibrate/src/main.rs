@@ -12,7 +12,8 @@ use imu_analysis::Source;
 use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
-use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::input::CsvOptions;
+use imu_analysis::progress::read_any;
 use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;

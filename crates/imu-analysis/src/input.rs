@@ -174,12 +174,23 @@ pub fn read_mcap(
     source: Source,
     topic: Option<&str>,
 ) -> Result<ImuSeries, InputError> {
+    read_mcap_with_progress(path, source, topic, &mut |_, _| {})
+}
+
+/// [`read_mcap`], reporting `(bytes read, file size)` as the file is read (monotone, ending at
+/// the file size when the whole file was read).
+pub fn read_mcap_with_progress(
+    path: &Path,
+    source: Source,
+    topic: Option<&str>,
+    on_progress: &mut dyn FnMut(u64, u64),
+) -> Result<ImuSeries, InputError> {
     let mut series = ImuSeries::default();
     let mut abs_ns: Vec<u64> = Vec::new();
     let mut temps_ns: Vec<(u64, f64)> = Vec::new();
     let mut raw: Vec<imu_bus::RawSample> = Vec::new();
     let mut chosen: Option<String> = topic.map(str::to_string);
-    let report = mcap_read::for_each_message(path, |ch, _h, data| {
+    let report = mcap_read::for_each_message_with_progress(path, on_progress, |ch, _h, data| {
         match ch.schema_name.as_str() {
             "sensor_msgs/msg/Imu" if source == Source::Corrected => {
                 let pick = chosen.get_or_insert_with(|| ch.topic.clone());
@@ -373,9 +384,27 @@ pub fn read_csv(path: &Path, options: &CsvOptions) -> Result<ImuSeries, InputErr
 
 /// Reads any supported input by its extension (`.mcap` or `.csv`).
 pub fn read_any(path: &Path, source: Source, csv: &CsvOptions) -> Result<ImuSeries, InputError> {
+    read_any_with_progress(path, source, csv, &mut |_, _| {})
+}
+
+/// [`read_any`], reporting `(bytes read, file size)` as the file is read: monotone, from
+/// `(0, size)` to `(size, size)` when the whole file was read (a CSV file is read at once).
+/// This is what the clients' progress bars (module `progress`, feature `progress`) follow.
+pub fn read_any_with_progress(
+    path: &Path,
+    source: Source,
+    csv: &CsvOptions,
+    on_progress: &mut dyn FnMut(u64, u64),
+) -> Result<ImuSeries, InputError> {
     match path.extension().and_then(|e| e.to_str()) {
-        Some("csv") | Some("txt") => read_csv(path, csv),
-        _ => read_mcap(path, source, None),
+        Some("csv") | Some("txt") => {
+            let size = std::fs::metadata(path).map_or(0, |m| m.len());
+            on_progress(0, size);
+            let series = read_csv(path, csv)?;
+            on_progress(size, size);
+            Ok(series)
+        }
+        _ => read_mcap_with_progress(path, source, None, on_progress),
     }
 }
 

@@ -11,6 +11,8 @@ pub mod impact;
 pub mod input;
 pub mod noise;
 pub mod plot;
+#[cfg(feature = "progress")]
+pub mod progress;
 pub mod reference;
 pub mod report;
 pub mod segment;
