@@ -249,10 +249,8 @@ fn run(cli: &Cli) -> Result<()> {
     if series.is_empty() {
         bail!("{}: no samples", cli.recording.display());
     }
-    let truth = imu_analysis::reference::Reference::Truth(
-        imu_bus::truth::read_truth(&cli.reference)
-            .with_context(|| format!("reading reference {}", cli.reference.display()))?,
-    );
+    // Streamed while fitting: a 6-hour truth file would take 0.5 GB in memory.
+    let truth = imu_analysis::reference::Reference::TruthFile(cli.reference.clone());
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let opts = options(cli.model.as_deref(), duration_s)?;
     let mut fit = calibrate(&series, &truth, &opts)

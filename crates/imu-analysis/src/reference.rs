@@ -1,7 +1,9 @@
 //! References: where the TRUE input of each detected segment comes from. A calibration fit
 //! compares each segment's measured mean with the input the sensor really had; that input is
 //! known from a reference. Today: the simulator's truth recording (sample-aligned with an
-//! offline recording).
+//! offline recording), in memory or streamed from its file.
+
+use std::path::PathBuf;
 
 use crate::ImuSeries;
 use crate::segment::Segment;
@@ -11,6 +13,9 @@ use crate::segment::Segment;
 pub enum Reference {
     /// The simulator's truth MCAP of this very recording (one truth sample per data sample).
     Truth(imu_bus::truth::Truth),
+    /// The same, read from its file as it streams by: only the segment means are kept, so a
+    /// 6-hour truth file (2 million samples, 0.5 GB in memory) costs no memory.
+    TruthFile(PathBuf),
 }
 
 impl Reference {
@@ -22,6 +27,7 @@ impl Reference {
     ) -> Result<Vec<SegmentTruth>, ReferenceError> {
         match self {
             Reference::Truth(t) => truth_for_segments(series, segments, t),
+            Reference::TruthFile(path) => truth_file_for_segments(series, segments, path),
         }
     }
 
@@ -29,6 +35,7 @@ impl Reference {
     pub fn describe(&self) -> String {
         match self {
             Reference::Truth(t) => format!("simulator truth ({} samples)", t.samples.len()),
+            Reference::TruthFile(p) => format!("simulator truth {}", p.display()),
         }
     }
 }
@@ -59,6 +66,17 @@ pub enum ReferenceError {
         truth_samples: usize,
         /// Samples in the series.
         series_samples: usize,
+    },
+    /// The truth file could not be read.
+    #[error(transparent)]
+    Read(#[from] imu_bus::McapReadError),
+    /// A truth sample could not be decoded.
+    #[error("{path}: truth sample: {message}")]
+    Parse {
+        /// The truth file.
+        path: PathBuf,
+        /// What the JSON decoder said.
+        message: String,
     },
 }
 
@@ -99,4 +117,123 @@ pub fn truth_for_segments(
             out
         })
         .collect())
+}
+
+/// The fields of a truth sample a segment mean needs (the rest of the JSON is skipped unparsed).
+#[derive(serde::Deserialize)]
+struct TruthInput {
+    command: u8,
+    specific_force_m_s2: [f64; 3],
+    angular_rate_rad_s: [f64; 3],
+    temp_c: f64,
+    time_since_power_on_s: f64,
+}
+
+/// Sums truth samples into their segments' means, one data sample after the other.
+struct SegmentAccumulator<'a> {
+    segments: &'a [Segment],
+    /// Segment indices in sample order, so one forward pass finds each sample's segment.
+    order: Vec<usize>,
+    next: usize,
+    /// Data samples seen.
+    k: usize,
+    out: Vec<SegmentTruth>,
+}
+
+impl<'a> SegmentAccumulator<'a> {
+    fn new(segments: &'a [Segment]) -> Self {
+        let mut order: Vec<usize> = (0..segments.len()).collect();
+        order.sort_by_key(|&i| segments[i].first_sample);
+        let zero = SegmentTruth {
+            specific_force_m_s2: [0.0; 3],
+            angular_rate_rad_s: [0.0; 3],
+            temp_c: 0.0,
+            time_since_power_on_s: 0.0,
+        };
+        SegmentAccumulator {
+            segments,
+            order,
+            next: 0,
+            k: 0,
+            out: vec![zero; segments.len()],
+        }
+    }
+
+    /// One truth message (JSON); data samples (command 0x01) count, others are skipped.
+    fn add(&mut self, json: &[u8]) -> Result<(), String> {
+        let s: TruthInput = serde_json::from_slice(json).map_err(|e| e.to_string())?;
+        if s.command != 0x01 {
+            return Ok(());
+        }
+        let k = self.k;
+        self.k += 1;
+        while self.next < self.order.len() && self.segments[self.order[self.next]].range().end <= k
+        {
+            self.next += 1;
+        }
+        if let Some(&i) = self.order.get(self.next)
+            && self.segments[i].range().contains(&k)
+        {
+            let (n, acc) = (self.segments[i].n as f64, &mut self.out[i]);
+            for a in 0..3 {
+                acc.specific_force_m_s2[a] += s.specific_force_m_s2[a] / n;
+                acc.angular_rate_rad_s[a] += s.angular_rate_rad_s[a] / n;
+            }
+            acc.temp_c += s.temp_c / n;
+            acc.time_since_power_on_s += s.time_since_power_on_s / n;
+        }
+        Ok(())
+    }
+}
+
+/// Truth messages handed from the reading thread to the parsing thread at a time.
+const BATCH_MESSAGES: usize = 4096;
+
+/// [`truth_for_segments`] streaming the truth file: the k-th data sample (command 0x01) is added
+/// to the segment holding sample k. Decompression (this thread) and JSON parsing (a second
+/// thread, fed in order through a short queue) overlap; memory stays a few batches.
+pub fn truth_file_for_segments(
+    series: &ImuSeries,
+    segments: &[Segment],
+    path: &std::path::Path,
+) -> Result<Vec<SegmentTruth>, ReferenceError> {
+    let (read, parsed) = std::thread::scope(|scope| {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Vec<u8>>>(4);
+        let parser = scope.spawn(move || {
+            let mut acc = SegmentAccumulator::new(segments);
+            for batch in rx {
+                for json in &batch {
+                    acc.add(json)?;
+                }
+            }
+            Ok::<_, String>((acc.k, acc.out))
+        });
+        let mut batch = Vec::with_capacity(BATCH_MESSAGES);
+        let read = imu_bus::mcap_read::for_each_message(path, |channel, _header, data| {
+            if channel.topic == imu_bus::truth::SAMPLE_TOPIC {
+                batch.push(data.to_vec());
+                if batch.len() == BATCH_MESSAGES {
+                    let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH_MESSAGES));
+                    // A closed queue means the parser failed; its error is reported below.
+                    let _ = tx.send(full);
+                }
+            }
+            Ok(())
+        });
+        let _ = tx.send(batch);
+        drop(tx);
+        (read, parser.join().expect("truth parser thread"))
+    });
+    read?;
+    let (k, out) = parsed.map_err(|message| ReferenceError::Parse {
+        path: path.to_path_buf(),
+        message,
+    })?;
+    if k < series.len() {
+        return Err(ReferenceError::TooShort {
+            truth_samples: k,
+            series_samples: series.len(),
+        });
+    }
+    Ok(out)
 }

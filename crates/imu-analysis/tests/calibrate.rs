@@ -153,6 +153,7 @@ struct Run {
     _dir: tempfile::TempDir,
     series: ImuSeries,
     truth: Reference,
+    truth_path: PathBuf,
     truth_model: Calibration,
 }
 
@@ -185,6 +186,7 @@ fn record_seed(scenario_text: &str, seed: u64) -> Run {
         _dir: dir,
         series,
         truth,
+        truth_path,
         truth_model,
     }
 }
@@ -387,6 +389,11 @@ fn rate_table_recovers_gyro_scale_misalignment_and_g_sensitivity() {
     let mut opts = options(&run);
     opts.gyro.add(EffectKind::GSensitivity);
     let fit = calibrate(&run.series, &run.truth, &opts).unwrap();
+    // The streamed truth file gives the same segment means as the truth in memory.
+    let streamed = Reference::TruthFile(run.truth_path.clone())
+        .segment_truth(&run.series, &fit.segmentation.segments)
+        .unwrap();
+    assert_eq!(streamed, fit.segment_truth);
     // 6 still positions plus the 0 deg/s dwell that ends each axis's steps; 4 plateaus per axis.
     assert_eq!(
         fit.segmentation.count(SegmentKind::Plateau),
