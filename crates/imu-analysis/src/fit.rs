@@ -237,18 +237,19 @@ struct Whitener {
 
 impl Whitener {
     fn new(points: &[FitPoint], q: [f64; 3]) -> Whitener {
-        Whitener::with_flicker(points, q, &[[0.0; 3]], &[])
+        let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+        Whitener::with_flicker(points, q, t0, &[[0.0; 3]], &[])
     }
 
-    /// With a bias-instability bank: correlation times `bank_t_s` and per-axis variances
-    /// `bank_var[j][axis]`.
+    /// With the random walk starting at `t0` (s) and a bias-instability bank: correlation
+    /// times `bank_t_s` and per-axis variances `bank_var[j][axis]`.
     fn with_flicker(
         points: &[FitPoint],
         q: [f64; 3],
+        t0: f64,
         bank_var: &[[f64; 3]],
         bank_t_s: &[f64],
     ) -> Whitener {
-        let t0 = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
         let n = points.len();
         // Unit covariances of the bank processes between segments, shared by the axes.
         let unit: Vec<DMatrix<f64>> = bank_t_s
@@ -566,7 +567,15 @@ pub fn fit_triad(
         }
         None => ([0.0; 3], Vec::new(), Vec::new()),
     };
-    let mut w = Whitener::with_flicker(points, q, &bank_var, &bank_t_s);
+    // With a noise model the random walk starts with the recording (t = 0), so the fitted bias
+    // is the bias at its start; an estimated drift (drift_model) starts at the first segment.
+    let t_first = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+    let rw_origin_s = if opts.noise.is_some() {
+        t_first.min(0.0)
+    } else {
+        t_first
+    };
+    let mut w = Whitener::with_flicker(points, q, rw_origin_s, &bank_var, &bank_t_s);
     let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
     if opts.drift_model {
         let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
@@ -575,7 +584,7 @@ pub fn fit_triad(
             let next: [f64; 3] = std::array::from_fn(|a| drift_q(points, &raw, q, a, dof_axis));
             let settled = (0..3).all(|a| (next[a] - q[a]).abs() <= 1e-3 * next[a].max(1e-300));
             q = next;
-            w = Whitener::with_flicker(points, q, &bank_var, &bank_t_s);
+            w = Whitener::with_flicker(points, q, rw_origin_s, &bank_var, &bank_t_s);
             let (c, it, conv) = solve(&mut m, &mut p, &free, points, &w, opts);
             cost = c;
             iterations += it;
