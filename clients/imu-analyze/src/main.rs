@@ -8,8 +8,9 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 
-use imu_analysis::input::{CsvOptions, ImuSeries, InputError, Source, read_any};
+use imu_analysis::input::{CsvOptions, ImuSeries, InputError, Source};
 use imu_analysis::plot::{Chart, write_svg};
+use imu_analysis::progress::read_any;
 use imu_analysis::report::{self, Section};
 use imu_analysis::{dynamic, impact, thermal};
 
@@ -160,24 +161,27 @@ fn exit_code(e: &anyhow::Error) -> u8 {
     1
 }
 
-/// A status line on stderr while a file is read; silent when stderr is not a terminal.
+/// A status line on stderr while a file is read; silent when stderr is not a terminal. The
+/// line is written again when done, as a progress bar may have replaced it meanwhile.
 struct Progress {
-    on: bool,
+    line: Option<String>,
 }
 
 impl Progress {
     fn start(what: &str, path: &Path) -> Self {
-        let on = io::stderr().is_terminal();
-        if on {
+        let line = io::stderr().is_terminal().then(|| {
             let mib = std::fs::metadata(path).map_or(0.0, |m| m.len() as f64 / 1048576.0);
-            eprint!("\r{what} {} ({mib:.1} MiB) ...", path.display());
+            format!("{what} {} ({mib:.1} MiB) ...", path.display())
+        });
+        if let Some(l) = &line {
+            eprint!("\r{l}");
         }
-        Self { on }
+        Self { line }
     }
 
     fn done(self, message: &str) {
-        if self.on {
-            eprintln!(" {message}");
+        if let Some(l) = &self.line {
+            eprintln!("\r{l} {message}");
         }
     }
 }

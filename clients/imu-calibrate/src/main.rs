@@ -15,7 +15,8 @@ use imu_analysis::Source;
 use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
-use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::input::CsvOptions;
+use imu_analysis::progress::read_any;
 use imu_analysis::reference::Reference;
 use imu_analysis::reference_free::{
     ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
@@ -121,7 +122,7 @@ fn input_file(path: &Path) -> Result<InputFile> {
 
 /// Fit options from the model file: its accel and gyro effects, and, from its noise tables (a
 /// noise characterisation such as imu-noise's), the bias wander over a recording of
-/// `duration_s` that no residual can show.
+/// `duration_s` that no residual can show and the covariance of the segment means.
 fn options(model: Option<&Path>, duration_s: f64) -> Result<CalibrateOptions> {
     let mut opts = CalibrateOptions::default();
     if let Some(path) = model {
@@ -140,6 +141,8 @@ fn options(model: Option<&Path>, duration_s: f64) -> Result<CalibrateOptions> {
         };
         opts.accel_bias_drift_m_s2 = drift(&m.accel);
         opts.gyro_bias_drift_rad_s = drift(&m.gyro);
+        opts.accel_noise = m.accel.noise.clone();
+        opts.gyro_noise = m.gyro.noise.clone();
     }
     Ok(opts)
 }

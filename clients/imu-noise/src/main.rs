@@ -8,9 +8,10 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use imu_analysis::allan::{self, Kind, Options, TauSet};
-use imu_analysis::input::{AccelUnit, CsvOptions, GyroUnit, read_any};
+use imu_analysis::input::{AccelUnit, CsvOptions, GyroUnit};
 use imu_analysis::noise::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
 use imu_analysis::plot::{Chart, Series, Style, write_svg};
+use imu_analysis::progress::read_any;
 use imu_analysis::{ImuSeries, Source};
 use serde::Serialize;
 

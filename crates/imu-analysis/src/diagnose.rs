@@ -645,6 +645,8 @@ impl<'a> Workbench<'a> {
         let tau = d.get(d.len() / 2).copied().unwrap_or(1.0);
         std::array::from_fn(|a| SharedNoise {
             random_walk_q: 0.0,
+            random_walk_origin_s: None,
+            flicker_tau_max_s: None,
             flicker_var: floor.flicker_var[a],
             flicker_tau_s: tau,
         })

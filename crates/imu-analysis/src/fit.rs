@@ -5,11 +5,13 @@
 //! reference), the MEASURED mean and the standard error of that mean. The residual is
 //! `forward(true) - measured`, weighted by the standard error; the Jacobian is numeric (central
 //! differences), so any effect of the model library can be fitted. Parameter standard errors
-//! come from `(J^T W J)^-1` scaled by the reduced chi-square (the segment means carry drift and
-//! unmodelled effects that their white-noise standard errors do not show). Parameters the data
-//! cannot separate (a zero or collinear column of the normalised normal matrix) are held at
-//! their starting values and reported as unobservable instead of being given a meaningless
-//! number.
+//! come from `(J^T W J)^-1`, where `W` is the inverse covariance of the segment means: their
+//! white standard errors plus, given the triad's noise model, the bias's wander under bias
+//! instability and random walk, correlated between segments; the result is scaled up by the
+//! reduced chi-square when above 1 (unmodelled effects, or drift without a noise model).
+//! Parameters the data cannot separate (a zero or collinear column of the normalised normal
+//! matrix) are held at their starting values and reported as unobservable instead of being
+//! given a meaningless number.
 
 use imu_model::nalgebra::{DMatrix, DVector, SymmetricEigen};
 use imu_model::{Conditions, EffectKind, Triad, TriadModel, Vec3};
@@ -27,6 +29,9 @@ pub struct FitPoint {
     pub conditions: Conditions,
     /// Time of the segment (its middle), s; orders the segments for the drift model.
     pub t_s: f64,
+    /// Length of the segment, s (0: an instant). With [`FitOptions::noise`] the covariance of
+    /// two segment means under bias instability depends on it.
+    pub duration_s: f64,
 }
 
 /// Settings of [`fit_triad`].
@@ -47,6 +52,17 @@ pub struct FitOptions {
     /// exactly like bias, so no residual shows it: it must come from a noise characterisation
     /// (see [`bias_drift_from_noise`]).
     pub bias_drift: Option<[f64; 3]>,
+    /// The triad's noise (from a noise characterisation such as imu-noise's), for the
+    /// covariance of the segment means: besides each mean's white standard error, the bias
+    /// wanders under bias instability `B` (flicker: correlated between nearby segments and more
+    /// different between distant ones, see [`segment_covariance`]) and random walk `K`
+    /// (`K^2 min(t_k, t_l)`, from the start of the recording). Without it
+    /// that wander shows only in the residuals, and the one reduced chi-square that scales the
+    /// covariance spreads it evenly over the axes and over near and distant segments: too small
+    /// standard errors on a noisy axis and for contrasts between distant segments, too large on
+    /// a quiet axis. The covariance carries the bias's wander over the recording too, so
+    /// `bias_drift` is not added when this is given.
+    pub noise: Option<imu_model::NoiseModel>,
     /// Model excess scatter of the segment means as a random-walk drift in time (so contrasts
     /// between early and late segments get the larger uncertainty they have) instead of white
     /// scatter; the drift rate is estimated per axis from the residuals. Off by default: on
@@ -56,8 +72,8 @@ pub struct FitOptions {
     pub drift_model: bool,
     /// Known correlated noise of the segment means per axis (random walk, flicker): the means
     /// are then weighted with the covariance `se_k^2 delta_kl + shared_kl` (see
-    /// [`segment_covariance`]) instead of white errors. With `drift_model` on, its random walk
-    /// is estimated instead.
+    /// [`segment_covariance`]) instead of white errors; takes precedence over `noise`. With
+    /// `drift_model` on, its random walk is estimated instead.
     pub shared_noise: Option<[SharedNoise; 3]>,
 }
 
@@ -78,6 +94,7 @@ impl Default for FitOptions {
             min_eigenvalue: 1e-8,
             fixed: Vec::new(),
             bias_drift: None,
+            noise: None,
             drift_model: false,
             shared_noise: None,
         }
@@ -187,26 +204,67 @@ pub enum FitError {
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct SharedNoise {
     /// Random-walk rate variance `q` (unit^2/s, K^2 of the IEEE random walk): covariance
-    /// `q min(t_k, t_l)`, time from the first segment.
+    /// `q min(t_k - t0, t_l - t0)`.
     pub random_walk_q: f64,
+    /// Where the random walk starts, s (`t0`; None: at the first segment).
+    pub random_walk_origin_s: Option<f64>,
+    /// Longest correlation time of the flicker, s: with it the flicker is the Gauss-Markov bank
+    /// of [`imu_model::NoiseModel::flicker_bank`] (the noise model's own definition, correlated
+    /// up to that time); without it, pure flicker noise at every scale (its structure function).
+    pub flicker_tau_max_s: Option<f64>,
     /// Flicker (bias instability) Allan variance floor `sigma_f^2` (unit^2; `(0.664 B)^2`).
     pub flicker_var: f64,
-    /// Segment duration the flicker structure is evaluated at, s.
+    /// Averaging time of the flicker structure for points without a duration, s.
     pub flicker_tau_s: f64,
 }
 
 /// Structure function of tau-averages of flicker FM noise separated by `n` averaging times,
 /// in units of `sigma_f^2 / (2 ln 2)`: `(n+1)^2 ln(n+1) + (n-1)^2 ln|n-1| - 2 n^2 ln n`
-/// (4 ln 2 for adjacent averages, growing as 2 ln n).
+/// (4 ln 2 for adjacent averages, growing as 2 ln n). (With `x(t)` the integral of `y`, the
+/// flicker-FM phase structure function is `~ s^2 (c - ln s)`; the difference of two averages
+/// combines it at lags `tau`, `n tau` and `(n +/- 1) tau`, where `c` cancels.)
 fn flicker_structure(n: f64) -> f64 {
     let xlx = |x: f64| if x <= 0.0 { 0.0 } else { x * x * x.ln() };
     xlx(n + 1.0) + xlx((n - 1.0).abs()) - 2.0 * xlx(n)
 }
 
+/// Covariance of the means over two segments (`mid`, `len`) of a unit-variance first-order
+/// Gauss-Markov process with correlation time `t_s`.
+fn gauss_markov_mean_cov(mid_k: f64, len_k: f64, mid_l: f64, len_l: f64, t_s: f64) -> f64 {
+    // Average of exp(-|u| / T) over an interval of length L (-> 1 as L -> 0).
+    let shrink = |len: f64| {
+        let x = len / t_s;
+        if x < 1e-6 {
+            1.0 - x / 2.0
+        } else {
+            -(-x).exp_m1() / x
+        }
+    };
+    if mid_k == mid_l && len_k == len_l {
+        // Within one segment: 2 (x - 1 + e^-x) / x^2.
+        let x = len_k / t_s;
+        return if x < 1e-4 {
+            1.0 - x / 3.0
+        } else {
+            2.0 * (x + (-x).exp_m1()) / (x * x)
+        };
+    }
+    let gap = (mid_k - mid_l).abs() - 0.5 * (len_k + len_l);
+    if gap < 0.0 {
+        // Overlapping segments (not produced by segmentation): treat as instants.
+        return (-(mid_k - mid_l).abs() / t_s).exp();
+    }
+    shrink(len_k) * shrink(len_l) * (-gap / t_s).exp()
+}
+
+/// Sample period the flicker bank is built for, s. Only processes slower than about a second
+/// matter for segment means, and the bank is scaled to the same Allan floor whatever the period.
+const FLICKER_BANK_DT_S: f64 = 0.01;
+
 /// Covariance of the segment means of axis `a`: `white_scale se_k^2 delta_kl` plus the shared
-/// random walk and flicker. Shared terms are the covariance of the increments from the first
-/// segment (a common offset is the bias's business): for flicker
-/// `(D_k0 + D_l0 - D_kl) / 2` with `D` the flicker structure function of the means.
+/// random walk and flicker. The flicker term is the covariance of the increments from the
+/// first segment (a common offset is the bias's business), `(D_k0 + D_l0 - D_kl) / 2`, with `D`
+/// the flicker structure function of two means at the mean of their durations.
 pub fn segment_covariance(
     points: &[FitPoint],
     a: usize,
@@ -217,14 +275,51 @@ pub fn segment_covariance(
     let k0 = (0..n)
         .min_by(|&i, &j| points[i].t_s.total_cmp(&points[j].t_s))
         .unwrap_or(0);
-    let t0 = points.get(k0).map_or(0.0, |p| p.t_s);
+    let t0 = shared
+        .random_walk_origin_s
+        .unwrap_or_else(|| points.get(k0).map_or(0.0, |p| p.t_s));
     let unit = shared.flicker_var / (2.0 * std::f64::consts::LN_2);
-    let tau = shared.flicker_tau_s.max(1e-9);
+    let tau = |k: usize| {
+        if points[k].duration_s > 0.0 {
+            points[k].duration_s
+        } else {
+            shared.flicker_tau_s.max(1e-9)
+        }
+    };
     let d = |k: usize, l: usize| {
-        if unit == 0.0 {
+        if unit == 0.0 || k == l {
             0.0
         } else {
-            unit * flicker_structure((points[k].t_s - points[l].t_s).abs() / tau)
+            let t = 0.5 * (tau(k) + tau(l));
+            unit * flicker_structure((points[k].t_s - points[l].t_s).abs() / t)
+        }
+    };
+    // The bank: (correlation time, variance) of each Gauss-Markov process.
+    let bank: Vec<(f64, f64)> = match shared.flicker_tau_max_s {
+        Some(tau_max_s) if shared.flicker_var > 0.0 => {
+            let unit_model = imu_model::NoiseModel {
+                bias_instability_tau_max_s: tau_max_s,
+                ..Default::default()
+            };
+            let b2 = shared.flicker_var / crate::noise::BIAS_INSTABILITY_FACTOR.powi(2);
+            unit_model
+                .flicker_bank(FLICKER_BANK_DT_S)
+                .into_iter()
+                .map(|(t, u)| (t, u * b2))
+                .collect()
+        }
+        _ => Vec::new(),
+    };
+    let flicker = |k: usize, l: usize| {
+        if shared.flicker_tau_max_s.is_some() {
+            let (pk, pl) = (&points[k], &points[l]);
+            bank.iter()
+                .map(|&(t, v)| {
+                    v * gauss_markov_mean_cov(pk.t_s, pk.duration_s, pl.t_s, pl.duration_s, t)
+                })
+                .sum()
+        } else {
+            0.5 * (d(k, k0) + d(l, k0) - d(k, l))
         }
     };
     DMatrix::from_fn(n, n, |k, l| {
@@ -234,7 +329,27 @@ pub fn segment_covariance(
             0.0
         };
         let rw = shared.random_walk_q * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0);
-        white + rw + 0.5 * (d(k, k0) + d(l, k0) - d(k, l))
+        white + rw + flicker(k, l)
+    })
+}
+
+/// The shared noise of [`fit_triad`]: `opts.shared_noise` as given, else from `opts.noise` (a
+/// noise characterisation: flicker floor `(0.664 B)^2`, random walk `K^2` starting with the
+/// recording at t = 0, so the fitted bias is the bias at its start), else none.
+fn shared_noise(opts: &FitOptions, points: &[FitPoint]) -> [SharedNoise; 3] {
+    if let Some(s) = opts.shared_noise {
+        return s;
+    }
+    let Some(n) = &opts.noise else {
+        return [SharedNoise::default(); 3];
+    };
+    let t_first = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
+    std::array::from_fn(|a| SharedNoise {
+        random_walk_q: n.random_walk[a].powi(2),
+        random_walk_origin_s: Some(t_first.min(0.0)),
+        flicker_var: (crate::noise::BIAS_INSTABILITY_FACTOR * n.bias_instability[a]).powi(2),
+        flicker_tau_s: 1.0,
+        flicker_tau_max_s: Some(n.bias_instability_tau_max_s),
     })
 }
 
@@ -541,7 +656,7 @@ pub fn fit_triad(
 
     // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
     // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
-    let mut q = opts.shared_noise.unwrap_or_default();
+    let mut q = shared_noise(opts, points);
     let mut w = Whitener::new(points, &q);
     let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
     if opts.drift_model {
@@ -578,7 +693,7 @@ pub fn fit_triad(
             DMatrix::from_element(free.len(), free.len(), f64::NAN)
         }
     };
-    if let Some(drift) = opts.bias_drift {
+    if let Some(drift) = opts.bias_drift.filter(|_| opts.noise.is_none()) {
         for (c, &i) in free.iter().enumerate() {
             let axis = ["bias.x", "bias.y", "bias.z"]
                 .iter()
@@ -670,12 +785,16 @@ pub struct CalibrateOptions {
     pub gyro: TriadModel,
     /// Segmentation settings.
     pub segment: crate::segment::SegmentOptions,
-    /// Fit settings (the `fixed` mask and `bias_drift` are ignored here).
+    /// Fit settings (the `fixed` mask, `bias_drift` and `noise` are ignored here).
     pub fit: FitOptions,
     /// Accel bias wander over the recording (m/s^2), see [`FitOptions::bias_drift`].
     pub accel_bias_drift_m_s2: Option<[f64; 3]>,
     /// Gyro bias wander over the recording (rad/s), see [`FitOptions::bias_drift`].
     pub gyro_bias_drift_rad_s: Option<[f64; 3]>,
+    /// Accel noise for the weights of the segment means, see [`FitOptions::noise`].
+    pub accel_noise: Option<imu_model::NoiseModel>,
+    /// Gyro noise for the weights of the segment means, see [`FitOptions::noise`].
+    pub gyro_noise: Option<imu_model::NoiseModel>,
 }
 
 impl Default for CalibrateOptions {
@@ -696,6 +815,8 @@ impl Default for CalibrateOptions {
             fit: FitOptions::default(),
             accel_bias_drift_m_s2: None,
             gyro_bias_drift_rad_s: None,
+            accel_noise: None,
+            gyro_noise: None,
         }
     }
 }
@@ -733,6 +854,76 @@ pub enum CalibrateError {
     /// A fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
+    /// The fitted model cannot be inverted over the validation range, so imud would reject it.
+    #[error("the fitted {triad} model is not valid at `{key}`: {message}; fit fewer effects")]
+    InvalidModel {
+        /// Triad.
+        triad: Triad,
+        /// The offending key.
+        key: String,
+        /// What validation said.
+        message: String,
+    },
+}
+
+/// [`fit_triad`], then make sure the fitted model is one imud can load: while validation
+/// rejects a fitted parameter (in practice a cubic nonlinearity that data within +/-1 g cannot
+/// pin down, extrapolated to the +/-20 g over which the model must stay invertible), that
+/// parameter is held at its start value, reported as unobservable, and the rest refitted.
+fn fit_loadable(
+    model: &TriadModel,
+    triad: Triad,
+    points: &[FitPoint],
+    opts: &FitOptions,
+) -> Result<FitResult, CalibrateError> {
+    let mut fixed = vec![false; model.n_params()];
+    let mut held: Vec<Unobservable> = Vec::new();
+    loop {
+        let o = FitOptions {
+            fixed: fixed.clone(),
+            ..opts.clone()
+        };
+        let mut r = fit_triad(model, triad, points, &o)?;
+        let Err(e) = r.model.validate(triad) else {
+            for u in &held {
+                r.warnings
+                    .push(format!("{} not fitted: {}", u.name, u.reason));
+            }
+            r.unobservable.extend(held);
+            return Ok(r);
+        };
+        // `effect.name[i]` names parameter `effect.name.<axis i>`.
+        let name = match e.key.strip_suffix(']').and_then(|k| k.rsplit_once('[')) {
+            Some((base, i)) => match i {
+                "0" => format!("{base}.x"),
+                "1" => format!("{base}.y"),
+                "2" => format!("{base}.z"),
+                _ => e.key.clone(),
+            },
+            None => e.key.clone(),
+        };
+        let Some(i) = r
+            .names
+            .iter()
+            .position(|n| *n == name)
+            .filter(|&i| !fixed[i])
+        else {
+            return Err(CalibrateError::InvalidModel {
+                triad,
+                key: e.key,
+                message: e.message,
+            });
+        };
+        let se = r.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
+        held.push(Unobservable {
+            name,
+            reason: format!(
+                "fitted to {:.3e}{se}, it makes the model invalid ({}); held at its start value",
+                r.params[i], e.message
+            ),
+        });
+        fixed[i] = true;
+    }
 }
 
 /// Effects whose parameters only a large input excites (held without rate plateaus).
@@ -764,6 +955,7 @@ fn point(
             angular_accel_rad_s2: Vec3::zeros(),
         },
         t_s: 0.5 * (seg.start_s + seg.end_s),
+        duration_s: seg.end_s - seg.start_s,
     }
 }
 
@@ -894,31 +1086,32 @@ pub fn calibrate(
     let caveats = reference.caveats(series, &obs.segmentation.segments)?;
     let mut notes = caveats.notes.clone();
     let gyro_bias_drift_rad_s = caveats.widen_gyro_bias_drift(opts.gyro_bias_drift_rad_s);
-    let fit_opts = |drift| FitOptions {
+    let fit_opts = |drift, noise: &Option<imu_model::NoiseModel>| FitOptions {
         fixed: Vec::new(),
         bias_drift: drift,
+        noise: noise.clone(),
         ..opts.fit.clone()
     };
 
     let needed = |m: &TriadModel| m.n_params() / 3 + 1;
     obs.segmentation
         .require(SegmentKind::Static, needed(&opts.accel).max(2), "accel fit")?;
-    let accel = fit_triad(
+    let accel = fit_loadable(
         &opts.accel,
         Triad::Accel,
         &obs.points(Triad::Accel),
-        &fit_opts(opts.accel_bias_drift_m_s2),
+        &fit_opts(opts.accel_bias_drift_m_s2, &opts.accel_noise),
     )?;
 
     let (gyro_model, note) = obs.gyro_model_for(&opts.gyro);
     notes.extend(note);
     obs.segmentation
         .require(SegmentKind::Static, 1, "gyro fit")?;
-    let gyro = fit_triad(
+    let gyro = fit_loadable(
         &gyro_model,
         Triad::Gyro,
         &obs.points(Triad::Gyro),
-        &fit_opts(gyro_bias_drift_rad_s),
+        &fit_opts(gyro_bias_drift_rad_s, &opts.gyro_noise),
     )?;
 
     let mut calibration = imu_model::Calibration::identity();
@@ -944,6 +1137,41 @@ mod tests {
             m.add(*k);
         }
         m
+    }
+
+    #[test]
+    fn a_cubic_that_would_make_the_model_non_invertible_is_held() {
+        use EffectKind::*;
+        // Measurements with a strong cubic term (x - 1e-5 x^3): fitted as it is, the curve
+        // would fold over well inside +/-20 g.
+        let g = 9.8;
+        let points: Vec<FitPoint> = [-1.0, -0.7, -0.35, 0.0, 0.35, 0.7, 1.0]
+            .iter()
+            .enumerate()
+            .map(|(k, &c)| {
+                let x = Vec3::new(c * g, 0.5 * c * g, -0.8 * c * g);
+                FitPoint {
+                    true_input: x,
+                    measured: x.map(|v| v - 1e-5 * v * v * v),
+                    std_error: Vec3::repeat(1e-3),
+                    conditions: Conditions::default(),
+                    t_s: k as f64,
+                    duration_s: 0.0,
+                }
+            })
+            .collect();
+        let m = model(&[Bias, Scale, ScaleNonlinearity]);
+        let r = fit_loadable(&m, Triad::Accel, &points, &FitOptions::default()).unwrap();
+        assert!(!r.unobservable.is_empty(), "{:?}", r.warnings);
+        for u in &r.unobservable {
+            assert!(u.name.starts_with("scale-nonlinearity.cubic"), "{u:?}");
+        }
+        assert!(r.model.validate(Triad::Accel).is_ok());
+        assert!(
+            r.unobservable[0].reason.contains("invalid"),
+            "{:?}",
+            r.unobservable
+        );
     }
 
     #[test]
@@ -975,6 +1203,7 @@ mod tests {
                     std_error: Vec3::repeat(1e-3),
                     conditions: Conditions::default(),
                     t_s: 0.0,
+                    duration_s: 0.0,
                 }
             })
             .collect();
@@ -1003,6 +1232,7 @@ mod tests {
                     ..Conditions::default()
                 },
                 t_s: k as f64,
+                duration_s: 0.0,
             })
             .collect();
         let r = fit_triad(&gyro, Triad::Gyro, &pts, &FitOptions::default()).unwrap();

@@ -174,12 +174,26 @@ pub fn read_mcap(
     source: Source,
     topic: Option<&str>,
 ) -> Result<ImuSeries, InputError> {
+    read_mcap_with_progress(path, source, topic, &mut |_, _| {})
+}
+
+/// [`read_mcap`], reporting `(bytes read, file size)` as the file is read (monotone, ending at
+/// the file size when the whole file was read).
+pub fn read_mcap_with_progress(
+    path: &Path,
+    source: Source,
+    topic: Option<&str>,
+    on_progress: &mut dyn FnMut(u64, u64),
+) -> Result<ImuSeries, InputError> {
     let mut series = ImuSeries::default();
     let mut abs_ns: Vec<u64> = Vec::new();
     let mut temps_ns: Vec<(u64, f64)> = Vec::new();
-    let mut raw: Vec<imu_bus::RawSample> = Vec::new();
+    // Raw samples are kept as their counts (in the series' own arrays, converted in place once
+    // the GainScales are known: the metadata holding them is written when the file is closed)
+    // and whether they are scaled-vector counts: 57 bytes a sample instead of a RawSample's 112.
+    let mut scaled_counts: Vec<bool> = Vec::new();
     let mut chosen: Option<String> = topic.map(str::to_string);
-    let report = mcap_read::for_each_message(path, |ch, _h, data| {
+    let report = mcap_read::for_each_message_with_progress(path, on_progress, |ch, _h, data| {
         match ch.schema_name.as_str() {
             "sensor_msgs/msg/Imu" if source == Source::Corrected => {
                 let pick = chosen.get_or_insert_with(|| ch.topic.clone());
@@ -192,9 +206,17 @@ pub fn read_mcap(
                 series.gyro_rad_s.push(vec3(&m.angular_velocity));
             }
             "imud_msgs/msg/RawSample" if source == Source::Raw => {
-                let m = RawSampleMsg::from_cdr(data)
-                    .map_err(|e| format!("imud_msgs/msg/RawSample: {e}"))?;
-                raw.push(m.sample);
+                let s = RawSampleMsg::from_cdr(data)
+                    .map_err(|e| format!("imud_msgs/msg/RawSample: {e}"))?
+                    .sample;
+                // Temperatures are stamped on the wall clock, raw samples carry both clocks.
+                abs_ns.push(
+                    s.t_host_wall_ns
+                        .saturating_sub(s.t_host_monotonic_ns.saturating_sub(s.t_sample_ns)),
+                );
+                series.accel_m_s2.push(s.accel_counts.map(f64::from));
+                series.gyro_rad_s.push(s.gyro_counts.map(f64::from));
+                scaled_counts.push(s.flags & raw_flags::SCALED_COUNTS != 0);
             }
             "sensor_msgs/msg/Temperature" => {
                 let m = Temperature::from_cdr(data)
@@ -217,25 +239,22 @@ pub fn read_mcap(
                 })
         };
         let (ga, gg) = (gain("gain-scale-accel")?, gain("gain-scale-gyro")?);
-        // Temperatures are stamped on the wall clock, raw samples carry both clocks.
-        for s in &raw {
-            let to_units = |c: i32, g: u16| {
-                if s.flags & raw_flags::SCALED_COUNTS != 0 {
-                    scale::scaled_to_units(c as i16, g)
-                } else {
-                    scale::raw_bits_to_units(c as u16, g)
-                }
-            };
-            let wall_sample_ns = s
-                .t_host_wall_ns
-                .saturating_sub(s.t_host_monotonic_ns.saturating_sub(s.t_sample_ns));
-            abs_ns.push(wall_sample_ns);
-            series.accel_m_s2.push(std::array::from_fn(|i| {
-                to_units(s.accel_counts[i], ga) * G0
-            }));
-            series
-                .gyro_rad_s
-                .push(std::array::from_fn(|i| to_units(s.gyro_counts[i], gg)));
+        // The counts were stored as f64 (exact for any i32).
+        let to_units = |c: f64, g: u16, scaled: bool| {
+            if scaled {
+                scale::scaled_to_units(c as i16, g)
+            } else {
+                scale::raw_bits_to_units(c as u16, g)
+            }
+        };
+        for ((a, w), &scaled) in series
+            .accel_m_s2
+            .iter_mut()
+            .zip(&mut series.gyro_rad_s)
+            .zip(&scaled_counts)
+        {
+            *a = a.map(|c| to_units(c, ga, scaled) * G0);
+            *w = w.map(|c| to_units(c, gg, scaled));
         }
         chosen = Some(imu_bus::recording::RAW_TOPIC.to_string());
     }
@@ -373,9 +392,27 @@ pub fn read_csv(path: &Path, options: &CsvOptions) -> Result<ImuSeries, InputErr
 
 /// Reads any supported input by its extension (`.mcap` or `.csv`).
 pub fn read_any(path: &Path, source: Source, csv: &CsvOptions) -> Result<ImuSeries, InputError> {
+    read_any_with_progress(path, source, csv, &mut |_, _| {})
+}
+
+/// [`read_any`], reporting `(bytes read, file size)` as the file is read: monotone, from
+/// `(0, size)` to `(size, size)` when the whole file was read (a CSV file is read at once).
+/// This is what the clients' progress bars (module `progress`, feature `progress`) follow.
+pub fn read_any_with_progress(
+    path: &Path,
+    source: Source,
+    csv: &CsvOptions,
+    on_progress: &mut dyn FnMut(u64, u64),
+) -> Result<ImuSeries, InputError> {
     match path.extension().and_then(|e| e.to_str()) {
-        Some("csv") | Some("txt") => read_csv(path, csv),
-        _ => read_mcap(path, source, None),
+        Some("csv") | Some("txt") => {
+            let size = std::fs::metadata(path).map_or(0, |m| m.len());
+            on_progress(0, size);
+            let series = read_csv(path, csv)?;
+            on_progress(size, size);
+            Ok(series)
+        }
+        _ => read_mcap_with_progress(path, source, None, on_progress),
     }
 }
 

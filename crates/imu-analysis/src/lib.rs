@@ -14,6 +14,8 @@ pub mod lsq;
 pub mod noise;
 pub mod plan;
 pub mod plot;
+#[cfg(feature = "progress")]
+pub mod progress;
 pub mod provenance;
 pub mod reference;
 pub mod reference_free;

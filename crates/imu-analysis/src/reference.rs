@@ -1,8 +1,10 @@
 //! References: where the TRUE input of each detected segment comes from. A calibration fit
 //! compares each segment's measured mean with the input the sensor really had; that input is
 //! known from a reference: the simulator's truth recording (sample-aligned with an offline
-//! recording), a test plan stating the procedure's nominal inputs ([`crate::plan`]), or a
+//! recording; in memory or streamed from its file), a test plan stating the procedure's nominal inputs ([`crate::plan`]), or a
 //! time-stamped reference log such as a rate table's ([`crate::reference_log`]).
+
+use std::path::PathBuf;
 
 use crate::ImuSeries;
 use crate::plan::{Plan, PlanMismatch};
@@ -18,6 +20,9 @@ pub enum Reference {
     Plan(Plan),
     /// A time-stamped reference log (CSV), aligned in time with the recording.
     Log(AlignedLog),
+    /// The simulator's truth, read from its file as it streams by: only the segment means are kept, so a
+    /// 6-hour truth file (2 million samples, 0.5 GB in memory) costs no memory.
+    TruthFile(PathBuf),
 }
 
 /// Failures of [`Reference::open`].
@@ -34,15 +39,6 @@ pub enum OpenError {
         /// Why.
         #[source]
         source: std::io::Error,
-    },
-    /// The truth MCAP could not be read.
-    #[error("reading reference {path}")]
-    Truth {
-        /// The file.
-        path: std::path::PathBuf,
-        /// Why.
-        #[source]
-        source: imu_bus::mcap_read::McapReadError,
     },
     /// The reference log is invalid or cannot be aligned.
     #[error(transparent)]
@@ -90,11 +86,8 @@ impl Reference {
                     path: path.to_path_buf(),
                 });
             }
-            let truth = imu_bus::truth::read_truth(path).map_err(|source| OpenError::Truth {
-                path: path.to_path_buf(),
-                source,
-            })?;
-            return Ok(Some(Reference::Truth(truth)));
+            // Streamed into segment means when used: hours of truth cost no memory.
+            return Ok(Some(Reference::TruthFile(path.to_path_buf())));
         }
         let log = crate::reference_log::ReferenceLog::load(path)?;
         Ok(Some(Reference::Log(match offset_s {
@@ -136,7 +129,9 @@ impl Reference {
     ) -> Result<Segmentation, ReferenceError> {
         match self {
             Reference::Plan(p) => p.segmentation(series, opts),
-            Reference::Truth(_) | Reference::Log(_) => Ok(crate::segment::detect(series, opts)?),
+            Reference::Truth(_) | Reference::TruthFile(_) | Reference::Log(_) => {
+                Ok(crate::segment::detect(series, opts)?)
+            }
         }
     }
 
@@ -148,6 +143,7 @@ impl Reference {
     ) -> Result<Vec<SegmentTruth>, ReferenceError> {
         match self {
             Reference::Truth(t) => truth_for_segments(series, segments, t),
+            Reference::TruthFile(path) => truth_file_for_segments(series, segments, path),
             Reference::Plan(p) => Ok(p.segment_truth(series, segments)?),
             Reference::Log(l) => Ok(l.segment_truth(series, segments)?),
         }
@@ -160,7 +156,7 @@ impl Reference {
         segments: &[Segment],
     ) -> Result<ReferenceCaveats, ReferenceError> {
         match self {
-            Reference::Truth(_) => Ok(ReferenceCaveats::default()),
+            Reference::Truth(_) | Reference::TruthFile(_) => Ok(ReferenceCaveats::default()),
             Reference::Plan(p) => {
                 let c = p.caveats(series, segments)?;
                 Ok(ReferenceCaveats {
@@ -181,6 +177,7 @@ impl Reference {
             Reference::Truth(t) => format!("simulator truth ({} samples)", t.samples.len()),
             Reference::Plan(p) => p.describe(),
             Reference::Log(l) => l.describe(),
+            Reference::TruthFile(p) => format!("simulator truth {}", p.display()),
         }
     }
 }
@@ -240,6 +237,17 @@ pub enum ReferenceError {
     /// The reference log does not cover or fit the recording.
     #[error(transparent)]
     Log(#[from] ReferenceLogError),
+    /// The truth file could not be read.
+    #[error(transparent)]
+    Read(#[from] imu_bus::McapReadError),
+    /// A truth sample could not be decoded.
+    #[error("{path}: truth sample: {message}")]
+    Parse {
+        /// The truth file.
+        path: PathBuf,
+        /// What the JSON decoder said.
+        message: String,
+    },
 }
 
 /// Mean truth over each segment's samples. In an offline recording the k-th data sample is the
@@ -279,4 +287,123 @@ pub fn truth_for_segments(
             out
         })
         .collect())
+}
+
+/// The fields of a truth sample a segment mean needs (the rest of the JSON is skipped unparsed).
+#[derive(serde::Deserialize)]
+struct TruthInput {
+    command: u8,
+    specific_force_m_s2: [f64; 3],
+    angular_rate_rad_s: [f64; 3],
+    temp_c: f64,
+    time_since_power_on_s: f64,
+}
+
+/// Sums truth samples into their segments' means, one data sample after the other.
+struct SegmentAccumulator<'a> {
+    segments: &'a [Segment],
+    /// Segment indices in sample order, so one forward pass finds each sample's segment.
+    order: Vec<usize>,
+    next: usize,
+    /// Data samples seen.
+    k: usize,
+    out: Vec<SegmentTruth>,
+}
+
+impl<'a> SegmentAccumulator<'a> {
+    fn new(segments: &'a [Segment]) -> Self {
+        let mut order: Vec<usize> = (0..segments.len()).collect();
+        order.sort_by_key(|&i| segments[i].first_sample);
+        let zero = SegmentTruth {
+            specific_force_m_s2: [0.0; 3],
+            angular_rate_rad_s: [0.0; 3],
+            temp_c: 0.0,
+            time_since_power_on_s: 0.0,
+        };
+        SegmentAccumulator {
+            segments,
+            order,
+            next: 0,
+            k: 0,
+            out: vec![zero; segments.len()],
+        }
+    }
+
+    /// One truth message (JSON); data samples (command 0x01) count, others are skipped.
+    fn add(&mut self, json: &[u8]) -> Result<(), String> {
+        let s: TruthInput = serde_json::from_slice(json).map_err(|e| e.to_string())?;
+        if s.command != 0x01 {
+            return Ok(());
+        }
+        let k = self.k;
+        self.k += 1;
+        while self.next < self.order.len() && self.segments[self.order[self.next]].range().end <= k
+        {
+            self.next += 1;
+        }
+        if let Some(&i) = self.order.get(self.next)
+            && self.segments[i].range().contains(&k)
+        {
+            let (n, acc) = (self.segments[i].n as f64, &mut self.out[i]);
+            for a in 0..3 {
+                acc.specific_force_m_s2[a] += s.specific_force_m_s2[a] / n;
+                acc.angular_rate_rad_s[a] += s.angular_rate_rad_s[a] / n;
+            }
+            acc.temp_c += s.temp_c / n;
+            acc.time_since_power_on_s += s.time_since_power_on_s / n;
+        }
+        Ok(())
+    }
+}
+
+/// Truth messages handed from the reading thread to the parsing thread at a time.
+const BATCH_MESSAGES: usize = 4096;
+
+/// [`truth_for_segments`] streaming the truth file: the k-th data sample (command 0x01) is added
+/// to the segment holding sample k. Decompression (this thread) and JSON parsing (a second
+/// thread, fed in order through a short queue) overlap; memory stays a few batches.
+pub fn truth_file_for_segments(
+    series: &ImuSeries,
+    segments: &[Segment],
+    path: &std::path::Path,
+) -> Result<Vec<SegmentTruth>, ReferenceError> {
+    let (read, parsed) = std::thread::scope(|scope| {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Vec<u8>>>(4);
+        let parser = scope.spawn(move || {
+            let mut acc = SegmentAccumulator::new(segments);
+            for batch in rx {
+                for json in &batch {
+                    acc.add(json)?;
+                }
+            }
+            Ok::<_, String>((acc.k, acc.out))
+        });
+        let mut batch = Vec::with_capacity(BATCH_MESSAGES);
+        let read = imu_bus::mcap_read::for_each_message(path, |channel, _header, data| {
+            if channel.topic == imu_bus::truth::SAMPLE_TOPIC {
+                batch.push(data.to_vec());
+                if batch.len() == BATCH_MESSAGES {
+                    let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH_MESSAGES));
+                    // A closed queue means the parser failed; its error is reported below.
+                    let _ = tx.send(full);
+                }
+            }
+            Ok(())
+        });
+        let _ = tx.send(batch);
+        drop(tx);
+        (read, parser.join().expect("truth parser thread"))
+    });
+    read?;
+    let (k, out) = parsed.map_err(|message| ReferenceError::Parse {
+        path: path.to_path_buf(),
+        message,
+    })?;
+    if k < series.len() {
+        return Err(ReferenceError::TooShort {
+            truth_samples: k,
+            series_samples: series.len(),
+        });
+    }
+    Ok(out)
 }

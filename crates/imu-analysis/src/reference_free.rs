@@ -777,6 +777,7 @@ fn fit_gyro_static(
                 ..*c
             },
             t_s: 0.5 * (s.start_s + s.end_s),
+            duration_s: s.end_s - s.start_s,
         })
         .collect();
     let drift = opts.gyro_bias_drift_rad_s.unwrap_or([0.0; 3]);
@@ -787,6 +788,7 @@ fn fit_gyro_static(
         fixed: held(Triad::Gyro, &model.param_names(Triad::Gyro), &opts.hold),
         bias_drift: Some(drift.map(|d| (d * d + horizontal_rad_s * horizontal_rad_s).sqrt())),
         drift_model: false,
+        noise: None,
         shared_noise: None,
     };
     fit_triad(model, Triad::Gyro, &points, &fit_opts)

@@ -1,6 +1,9 @@
-//! Truth tests of the calibration fit: short simulated index-table and Earth-rate recordings
-//! through the daemon's offline pipeline, fitted against the simulator's truth; every fitted
-//! parameter must lie within 3 of its own standard errors of the hidden truth model.
+//! Truth tests of the calibration fit: short simulated index-table, Earth-rate and rate-table
+//! recordings through the daemon's offline pipeline, fitted against the simulator's truth. For
+//! fixed seeds every fitted parameter must lie within 3 of its own standard errors of the hidden
+//! truth model; over 20 seeds of each procedure the errors in standard errors must be distributed
+//! like a unit normal (about 95 % within 2 SE), so the standard errors are neither optimistic nor
+//! padded.
 
 use std::path::{Path, PathBuf};
 
@@ -89,6 +92,59 @@ orientation = { z = "north", x = "down", y = "west" }
 duration-s = 60.0
 "#;
 
+/// Paper 3.2.3 shortened: each axis in turn on a vertical table axis, plateaus at +/-40 and
+/// +/-80 deg/s for 10 s each, and a still position with that axis up and one with it down (so
+/// the g-sensitivity of every gyro axis is seen at +g and -g on every accel axis).
+const RATE_TABLE: &str = r#"
+name = "rate-table-short"
+rate-hz = 100.0
+latitude-deg = 40.0
+transition-s = 5.0
+
+[[segment]]
+kind = "static"
+orientation = { z = "up", x = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "rate-steps"
+axis = "z"
+rates-deg-s = [40, 80, -40, -80, 0]
+dwell-s = 10.0
+accel-deg-s2 = 40.0
+[[segment]]
+kind = "static"
+orientation = { z = "down", x = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "static"
+orientation = { x = "up", y = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "rate-steps"
+axis = "x"
+rates-deg-s = [40, 80, -40, -80, 0]
+dwell-s = 10.0
+accel-deg-s2 = 40.0
+[[segment]]
+kind = "static"
+orientation = { x = "down", y = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "static"
+orientation = { y = "up", z = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "rate-steps"
+axis = "y"
+rates-deg-s = [40, 80, -40, -80, 0]
+dwell-s = 10.0
+accel-deg-s2 = 40.0
+[[segment]]
+kind = "static"
+orientation = { y = "down", z = "north" }
+duration-s = 15.0
+"#;
+
 fn model_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/example-3dm-gx1.toml")
 }
@@ -97,14 +153,20 @@ struct Run {
     _dir: tempfile::TempDir,
     series: ImuSeries,
     truth: Reference,
+    truth_path: PathBuf,
     truth_model: Calibration,
 }
 
+/// Records `scenario_text` with `seed`, or with `$CAL_SEED` when set (to explore other seeds).
 fn record(scenario_text: &str, seed: u64) -> Run {
     let seed = std::env::var("CAL_SEED")
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(seed);
+    record_seed(scenario_text, seed)
+}
+
+fn record_seed(scenario_text: &str, seed: u64) -> Run {
     let dir = tempfile::tempdir().unwrap();
     let scenario = dir.path().join("scenario.toml");
     std::fs::write(&scenario, scenario_text).unwrap();
@@ -124,6 +186,7 @@ fn record(scenario_text: &str, seed: u64) -> Run {
         _dir: dir,
         series,
         truth,
+        truth_path,
         truth_model,
     }
 }
@@ -135,9 +198,12 @@ fn options(run: &Run) -> CalibrateOptions {
     let drift = |n: &Option<imu_model::NoiseModel>| {
         n.as_ref().map(|n| bias_drift_from_noise(n, duration_s))
     };
+
     CalibrateOptions {
         accel_bias_drift_m_s2: drift(&run.truth_model.accel.noise),
         gyro_bias_drift_rad_s: drift(&run.truth_model.gyro.noise),
+        accel_noise: run.truth_model.accel.noise.clone(),
+        gyro_noise: run.truth_model.gyro.noise.clone(),
         ..CalibrateOptions::default()
     }
 }
@@ -167,22 +233,6 @@ fn report(label: &str, z: &[(String, f64, f64, f64)]) {
     }
 }
 
-/// Calibration of the standard errors over several seeds: the errors in SE must look like a
-/// unit normal (RMS near 1, almost none beyond 3). With ~20 parameters per fit a single seed
-/// has a few per cent chance of one |z| > 3 even with exact standard errors.
-fn check_z_statistics(all: &[f64]) {
-    let rms = (all.iter().map(|z| z * z).sum::<f64>() / all.len() as f64).sqrt();
-    let beyond = all.iter().filter(|z| z.abs() > 3.0).count();
-    eprintln!("{} z-scores: RMS {rms:.2}, {beyond} beyond 3", all.len());
-    assert!((0.6..1.5).contains(&rms), "RMS z {rms}");
-    assert!(
-        beyond as f64 <= 0.03 * all.len() as f64,
-        "{beyond} of {}",
-        all.len()
-    );
-    assert!(all.iter().all(|z| z.abs() < 4.5), "{all:?}");
-}
-
 #[test]
 fn index_table_recovers_accel_bias_scale_misalignment() {
     let run = record(INDEX_TABLE, 11);
@@ -191,7 +241,6 @@ fn index_table_recovers_accel_bias_scale_misalignment() {
     // model includes it.
     let mut opts = options(&run);
     opts.accel.add(EffectKind::ScaleNonlinearity);
-    // (The same drift settings serve the other seeds below: same scenario, same duration.)
     let fit = calibrate(&run.series, &run.truth, &opts).unwrap();
     assert_eq!(
         fit.segmentation.count(SegmentKind::Static),
@@ -216,17 +265,6 @@ fn index_table_recovers_accel_bias_scale_misalignment() {
     for (n, f, t, z) in &z {
         assert!(z.abs() < 3.0, "{n}: fit {f:e} truth {t:e} ({z:.2} SE)");
     }
-    let mut all: Vec<f64> = z.iter().map(|r| r.3).collect();
-    for seed in [1, 3, 5] {
-        let r = record(INDEX_TABLE, seed);
-        let f = calibrate(&r.series, &r.truth, &opts).unwrap();
-        all.extend(
-            z_scores(&f.accel, &r.truth_model.accel, Triad::Accel)
-                .iter()
-                .map(|r| r.3),
-        );
-    }
-    check_z_statistics(&all);
     // Without plateaus the gyro gains are left out, and the bias is still fitted.
     assert!(fit.notes.iter().any(|n| n.contains("no rate plateaus")));
     assert!(fit.gyro.names.iter().all(|n| n.starts_with("bias")));
@@ -305,17 +343,6 @@ fn earth_rate_recovers_gyro_bias_and_g_sensitivity() {
     for (n, f, t, z) in &z {
         assert!(z.abs() < 3.0, "{n}: fit {f:e} truth {t:e} ({z:.2} SE)");
     }
-    let mut all: Vec<f64> = z.iter().map(|r| r.3).collect();
-    for seed in [1, 3, 7] {
-        let r = record(EARTH_RATE, seed);
-        let f = calibrate(&r.series, &r.truth, &opts).unwrap();
-        all.extend(
-            z_scores(&f.gyro, &r.truth_model.gyro, Triad::Gyro)
-                .iter()
-                .map(|r| r.3),
-        );
-    }
-    check_z_statistics(&all);
     // The bias is determined far better than its size (the floor is its instability).
     for i in 0..3 {
         assert!(fit.gyro.std_errors[i].unwrap() < 0.1 * fit.gyro.params[i].abs());
@@ -354,4 +381,188 @@ fn one_position_cannot_separate_g_sensitivity() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("still positions"), "{e}");
+}
+
+#[test]
+fn rate_table_recovers_gyro_scale_misalignment_and_g_sensitivity() {
+    let run = record(RATE_TABLE, 2);
+    let mut opts = options(&run);
+    opts.gyro.add(EffectKind::GSensitivity);
+    let fit = calibrate(&run.series, &run.truth, &opts).unwrap();
+    // The streamed truth file gives the same segment means as the truth in memory.
+    let streamed = Reference::TruthFile(run.truth_path.clone())
+        .segment_truth(&run.series, &fit.segmentation.segments)
+        .unwrap();
+    assert_eq!(streamed, fit.segment_truth);
+    // 6 still positions plus the 0 deg/s dwell that ends each axis's steps; 4 plateaus per axis.
+    assert_eq!(
+        fit.segmentation.count(SegmentKind::Plateau),
+        12,
+        "{:#?}",
+        fit.segmentation
+    );
+    assert_eq!(fit.segmentation.count(SegmentKind::Static), 9);
+    let z = z_scores(&fit.gyro, &run.truth_model.gyro, Triad::Gyro);
+    report("gyro", &z);
+    assert_eq!(z.len(), 21, "{:?}", fit.gyro.warnings);
+    for (n, f, t, z) in &z {
+        assert!(z.abs() < 3.0, "{n}: fit {f:e} truth {t:e} ({z:.2} SE)");
+    }
+    // Scale and misalignment are determined to a small fraction of their size.
+    // (0.014 deg/s at 1 rad/s; a sixth of the smallest hidden scale error.)
+    for (name, se) in fit.gyro.names.iter().zip(&fit.gyro.std_errors) {
+        if name.starts_with("scale") {
+            assert!(se.unwrap() < 2.5e-4, "{name}: {se:?}");
+        }
+    }
+}
+
+/// One calibration procedure of the coverage test: what is recorded, what is fitted and which
+/// triad's parameters are scored against the truth.
+struct Procedure {
+    name: &'static str,
+    scenario: &'static str,
+    /// Effects added to the default model (bias, scale, misalignment) of the scored triad.
+    extra: EffectKind,
+    scored: Triad,
+    /// Added to the coverage seeds, so the procedures draw independent noise.
+    seed_offset: u64,
+    /// Parameters every fit must have free (`None`: the 18 of the model less the unobservable
+    /// cubic nonlinearity terms).
+    n_free: Option<usize>,
+}
+
+const PROCEDURES: [Procedure; 3] = [
+    Procedure {
+        name: "index-table accel",
+        scenario: INDEX_TABLE,
+        extra: EffectKind::ScaleNonlinearity,
+        scored: Triad::Accel,
+        seed_offset: 1000,
+        n_free: None,
+    },
+    Procedure {
+        name: "earth-rate gyro",
+        scenario: EARTH_RATE,
+        extra: EffectKind::GSensitivity,
+        scored: Triad::Gyro,
+        seed_offset: 2000,
+        n_free: Some(12),
+    },
+    Procedure {
+        name: "rate-table gyro",
+        scenario: RATE_TABLE,
+        extra: EffectKind::GSensitivity,
+        scored: Triad::Gyro,
+        seed_offset: 3000,
+        n_free: Some(21),
+    },
+];
+
+/// Seeds of the coverage test (fixed, so the test is reproducible).
+const COVERAGE_SEEDS: std::ops::RangeInclusive<u64> = 1..=20;
+
+/// Fits one procedure for one seed; the scored triad's `(parameter, z)` pairs.
+fn procedure_z(p: &Procedure, seed: u64) -> Vec<(String, f64)> {
+    let run = record_seed(p.scenario, seed);
+    let mut opts = options(&run);
+    match p.scored {
+        Triad::Accel => opts.accel.add(p.extra),
+        _ => opts.gyro.add(p.extra),
+    }
+    let fit = calibrate(&run.series, &run.truth, &opts)
+        .unwrap_or_else(|e| panic!("{} seed {seed}: {e}", p.name));
+    let (f, truth) = match p.scored {
+        Triad::Accel => (&fit.accel, &run.truth_model.accel),
+        _ => (&fit.gyro, &run.truth_model.gyro),
+    };
+    // Only the cubic nonlinearity may be unobservable (60-degree steps make x^3 ~ x).
+    for u in &f.unobservable {
+        assert!(u.name.contains("cubic"), "{} seed {seed}: {u:?}", p.name);
+    }
+    let want = p.n_free.unwrap_or(18 - f.unobservable.len());
+    assert_eq!(
+        f.free.len(),
+        want,
+        "{} seed {seed}: {:?}",
+        p.name,
+        f.warnings
+    );
+    z_scores(f, truth, p.scored)
+        .into_iter()
+        .map(|(n, _, _, z)| (n, z))
+        .collect()
+}
+
+/// Issue 4 item 7: honest uncertainties. Every procedure is recorded and fitted for 20 seeds (its
+/// own 20, so the procedures draw independent noise) and each fitted parameter's error is
+/// expressed in its own standard error (z). With honest standard errors z is close to a unit
+/// normal: 95.4 % of |z| below 2, 0.27 % above 3.
+///
+/// Why not "every parameter within 3 SE in every seed": this test scores about 1000 parameters
+/// (20 seeds x (16..17 accel + 12 + 21 gyro)); with exact standard errors about 2.7 of them lie
+/// beyond 3 SE and the chance that none does is 0.9973^1000 = 7 %. So the strict per-seed check
+/// is made for fixed seeds in the procedure tests above (index table seed 11, Earth rate seed 5,
+/// rate table seed 2), and here the count beyond 3 SE is bounded by 1 % of the parameters
+/// (exceeded with probability below 0.1 % for a unit normal) and nothing may lie beyond 5 SE.
+/// The share within 2 SE must lie in 90-99 % overall, which fails both for standard errors too
+/// small by a quarter (share 87 %) and for ones padded by half (share 99.7 %).
+#[test]
+fn standard_errors_are_honest_over_20_seeds() {
+    // One thread per procedure (the seeds of one procedure run in order).
+    let per_procedure: Vec<Vec<(u64, String, f64)>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = PROCEDURES
+            .iter()
+            .map(|p| {
+                scope.spawn(move || {
+                    COVERAGE_SEEDS
+                        .map(|s| s + p.seed_offset)
+                        .flat_map(|seed| {
+                            procedure_z(p, seed)
+                                .into_iter()
+                                .map(move |(name, z)| (seed, name, z))
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let mut all: Vec<f64> = Vec::new();
+    let mut beyond_3: Vec<String> = Vec::new();
+    for (p, results) in PROCEDURES.iter().zip(per_procedure) {
+        let mut zs: Vec<f64> = Vec::new();
+        for (seed, name, z) in results {
+            if z.abs() >= 3.0 {
+                beyond_3.push(format!("{} seed {seed}: {name} z {z:.2}", p.name));
+            }
+            zs.push(z);
+        }
+        let within_2 = zs.iter().filter(|z| z.abs() < 2.0).count() as f64 / zs.len() as f64;
+        let rms = (zs.iter().map(|z| z * z).sum::<f64>() / zs.len() as f64).sqrt();
+        eprintln!(
+            "{}: {} parameters, {:.1} % within 2 SE, RMS z {rms:.2}",
+            p.name,
+            zs.len(),
+            100.0 * within_2
+        );
+        all.extend(zs);
+    }
+    let n = all.len() as f64;
+    let within_2 = all.iter().filter(|z| z.abs() < 2.0).count() as f64 / n;
+    let rms = (all.iter().map(|z| z * z).sum::<f64>() / n).sqrt();
+    let max = all.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+    eprintln!(
+        "all: {} parameters, {:.1} % within 2 SE, RMS z {rms:.2}, max |z| {max:.2}, {} beyond 3 SE",
+        all.len(),
+        100.0 * within_2,
+        beyond_3.len()
+    );
+    for b in &beyond_3 {
+        eprintln!("  beyond 3 SE: {b}");
+    }
+    assert!(all.len() >= 900, "{} parameters", all.len());
+    assert!((0.90..=0.99).contains(&within_2), "{within_2}");
+    assert!(beyond_3.len() as f64 <= 0.01 * n, "{beyond_3:#?}");
+    assert!(max < 5.0, "max |z| {max}");
 }

@@ -359,6 +359,7 @@ fn reference_free_is_about_as_precise_as_an_index_table() {
             std_error: Vec3::from(s.std_accel_m_s2.map(|x| x / (s.n as f64).sqrt())),
             conditions: Conditions::default(),
             t_s: 0.5 * (s.start_s + s.end_s),
+            duration_s: s.end_s - s.start_s,
         })
         .collect();
     let model = accel_model();

@@ -84,6 +84,17 @@ pub struct ReadReport {
 /// [`ReadReport::stopped_early`] set.
 pub fn for_each_message(
     path: &Path,
+    on_message: impl FnMut(&ChannelInfo, &MessageHeader, &[u8]) -> Result<(), String>,
+) -> Result<ReadReport, McapReadError> {
+    for_each_message_with_progress(path, &mut |_, _| {}, on_message)
+}
+
+/// [`for_each_message`], reporting `(bytes read so far, file size)` after every read from the
+/// file (monotone; the last call has `bytes read == file size` unless the read stopped early),
+/// for progress bars on long reads.
+pub fn for_each_message_with_progress(
+    path: &Path,
+    on_progress: &mut dyn FnMut(u64, u64),
     mut on_message: impl FnMut(&ChannelInfo, &MessageHeader, &[u8]) -> Result<(), String>,
 ) -> Result<ReadReport, McapReadError> {
     let io_err = |source| McapReadError::Io {
@@ -91,6 +102,9 @@ pub fn for_each_message(
         source,
     };
     let mut file = File::open(path).map_err(io_err)?;
+    let total_bytes = file.metadata().map_err(io_err)?.len();
+    let mut read_bytes: u64 = 0;
+    on_progress(0, total_bytes);
     // Chunk CRCs are checked as each chunk ends (not before its first message), so a damaged
     // chunk still delivers the records that precede the damage. The record length limit keeps a
     // corrupt length field from asking for gigabytes.
@@ -126,6 +140,8 @@ pub fn for_each_message(
                 if n == 0 {
                     hit_eof = true;
                 }
+                read_bytes += n as u64;
+                on_progress(read_bytes.min(total_bytes), total_bytes);
                 reader.notify_read(n);
             }
             LinearReadEvent::Record { opcode, data } => {
@@ -186,6 +202,10 @@ pub fn for_each_message(
             path: path.to_path_buf(),
             message: "no records".into(),
         });
+    }
+    if read_bytes < total_bytes && report.stopped_early.is_none() {
+        // The reader had all it needed before the end of the file (trailing bytes).
+        on_progress(total_bytes, total_bytes);
     }
     Ok(report)
 }

@@ -76,6 +76,17 @@ impl NoiseModel {
         })
     }
 
+    /// The bank of first-order Gauss-Markov processes that stands for the bias instability at
+    /// sample period `dt_s`, as `(correlation time s, variance per unit B^2)` per process: what
+    /// [`NoiseGenerator`] draws (each process with variance `B^2` times its unit variance), and
+    /// what a fit needs to know how the bias wanders between segment means.
+    pub fn flicker_bank(&self, dt_s: f64) -> Vec<(f64, f64)> {
+        let tau_max_s = self.bias_instability_tau_max_s;
+        let times = flicker_correlation_times(dt_s, tau_max_s);
+        let unit_var = flicker_unit_variance(dt_s, &times, tau_max_s);
+        times.into_iter().map(|t| (t, unit_var)).collect()
+    }
+
     /// Round each axis to its quantization step (axes with a zero step pass through).
     pub fn quantize(&self, v: Vec3) -> Vec3 {
         Vec3::from_fn(|i, _| {

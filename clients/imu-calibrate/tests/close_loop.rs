@@ -1,0 +1,333 @@
+//! Closing the loop (issue 4 item 8): a simulated session recorded through imud's offline path,
+//! calibrated by the `imu-calibrate` binary into a calibration file, that file loaded by imud for
+//! a second session with a new seed; the corrected stream (`/imu/data`) must then agree with the
+//! simulator's truth per static segment to the noise of a segment mean, far below the raw error.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use imu_analysis::ImuSeries;
+use imu_analysis::input::{Source, read_mcap};
+use imu_analysis::reference::{Reference, SegmentTruth};
+use imu_analysis::segment::{Segment, SegmentKind, SegmentOptions, detect};
+use imu_model::{Calibration, EffectKind, NoiseModel, TriadModel, Vec3};
+
+/// Two index-table sweeps (60-degree steps about x and y, 20 s per position), then each axis in
+/// turn on a vertical rate table (+/-40 and +/-80 deg/s) with a still position with that axis up
+/// and one with it down: accel gains and nonlinearity, gyro gains and g-sensitivity.
+const SCENARIO: &str = r#"
+name = "close-the-loop"
+rate-hz = 100.0
+latitude-deg = 40.0
+transition-s = 5.0
+
+[[segment]]
+kind = "static"
+orientation = { x = "north", z = "up" }
+duration-s = 20.0
+[[segment]]
+kind = "index-table"
+axis = "x"
+step-deg = 60.0
+positions = 6
+dwell-s = 20.0
+move-s = 3.0
+[[segment]]
+kind = "static"
+orientation = { y = "north", z = "up" }
+duration-s = 20.0
+[[segment]]
+kind = "index-table"
+axis = "y"
+step-deg = 60.0
+positions = 6
+dwell-s = 20.0
+move-s = 3.0
+
+[[segment]]
+kind = "static"
+orientation = { z = "up", x = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "rate-steps"
+axis = "z"
+rates-deg-s = [40, 80, -40, -80, 0]
+dwell-s = 10.0
+accel-deg-s2 = 40.0
+[[segment]]
+kind = "static"
+orientation = { z = "down", x = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "static"
+orientation = { x = "up", y = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "rate-steps"
+axis = "x"
+rates-deg-s = [40, 80, -40, -80, 0]
+dwell-s = 10.0
+accel-deg-s2 = 40.0
+[[segment]]
+kind = "static"
+orientation = { x = "down", y = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "static"
+orientation = { y = "up", z = "north" }
+duration-s = 15.0
+[[segment]]
+kind = "rate-steps"
+axis = "y"
+rates-deg-s = [40, 80, -40, -80, 0]
+dwell-s = 10.0
+accel-deg-s2 = 40.0
+[[segment]]
+kind = "static"
+orientation = { y = "down", z = "north" }
+duration-s = 15.0
+"#;
+
+fn truth_model_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/example-3dm-gx1.toml")
+}
+
+/// One offline session of `SCENARIO` under the example truth model (bias, scale, misalignment,
+/// scale nonlinearity, lever arm; gyro g-sensitivity); `calibration` is what imud applies.
+/// Returns the recording and the truth file.
+fn record(dir: &Path, name: &str, seed: u64, calibration: Option<&Path>) -> (PathBuf, PathBuf) {
+    let scenario = dir.join("scenario.toml");
+    std::fs::write(&scenario, SCENARIO).unwrap();
+    let mut sim = imu_sim::SimOptions::from_files(&scenario, Some(&truth_model_path())).unwrap();
+    sim.seed = seed;
+    let truth = dir.join(format!("{name}-truth.mcap"));
+    sim.truth_out = Some(truth.clone());
+    let mut config = imud::config::Config::default();
+    config.log.dir = dir.join(name);
+    config.name = name.into();
+    config.calibration.path = calibration.map(Path::to_path_buf);
+    let out = imud::offline::record(sim, &config).unwrap();
+    assert_eq!(out.files.len(), 1, "{:?}", out.files);
+    (out.files[0].clone(), truth)
+}
+
+/// What to fit, written as a model file: the effects (values are starting points) and the noise
+/// tables a noise characterisation would give (here the truth model's).
+fn write_model(path: &Path, truth: &Calibration) {
+    let with = |kinds: &[EffectKind], noise: &Option<NoiseModel>| {
+        let mut m = TriadModel::default();
+        kinds.iter().for_each(|k| m.add(*k));
+        m.noise = noise.clone();
+        m
+    };
+    use EffectKind::*;
+    let mut model = Calibration::identity();
+    model.accel = with(
+        &[Bias, Scale, Misalignment, ScaleNonlinearity],
+        &truth.accel.noise,
+    );
+    model.gyro = with(
+        &[Bias, Scale, Misalignment, GSensitivity],
+        &truth.gyro.noise,
+    );
+    model.save(path).unwrap();
+}
+
+/// Expected standard deviation of one axis of a segment mean about the truth: white noise
+/// averaged over the segment, the bias-instability bank's wander (each Gauss-Markov process
+/// shrunk by averaging over the segment) and the random walk over the recording.
+fn segment_mean_sigma(noise: &NoiseModel, axis: usize, segment_s: f64, recording_s: f64) -> f64 {
+    let white = noise.white_density[axis].powi(2) / segment_s;
+    let bank: f64 = noise
+        .flicker_bank(0.01)
+        .iter()
+        .map(|&(t_s, unit)| {
+            let x = segment_s / t_s;
+            let shrink = 2.0 * (x + (-x).exp_m1()) / (x * x);
+            noise.bias_instability[axis].powi(2) * unit * shrink
+        })
+        .sum();
+    let walk = noise.random_walk[axis].powi(2) * recording_s / 3.0;
+    (white + bank + walk).sqrt()
+}
+
+/// Mean of `x` over a segment's samples.
+fn mean(x: &[[f64; 3]], seg: &Segment) -> Vec3 {
+    seg.range()
+        .map(|i| Vec3::from(x[i]))
+        .fold(Vec3::zeros(), |a, v| a + v)
+        / seg.n as f64
+}
+
+/// RMS over segments of the vector error of segment means, raw and corrected, and the RMS of
+/// the expected noise of a segment mean.
+struct Errors {
+    raw: f64,
+    corrected: f64,
+    expected: f64,
+    n: usize,
+}
+
+fn errors(
+    segments: &[(&Segment, &SegmentTruth)],
+    raw: &[[f64; 3]],
+    corrected: &[[f64; 3]],
+    truth: impl Fn(&SegmentTruth) -> [f64; 3],
+    noise: &NoiseModel,
+    recording_s: f64,
+) -> Errors {
+    let (mut raw_sq, mut cor_sq, mut exp_sq) = (0.0, 0.0, 0.0);
+    for (seg, t) in segments {
+        let t = Vec3::from(truth(t));
+        raw_sq += (mean(raw, seg) - t).norm_squared();
+        cor_sq += (mean(corrected, seg) - t).norm_squared();
+        let len_s = seg.end_s - seg.start_s;
+        exp_sq += (0..3)
+            .map(|a| segment_mean_sigma(noise, a, len_s, recording_s).powi(2))
+            .sum::<f64>();
+    }
+    let n = segments.len() as f64;
+    Errors {
+        raw: (raw_sq / n).sqrt(),
+        corrected: (cor_sq / n).sqrt(),
+        expected: (exp_sq / n).sqrt(),
+        n: segments.len(),
+    }
+}
+
+/// The corrected error must be noise (within 3 times the expected noise of a segment mean; a
+/// second recording adds the calibration's own error, so about 1.4 times is expected) and at
+/// least `min_reduction` times below the raw error.
+fn check(what: &str, e: &Errors, min_reduction: f64) {
+    eprintln!(
+        "{what}: {} segments, RMS error of segment means: raw {:.3e}, corrected {:.3e}, \
+         expected noise {:.3e} (corrected / expected {:.2}, raw / corrected {:.0})",
+        e.n,
+        e.raw,
+        e.corrected,
+        e.expected,
+        e.corrected / e.expected,
+        e.raw / e.corrected
+    );
+    assert!(
+        e.corrected <= 3.0 * e.expected,
+        "{what}: {:.3e}",
+        e.corrected
+    );
+    assert!(
+        e.corrected * min_reduction <= e.raw,
+        "{what}: {:.3e}",
+        e.corrected
+    );
+}
+
+#[test]
+fn calibration_file_from_imu_calibrate_corrects_a_new_session_in_imud() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth_model = Calibration::load(&truth_model_path()).unwrap();
+
+    // 1. Calibration session (seed 101), fitted by the real binary into a real file.
+    let (recording, truth) = record(dir.path(), "cal", 101, None);
+    let model = dir.path().join("model.toml");
+    write_model(&model, &truth_model);
+    let cal_path = dir.path().join("imu0-calibration.toml");
+    let out = Command::new(env!("CARGO_BIN_EXE_imu-calibrate"))
+        .arg(&recording)
+        .arg("--reference")
+        .arg(&truth)
+        .arg("--model")
+        .arg(&model)
+        .arg("-o")
+        .arg(&cal_path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cal = Calibration::load(&cal_path).unwrap();
+    assert!(cal.gyro.has(EffectKind::GSensitivity));
+
+    // 2. A new session (seed 202) with imud applying that file.
+    let (recording, truth) = record(dir.path(), "check", 202, Some(&cal_path));
+    let rec = imu_bus::recording::read_recording(&recording).unwrap();
+    assert_eq!(
+        rec.calibrations.len(),
+        1,
+        "the calibration in force is logged"
+    );
+    assert_eq!(rec.calibrations[0].id, cal.content_id());
+    assert!(
+        rec.raw
+            .iter()
+            .all(|s| s.flags & imu_bus::sample::raw_flags::SATURATED == 0)
+    );
+    drop(rec);
+
+    let raw: ImuSeries = read_mcap(&recording, Source::Raw, None).unwrap();
+    let corrected: ImuSeries = read_mcap(&recording, Source::Corrected, None).unwrap();
+    assert_eq!(raw.len(), corrected.len());
+    let reference = Reference::Truth(imu_bus::truth::read_truth(&truth).unwrap());
+    let segmentation = detect(&raw, &SegmentOptions::default()).unwrap();
+    let segment_truth = reference
+        .segment_truth(&raw, &segmentation.segments)
+        .unwrap();
+    let of_kind = |k: SegmentKind| -> Vec<(&Segment, &SegmentTruth)> {
+        segmentation
+            .segments
+            .iter()
+            .zip(&segment_truth)
+            .filter(|(s, _)| s.kind == k)
+            .collect()
+    };
+    let statics = of_kind(SegmentKind::Static);
+    let plateaus = of_kind(SegmentKind::Plateau);
+    // 6 positions per sweep (the first one continues the still start), and per rate-table
+    // axis: up, the 0 deg/s dwell after the steps, down.
+    assert_eq!(statics.len(), 2 * 6 + 3 * 3, "{segmentation:#?}");
+    assert_eq!(plateaus.len(), 12, "{segmentation:#?}");
+    let recording_s = raw.t_s[raw.len() - 1];
+    let accel_noise = truth_model.accel.noise.as_ref().unwrap();
+    let gyro_noise = truth_model.gyro.noise.as_ref().unwrap();
+
+    check(
+        "accel, static segments (m/s^2)",
+        &errors(
+            &statics,
+            &raw.accel_m_s2,
+            &corrected.accel_m_s2,
+            |t| t.specific_force_m_s2,
+            accel_noise,
+            recording_s,
+        ),
+        10.0,
+    );
+    check(
+        "gyro, static segments (rad/s)",
+        &errors(
+            &statics,
+            &raw.gyro_rad_s,
+            &corrected.gyro_rad_s,
+            |t| t.angular_rate_rad_s,
+            gyro_noise,
+            recording_s,
+        ),
+        10.0,
+    );
+    // On the rate plateaus the raw error adds scale and misalignment (0.3 % of 80 deg/s is
+    // 4e-3 rad/s) to the bias; corrected, it is noise too. The plateaus are 9 s long, so the raw
+    // error is only about 18 times the noise of their means: ask for a factor 5.
+    check(
+        "gyro, rate plateaus (rad/s)",
+        &errors(
+            &plateaus,
+            &raw.gyro_rad_s,
+            &corrected.gyro_rad_s,
+            |t| t.angular_rate_rad_s,
+            gyro_noise,
+            recording_s,
+        ),
+        5.0,
+    );
+}
