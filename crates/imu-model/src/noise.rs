@@ -76,6 +76,25 @@ impl NoiseModel {
         })
     }
 
+    /// Expected standard deviation of one axis of a segment mean about the truth: white noise
+    /// averaged over `segment_s`, the bias-instability bank's wander (each Gauss-Markov process
+    /// shrunk by averaging over the segment) and the random walk over a recording of `span_s`
+    /// (its deviation from its mean, `K^2 T / 3`).
+    pub fn segment_mean_std(&self, axis: usize, segment_s: f64, span_s: f64) -> f64 {
+        let white = self.white_density[axis].powi(2) / segment_s;
+        let bank: f64 = self
+            .flicker_bank(0.01)
+            .iter()
+            .map(|&(t_s, unit)| {
+                let x = segment_s / t_s;
+                let shrink = 2.0 * (x + (-x).exp_m1()) / (x * x);
+                self.bias_instability[axis].powi(2) * unit * shrink
+            })
+            .sum();
+        let walk = self.random_walk[axis].powi(2) * span_s / 3.0;
+        (white + bank + walk).sqrt()
+    }
+
     /// The bank of first-order Gauss-Markov processes that stands for the bias instability at
     /// sample period `dt_s`, as `(correlation time s, variance per unit B^2)` per process: what
     /// [`NoiseGenerator`] draws (each process with variance `B^2` times its unit variance), and
