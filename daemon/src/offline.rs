@@ -8,7 +8,7 @@
 //! tools' accuracy tests are produced in seconds: `imud --sim SCENARIO --offline`.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use imu_bus::recording::{Recorder, RecordingConfig};
@@ -32,6 +32,75 @@ pub struct OfflineReport {
     pub files: Vec<PathBuf>,
     /// The truth file, if one was asked for.
     pub truth: Option<PathBuf>,
+}
+
+/// A simulated session on disk: one recording file and the simulator's truth of it.
+#[derive(Debug, Clone)]
+pub struct Session {
+    /// The recording (imud's MCAP).
+    pub recording: PathBuf,
+    /// The truth file (`<dir>/<name>-truth.mcap`).
+    pub truth: PathBuf,
+}
+
+/// Records the scenario file `scenario` under `truth_model` (default: the scenario's own) with
+/// `seed` into `dir` (recording under `<dir>/<name>/`, truth `<dir>/<name>-truth.mcap`), imud
+/// applying `calibration` if given, with every other setting at its default: the fixture the
+/// accuracy tests, end-to-end tests and benchmarks start from.
+pub fn record_session(
+    dir: &Path,
+    name: &str,
+    scenario: &Path,
+    truth_model: Option<&Path>,
+    seed: u64,
+    calibration: Option<&Path>,
+) -> anyhow::Result<Session> {
+    let mut sim = SimOptions::from_files(scenario, truth_model)?;
+    sim.seed = seed;
+    let truth = dir.join(format!("{name}-truth.mcap"));
+    sim.truth_out = Some(truth.clone());
+    let mut config = Config::default();
+    config.log.dir = dir.join(name);
+    config.name = name.into();
+    config.calibration.path = calibration.map(Path::to_path_buf);
+    let out = record(sim, &config)?;
+    anyhow::ensure!(
+        out.files.len() == 1,
+        "expected one recording file, got {:?}",
+        out.files
+    );
+    Ok(Session {
+        recording: out.files[0].clone(),
+        truth,
+    })
+}
+
+/// [`record_session`] from texts: the scenario and (optionally) the truth model are written to
+/// `<dir>/<name>-scenario.toml` and `<dir>/<name>-truth-model.toml` first.
+pub fn record_session_text(
+    dir: &Path,
+    name: &str,
+    scenario: &str,
+    truth_model: Option<&str>,
+    seed: u64,
+    calibration: Option<&Path>,
+) -> anyhow::Result<Session> {
+    let scenario_path = dir.join(format!("{name}-scenario.toml"));
+    std::fs::write(&scenario_path, scenario)
+        .with_context(|| format!("writing {}", scenario_path.display()))?;
+    let model_path = dir.join(format!("{name}-truth-model.toml"));
+    if let Some(text) = truth_model {
+        std::fs::write(&model_path, text)
+            .with_context(|| format!("writing {}", model_path.display()))?;
+    }
+    record_session(
+        dir,
+        name,
+        &scenario_path,
+        truth_model.map(|_| model_path.as_path()),
+        seed,
+        calibration,
+    )
 }
 
 /// Host wall-clock time the synthetic timestamps start at (2026-01-01T00:00:00Z), ns.

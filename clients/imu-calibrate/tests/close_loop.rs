@@ -118,17 +118,10 @@ fn record_scenario(
     seed: u64,
     calibration: Option<&Path>,
 ) -> (PathBuf, PathBuf) {
-    let mut sim = imu_sim::SimOptions::from_files(scenario, Some(truth_model)).unwrap();
-    sim.seed = seed;
-    let truth = dir.join(format!("{name}-truth.mcap"));
-    sim.truth_out = Some(truth.clone());
-    let mut config = imud::config::Config::default();
-    config.log.dir = dir.join(name);
-    config.name = name.into();
-    config.calibration.path = calibration.map(Path::to_path_buf);
-    let out = imud::offline::record(sim, &config).unwrap();
-    assert_eq!(out.files.len(), 1, "{:?}", out.files);
-    (out.files[0].clone(), truth)
+    let s =
+        imud::offline::record_session(dir, name, scenario, Some(truth_model), seed, calibration)
+            .unwrap();
+    (s.recording, s.truth)
 }
 
 /// What to fit, written as a model file: the effects (values are starting points) and the noise

@@ -8,119 +8,30 @@ use std::process::Command;
 
 use imu_model::{Calibration, EffectKind};
 
-/// The truth every test starts from: bias, scale and misalignment on both triads (the base
-/// model's effects), with the example 3DM-GX1's coloured noise.
-const BASE_TRUTH: &str = r#"
-format = "imud-calibration/1"
-id = "diagnose-base"
+fn config(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../config")
+        .join(rel)
+}
 
-[accel.misalignment]
-xy = 1.2e-3
-xz = -0.8e-3
-yx = 0.5e-3
-yz = 1.5e-3
-zx = -1.1e-3
-zy = 0.7e-3
-[accel.scale]
-value = [1.2e-3, -0.8e-3, 1.5e-3]
-[accel.bias]
-value = [0.25, -0.18, 0.32]
-[accel.noise]
-white-density = [1.5e-3, 1.5e-3, 1.8e-3]
-bias-instability = [1.27e-3, 9.8e-4, 4.2e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [2.0e-5, 2.0e-5, 2.0e-5]
-quantization-lsb = [2.1e-3, 2.1e-3, 2.1e-3]
-
-[gyro.misalignment]
-xy = -0.9e-3
-xz = 1.3e-3
-yx = 0.6e-3
-yz = -1.0e-3
-zx = 0.4e-3
-zy = 1.1e-3
-[gyro.scale]
-value = [2.0e-3, -1.5e-3, 3.0e-3]
-[gyro.bias]
-value = [8.7e-3, -6.1e-3, 1.05e-2]
-[gyro.noise]
-white-density = [1.0e-3, 1.0e-3, 1.0e-3]
-bias-instability = [2.4e-4, 2.4e-4, 2.4e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [1.0e-5, 1.0e-5, 1.0e-5]
-quantization-lsb = [2.6e-4, 2.6e-4, 2.6e-4]
-"#;
-
-/// Index table about x, then about y: 2 x 12 positions at 30 degrees, 20 s each (paper 3.1.2).
-const INDEX_TABLE: &str = r#"
-name = "index-table-diagnose"
-rate-hz = 100.0
-latitude-deg = 40.0
-
-[[segment]]
-kind = "static"
-orientation = { x = "north", z = "up" }
-duration-s = 20.0
-
-[[segment]]
-kind = "index-table"
-axis = "x"
-step-deg = 30.0
-positions = 12
-dwell-s = 20.0
-move-s = 3.0
-
-[[segment]]
-kind = "static"
-orientation = { y = "north", z = "up" }
-move-s = 5.0
-duration-s = 20.0
-
-[[segment]]
-kind = "index-table"
-axis = "y"
-step-deg = 30.0
-positions = 12
-dwell-s = 20.0
-move-s = 3.0
-"#;
-
-/// The hidden effect: gyro g-sensitivity (rad/s per m/s^2).
-const HIDDEN: &str = "[gyro.g-sensitivity]\nmatrix = [[1.5e-4, 0.0, 0.5e-4], [0.0, -1.2e-4, 0.0], [0.6e-4, 0.0, 2.0e-4]]\n";
-
-/// The model under test: bias + scale + misalignment on both triads.
-const MODEL: &str = r#"
-format = "imud-calibration/1"
-id = "base"
-[accel.bias]
-value = [0.0, 0.0, 0.0]
-[accel.scale]
-value = [0.0, 0.0, 0.0]
-[accel.misalignment]
-[gyro.bias]
-value = [0.0, 0.0, 0.0]
-[gyro.scale]
-value = [0.0, 0.0, 0.0]
-[gyro.misalignment]
-"#;
-
-/// Records the scenario with the hidden effect; returns (recording, truth, model file).
+/// Records the workbench demo (2 x 12 index-table positions; its truth hides a gyro
+/// g-sensitivity under bias, scale and misalignment); returns (recording, truth, base model:
+/// bias + scale + misalignment on both triads).
 fn record(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
-    let scenario_path = dir.join("scenario.toml");
-    std::fs::write(&scenario_path, INDEX_TABLE).unwrap();
-    let truth_path = dir.join("truth-model.toml");
-    std::fs::write(&truth_path, format!("{BASE_TRUTH}\n{HIDDEN}")).unwrap();
-    let mut sim = imu_sim::SimOptions::from_files(&scenario_path, Some(&truth_path)).unwrap();
-    sim.seed = 11;
-    let truth_out = dir.join("truth.mcap");
-    sim.truth_out = Some(truth_out.clone());
-    let mut c = imud::config::Config::default();
-    c.log.dir = dir.join("log");
-    c.name = "t".into();
-    let out = imud::offline::record(sim, &c).unwrap();
-    let model = dir.join("model.toml");
-    std::fs::write(&model, MODEL).unwrap();
-    (out.files[0].clone(), truth_out, model)
+    let s = imud::offline::record_session(
+        dir,
+        "t",
+        &config("scenarios/workbench-demo.toml"),
+        Some(&config("models/workbench-demo.toml")),
+        11,
+        None,
+    )
+    .unwrap();
+    (
+        s.recording,
+        s.truth,
+        config("models/bias-scale-misalignment.toml"),
+    )
 }
 
 fn run(args: &[&std::ffi::OsStr]) -> serde_json::Value {

@@ -148,20 +148,11 @@ fn record(scenario: &str, hidden: &str, seed: u64) -> Run {
 /// Records `scenario` with the truth model text `truth` through imud's offline path.
 fn record_with_truth(scenario: &str, truth: &str, seed: u64) -> Run {
     let dir = tempfile::tempdir().unwrap();
-    let scenario_path = dir.path().join("scenario.toml");
-    std::fs::write(&scenario_path, scenario).unwrap();
-    let truth_path = dir.path().join("truth-model.toml");
-    std::fs::write(&truth_path, truth).unwrap();
-    let mut sim = imu_sim::SimOptions::from_files(&scenario_path, Some(&truth_path)).unwrap();
-    sim.seed = seed;
-    let truth_out = dir.path().join("truth.mcap");
-    sim.truth_out = Some(truth_out.clone());
-    let mut c = imud::config::Config::default();
-    c.log.dir = dir.path().join("log");
-    c.name = "t".into();
-    let out = imud::offline::record(sim, &c).unwrap();
-    let series = read_mcap(&out.files[0], Source::Raw, None).unwrap();
-    let reference = Reference::Truth(read_truth(&truth_out).unwrap());
+    let session =
+        imud::offline::record_session_text(dir.path(), "t", scenario, Some(truth), seed, None)
+            .unwrap();
+    let series = read_mcap(&session.recording, Source::Raw, None).unwrap();
+    let reference = Reference::Truth(read_truth(&session.truth).unwrap());
     Run {
         _dir: dir,
         series,

@@ -72,18 +72,12 @@ fn record(scenario_text: &str, seed: u64) -> Run {
     let dir = tempfile::tempdir().unwrap();
     let scenario = dir.path().join("scenario.toml");
     std::fs::write(&scenario, scenario_text).unwrap();
-    let mut sim = imu_sim::SimOptions::from_files(&scenario, Some(&model_path())).unwrap();
-    sim.seed = seed;
-    let truth_path = dir.path().join("truth.mcap");
-    sim.truth_out = Some(truth_path.clone());
-    let mut c = imud::config::Config::default();
-    c.log.dir = dir.path().join("log");
-    c.name = "t".into();
-    let out = imud::offline::record(sim, &c).unwrap();
-    assert_eq!(out.files.len(), 1, "{:?}", out.files);
+    let session =
+        imud::offline::record_session(dir.path(), "t", &scenario, Some(&model_path()), seed, None)
+            .unwrap();
     Run {
-        series: read_mcap(&out.files[0], Source::Raw, None).unwrap(),
-        truth: Reference::Truth(read_truth(&truth_path).unwrap()),
+        series: read_mcap(&session.recording, Source::Raw, None).unwrap(),
+        truth: Reference::Truth(read_truth(&session.truth).unwrap()),
         truth_model: Calibration::load(&model_path()).unwrap(),
     }
 }
