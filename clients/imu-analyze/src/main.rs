@@ -126,20 +126,12 @@ fn main() -> ExitCode {
     let args = Args::parse();
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) if imu_analysis::cli::is_broken_pipe(e.chain()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("imu-analyze: error: {e:#}");
             ExitCode::from(exit_code(&e))
         }
     }
-}
-
-fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|cause| {
-        cause
-            .downcast_ref::<io::Error>()
-            .is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
-    })
 }
 
 /// sysexits-style codes: 66 an input could not be opened, 65 its data are unusable, 1 otherwise.

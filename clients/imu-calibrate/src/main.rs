@@ -571,16 +571,7 @@ fn main() -> ExitCode {
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let broken_pipe = e.chain().any(|c| {
-                c.downcast_ref::<std::io::Error>()
-                    .map(std::io::Error::kind)
-                    .or_else(|| {
-                        c.downcast_ref::<serde_json::Error>()
-                            .and_then(serde_json::Error::io_error_kind)
-                    })
-                    == Some(std::io::ErrorKind::BrokenPipe)
-            });
-            if broken_pipe {
+            if imu_analysis::cli::is_broken_pipe(e.chain()) {
                 return ExitCode::SUCCESS;
             }
             eprintln!("imu-calibrate: error: {e:#}");

@@ -5,6 +5,7 @@
 //! No device I/O and no tokio here: these are pure computations over files.
 
 pub mod allan;
+pub mod cli;
 pub mod diagnose;
 pub mod dynamic;
 pub mod fit;
