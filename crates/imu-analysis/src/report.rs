@@ -583,6 +583,52 @@ pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> S
     });
     figures(&mut h, &charts);
 
+    // Every other candidate explanatory signal, folded away: where the strongest correlate does
+    // not tell the story, the pattern may show against another.
+    let shown: Vec<String> = charts.iter().map(|c| c.title.clone()).collect();
+    let others: Vec<Chart> = signals
+        .iter()
+        .filter(|(name, values)| {
+            values.len() == d.segments.len()
+                && !shown.contains(&format!("{triad}: residual vs {name}"))
+        })
+        .map(|(name, values)| Chart {
+            title: format!("{triad}: residual vs {name}"),
+            x_label: name.clone(),
+            y_label: format!("residual [{unit}]"),
+            series: AXIS_NAMES
+                .iter()
+                .enumerate()
+                .map(|(a, axis)| {
+                    let r = d.structure[a]
+                        .correlates
+                        .iter()
+                        .find(|c| c.signal == *name)
+                        .map_or(0.0, |c| c.r);
+                    Series {
+                        name: format!("{axis} (r = {r:.2})"),
+                        points: values
+                            .iter()
+                            .zip(&d.segments)
+                            .map(|(x, s)| (*x, s.residual[a]))
+                            .collect(),
+                        style: Style::Points,
+                    }
+                })
+                .collect(),
+            ..Chart::default()
+        })
+        .collect();
+    if !others.is_empty() {
+        let _ = writeln!(
+            h,
+            "<details><summary>Residual against every other candidate signal ({})</summary>",
+            others.len()
+        );
+        figures(&mut h, &others);
+        h.push_str("</details>\n");
+    }
+
     if !d.spectral_lines.is_empty() {
         h.push_str("<h3>Spectral lines</h3>\n");
         let rows: Vec<Vec<String>> = d

@@ -586,6 +586,18 @@ fn report_sections_show_the_verdict_the_ladder_and_charts() {
     assert!(section.html.contains(&escape(&gyro.verdict)));
     assert!(section.html.contains("<svg"));
     assert!(section.html.contains("residual vs"), "no correlate chart");
+    // Every candidate signal has its chart: temperature and time since power-on among them.
+    for name in [
+        "temperature",
+        "time since power-on",
+        "specific force x",
+        "rotation rate",
+    ] {
+        assert!(
+            section.html.contains(&format!("residual vs {name}")),
+            "no chart against {name}"
+        );
+    }
     assert!(section.html.contains("Allan deviation"));
     assert!(section.html.contains("g-sensitivity"));
     assert!(section.html.contains("Model change"));
