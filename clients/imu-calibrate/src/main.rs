@@ -114,6 +114,15 @@ struct JsonOut<'a> {
     truth_comparison: Option<Vec<TruthRow>>,
 }
 
+/// The input files' hashes, computed while the recording is read and fitted (hundreds of MB
+/// take a noticeable fraction of a second).
+type Hashing = std::thread::JoinHandle<Result<Vec<InputFile>>>;
+
+/// Starts hashing `paths` in the background.
+fn hash_in_background(paths: Vec<PathBuf>) -> Hashing {
+    std::thread::spawn(move || paths.iter().map(|p| input_file(p)).collect())
+}
+
 /// The input's path and SHA-256.
 fn input_file(path: &Path) -> Result<InputFile> {
     imu_analysis::provenance::input_file(path)
@@ -362,16 +371,15 @@ fn print_reference_free(
 /// the parameters that were held.
 fn stamp(
     cal: &mut Calibration,
-    inputs: &[&Path],
+    inputs: Hashing,
     notes: &[String],
     held: Vec<String>,
 ) -> Result<()> {
     cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
     cal.provenance.tool = Some(format!("imu-calibrate {}", env!("CARGO_PKG_VERSION")));
     cal.provenance.inputs = inputs
-        .iter()
-        .map(|p| input_file(p))
-        .collect::<Result<Vec<_>>>()?;
+        .join()
+        .map_err(|_| anyhow::anyhow!("the input hashing thread panicked"))??;
     if !notes.is_empty() || !held.is_empty() {
         let mut text = notes.join("; ");
         if !held.is_empty() {
@@ -408,18 +416,23 @@ fn run(cli: &Cli) -> Result<()> {
     if !cli.reference_free && (cli.gravity_m_s2.is_some() || cli.latitude_deg.is_some()) {
         bail!("--gravity-m-s2 and --latitude-deg apply to --reference-free only");
     }
+    let inputs = std::iter::once(&cli.recording)
+        .chain(cli.plan.as_ref().or(cli.reference.as_ref()))
+        .cloned()
+        .collect();
+    let hashing = hash_in_background(inputs);
     let series = read_any(&cli.recording, Source::Raw, &CsvOptions::default())
         .with_context(|| format!("reading {}", cli.recording.display()))?;
     if series.is_empty() {
         bail!("{}: no samples", cli.recording.display());
     }
     match load_reference(cli, &series)? {
-        Some((reference, path)) => run_reference(cli, &series, &reference, &path),
-        None => run_reference_free(cli, &series),
+        Some((reference, path)) => run_reference(cli, &series, &reference, &path, hashing),
+        None => run_reference_free(cli, &series, hashing),
     }
 }
 
-fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries) -> Result<()> {
+fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries, hashing: Hashing) -> Result<()> {
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let base = options(cli.model.as_deref(), duration_s)?;
     let opts = ReferenceFreeOptions {
@@ -443,7 +456,7 @@ fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries) -> Result<()>
                 .map(|u| format!("{} {}", f.triad, u.name))
         })
         .collect();
-    stamp(&mut fit.calibration, &[&cli.recording], &fit.notes, held)?;
+    stamp(&mut fit.calibration, hashing, &fit.notes, held)?;
     if let Some(path) = &cli.output {
         fit.calibration
             .save(path)
@@ -496,6 +509,7 @@ fn run_reference(
     series: &imu_analysis::ImuSeries,
     truth: &Reference,
     reference: &Path,
+    hashing: Hashing,
 ) -> Result<()> {
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let opts = options(cli.model.as_deref(), duration_s)?;
@@ -525,7 +539,7 @@ fn run_reference(
                 .map(|u| format!("gyro {}", u.name)),
         )
         .collect();
-    stamp(cal, &[&cli.recording, reference], &fit.notes, held)?;
+    stamp(cal, hashing, &fit.notes, held)?;
     if let Some(path) = &cli.output {
         cal.save(path)
             .with_context(|| format!("writing {}", path.display()))?;
