@@ -799,11 +799,12 @@ impl<'a> Workbench<'a> {
         let chi2: f64 = chi2_axis.iter().sum();
         let p_value = stats::chi2_sf(chi2, dof as f64);
         let free_per_axis = base.free.len() as f64 / 3.0;
+        let floor_expected = expected_residual_rms(points, &base.jacobian_raw, &shared);
         let axes: [AxisVerdict; 3] = std::array::from_fn(|a| {
             let dof_a = (n as f64 - free_per_axis).max(1.0);
             AxisVerdict {
                 residual_rms: base.residual_rms[a],
-                noise_floor_rms: floor_rms(points, a, free_per_axis, &shared[a]),
+                noise_floor_rms: floor_expected[a],
                 noise_floor_with_drift_rms: 0.0,
                 chi2: chi2_axis[a],
                 dof: dof_a,
@@ -952,8 +953,9 @@ impl<'a> Workbench<'a> {
         let p_value_with_drift =
             stats::chi2_sf(chi2_drift, dof.saturating_sub(drift_params).max(1) as f64);
         let mut axes = axes;
+        let with_drift_expected = expected_residual_rms(points, &base.jacobian_raw, &with_drift);
         for (a, v) in axes.iter_mut().enumerate() {
-            v.noise_floor_with_drift_rms = floor_rms(points, a, free_per_axis, &with_drift[a]);
+            v.noise_floor_with_drift_rms = with_drift_expected[a];
         }
         let consistent = consistent_before && spectral_lines.is_empty();
         let consistent_with_drift = (consistent_before || p_value_with_drift >= self.opts.alpha)
@@ -1211,20 +1213,47 @@ fn profile_axis(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) 
     (best.2, best.0, best.1)
 }
 
-/// RMS the residuals of one axis would have if the model were right: the trace of the
-/// centred covariance of the means (their own floor plus the shared flicker and random walk
-/// about their common mean) over n, scaled by the fit's degrees of freedom.
-fn floor_rms(points: &[FitPoint], a: usize, free_per_axis: f64, shared: &SharedNoise) -> f64 {
+/// RMS per axis the residuals of a fit with raw Jacobian `x` (rows `3 k + axis`) would have if
+/// the model were right and the means had their own floor plus the `shared` noise. The fit is
+/// generalised least squares, whose estimates (the bias above all) are not plain means when the
+/// means are correlated: with `C` that covariance (block-diagonal over axes) and the residual
+/// maker `M = I - X (X^T C^-1 X)^-1 X^T C^-1`, the expected residual covariance is `M C M^T`.
+fn expected_residual_rms(
+    points: &[FitPoint],
+    x: &imu_model::nalgebra::DMatrix<f64>,
+    shared: &[SharedNoise; 3],
+) -> [f64; 3] {
+    use imu_model::nalgebra::DMatrix;
     let n = points.len();
-    if n == 0 {
-        return 0.0;
+    let big = 3 * n;
+    let mut c = DMatrix::zeros(big, big);
+    for (a, sh) in shared.iter().enumerate() {
+        let ca = segment_covariance(points, a, sh, 1.0);
+        for k in 0..n {
+            for l in 0..n {
+                c[(3 * k + a, 3 * l + a)] = ca[(k, l)];
+            }
+        }
     }
-    let c = segment_covariance(points, a, shared, 1.0);
-    let nf = n as f64;
-    let total: f64 = c.iter().sum();
-    let trace_pcp = c.trace() - total / nf;
-    let dof_factor = ((nf - free_per_axis) / nf).max(0.0);
-    (trace_pcp.max(0.0) / nf * dof_factor).sqrt()
+    let per_axis = |e: &DMatrix<f64>| -> [f64; 3] {
+        std::array::from_fn(|a| {
+            ((0..n).map(|k| e[(3 * k + a, 3 * k + a)]).sum::<f64>() / n.max(1) as f64)
+                .max(0.0)
+                .sqrt()
+        })
+    };
+    let Some(ch) = c.clone().cholesky() else {
+        return per_axis(&c);
+    };
+    if x.nrows() != big || x.ncols() == 0 {
+        return per_axis(&c);
+    }
+    let cinv_x = ch.solve(x);
+    let Some(info_inv) = (x.transpose() * &cinv_x).try_inverse() else {
+        return per_axis(&c);
+    };
+    let m = DMatrix::identity(big, big) - x * info_inv * cinv_x.transpose();
+    per_axis(&(&m * &c * m.transpose()))
 }
 
 fn normalised(res: &[[f64; 3]], points: &[FitPoint]) -> Vec<f64> {

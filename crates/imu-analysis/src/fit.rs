@@ -137,6 +137,10 @@ pub struct FitResult {
     pub residual_rms: [f64; 3],
     /// Per-observation residuals (triad unit).
     pub residuals: Vec<[f64; 3]>,
+    /// Jacobian of the raw residuals (rows `3 k + axis`) with respect to the free parameters
+    /// at the solution: what the expected residual under a covariance needs.
+    #[serde(skip)]
+    pub jacobian_raw: DMatrix<f64>,
     /// Weighted sum of squared residuals.
     pub chi2: f64,
     /// The weighted sum of squared residuals per axis.
@@ -410,13 +414,14 @@ fn raw_residuals(model: &mut TriadModel, p: &[f64], points: &[FitPoint]) -> DVec
     r
 }
 
-/// Numeric Jacobian of the whitened residuals with respect to the free parameters.
+/// Numeric Jacobian of the residuals (whitened by `w`, raw without) with respect to the free
+/// parameters.
 fn jacobian(
     model: &mut TriadModel,
     p: &[f64],
     free: &[usize],
     points: &[FitPoint],
-    w: &Whitener,
+    w: Option<&Whitener>,
 ) -> DMatrix<f64> {
     let mut j = DMatrix::zeros(3 * points.len(), free.len());
     let mut q = p.to_vec();
@@ -427,7 +432,11 @@ fn jacobian(
         q[i] = p[i] - h;
         let down = raw_residuals(model, &q, points);
         q[i] = p[i];
-        j.set_column(c, &w.apply(&((up - down) / (2.0 * h))));
+        let d = (up - down) / (2.0 * h);
+        match w {
+            Some(w) => j.set_column(c, &w.apply(&d)),
+            None => j.set_column(c, &d),
+        }
     }
     model.set_params(p);
     j
@@ -449,7 +458,7 @@ fn solve(
     let mut iterations = 0;
     while iterations < opts.max_iterations {
         iterations += 1;
-        let j = jacobian(m, p, free, points, w);
+        let j = jacobian(m, p, free, points, Some(w));
         let a = j.transpose() * &j;
         let g = j.transpose() * &r;
         let mut improved = false;
@@ -552,7 +561,7 @@ fn find_unobservable(
         if free.is_empty() {
             return out;
         }
-        let j = jacobian(model, p, free, points, &w);
+        let j = jacobian(model, p, free, points, Some(&w));
         let norms: Vec<f64> = (0..free.len()).map(|c| j.column(c).norm()).collect();
         let max_norm = norms.iter().copied().fold(0.0, f64::max);
         if let Some(c) = norms
@@ -682,7 +691,7 @@ pub fn fit_triad(
 
     let dof = n_obs - free.len();
     let reduced_chi2 = cost / dof as f64;
-    let j = jacobian(&mut m, &p, &free, points, &w);
+    let j = jacobian(&mut m, &p, &free, points, Some(&w));
     let a = j.transpose() * &j;
     let mut warnings = Vec::new();
     // Scale by the reduced chi-square only upwards: below 1 the white errors are trusted.
@@ -739,6 +748,7 @@ pub fn fit_triad(
     let residual_rms = sq.map(|s| (s / points.len() as f64).sqrt());
     let raw_final = raw_residuals(&mut m, &p, points);
     let chi2_axis = std::array::from_fn(|a| w.axis_chi2(&raw_final, a));
+    let jacobian_raw = jacobian(&mut m, &p, &free, points, None);
     // Standard errors go into the model per effect; an effect with a held parameter gets none
     // (a 0 would claim the held value is exact).
     let mut rest = std_errors.as_slice();
@@ -761,6 +771,7 @@ pub fn fit_triad(
         unobservable,
         residual_rms,
         residuals: residuals_u,
+        jacobian_raw,
         chi2: cost,
         chi2_axis,
         dof,

@@ -244,7 +244,8 @@ fn show_ladder(l: &Ladder) {
 
 /// The criteria (a)-(c) for one hidden effect on one triad.
 ///
-/// `max_ratio` is the 1.2 except where noted at the call.
+/// `max_ratio` is the 1.2: the residual RMS over the noise floor with the bias wander
+/// the residuals show (both axes' expectations from the fit's own residual maker).
 fn assert_found(
     scenario: &str,
     hidden: &str,
@@ -275,7 +276,11 @@ fn assert_found(
         &last.accel
     };
     let ratio = rms_ratio(s);
-    eprintln!("RATIO {effect}: {ratio:.3}");
+    let strict = {
+        let sq = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
+        (sq(&s.residual_rms) / sq(&s.noise_floor_rms)).sqrt()
+    };
+    eprintln!("RATIO {effect}: {ratio:.3} strict {strict:.3}");
     assert!(
         ratio <= max_ratio,
         "residual RMS {ratio:.2}x the noise floor"
@@ -344,7 +349,7 @@ fn finds_hidden_accel_lever_arm_on_the_rate_table() {
         Triad::Accel,
         EffectKind::LeverArm,
         15,
-        1.25, // measured 1.20: plateau accel means scatter a little more than static ones
+        1.2,
     );
 }
 
