@@ -51,7 +51,9 @@ struct DiagnoseArgs {
     #[command(flatten)]
     reference: RefArgs,
     /// Calibration-format file whose accel and gyro effects are the model under test (default:
-    /// bias + scale + misalignment for both).
+    /// bias + scale + misalignment for both). Its `[accel.noise]`/`[gyro.noise]` tables (e.g.
+    /// imu-noise's characterisation of a long static recording), if any, are the noise floor
+    /// instead of the one measured from this recording's static segments.
     #[arg(long, value_name = "MODEL.toml")]
     model: Option<PathBuf>,
     /// Add an effect to the model: `gyro:g-sensitivity`, `accel:scale-nonlinearity`, or a bare
@@ -109,7 +111,8 @@ struct LadderArgs {
     #[command(flatten)]
     reference: RefArgs,
     /// Calibration-format file whose accel and gyro effects are the first rung (default: bias +
-    /// scale + misalignment for both).
+    /// scale + misalignment for both). Its noise tables, if any, are the noise floor (see
+    /// `--model` of the default command).
     #[arg(long, value_name = "MODEL.toml")]
     base: Option<PathBuf>,
     /// Write the final calibration here (loadable by imud).
@@ -212,6 +215,17 @@ fn load_model(path: Option<&Path>) -> Result<Calibration> {
         effects_only(&cal.gyro)
     };
     Ok(cal)
+}
+
+/// Workbench options: the model file's noise tables, if any, as the noise floor.
+fn options(path: Option<&Path>) -> Result<DiagnoseOptions> {
+    let mut opts = DiagnoseOptions::default();
+    if let Some(p) = path {
+        let cal = Calibration::load(p).with_context(|| format!("loading model {}", p.display()))?;
+        opts.accel_noise = cal.accel.noise;
+        opts.gyro_noise = cal.gyro.noise;
+    }
+    Ok(opts)
 }
 
 /// Parses `--add`: `triad:effect` or a bare effect id (every triad of accel and gyro it applies
@@ -436,7 +450,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
         }
     }
     let (series, truth) = read_inputs(recording, reference)?;
-    let wb = Workbench::new(&series, &truth, DiagnoseOptions::default())
+    let wb = Workbench::new(&series, &truth, options(a.model.as_deref())?)
         .with_context(|| format!("segmenting {}", recording.display()))?;
     let accel = wb.diagnose(Triad::Accel, &model.accel)?;
     let gyro = wb.diagnose(Triad::Gyro, &model.gyro)?;
@@ -499,7 +513,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
 fn run_ladder(a: &LadderArgs) -> Result<()> {
     let base = load_model(a.base.as_deref())?;
     let (series, truth) = read_inputs(&a.recording, &a.reference)?;
-    let wb = Workbench::new(&series, &truth, DiagnoseOptions::default())
+    let wb = Workbench::new(&series, &truth, options(a.base.as_deref())?)
         .with_context(|| format!("segmenting {}", a.recording.display()))?;
     let Ladder {
         steps,

@@ -158,3 +158,40 @@ fn bad_add_is_a_clear_error() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("unknown effect"), "{err}");
 }
+
+/// A model file with noise tables (a characterisation of the sensor's noise): they become the
+/// noise floor, and the missing effect is still found.
+#[test]
+fn noise_tables_of_the_model_file_are_the_floor() {
+    let dir = tempfile::tempdir().unwrap();
+    let (rec, truth, base) = record(dir.path());
+    let truth_model = Calibration::load(&config("models/workbench-demo.toml")).unwrap();
+    let mut model = Calibration::load(&base).unwrap();
+    model.accel.noise = truth_model.accel.noise.clone();
+    model.gyro.noise = truth_model.gyro.noise.clone();
+    let model_path = dir.path().join("model-with-noise.toml");
+    model.save(&model_path).unwrap();
+
+    let j = run(&[
+        rec.as_os_str(),
+        "--reference".as_ref(),
+        truth.as_os_str(),
+        "--model".as_ref(),
+        model_path.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    let gyro = &j["diagnoses"][1];
+    assert_eq!(
+        gyro["noise_floor"]["source"], "the given noise characterisation",
+        "{gyro}"
+    );
+    let white = gyro["noise_floor"]["white_per_sqrt_hz"][0]
+        .as_f64()
+        .unwrap();
+    assert_eq!(
+        white,
+        truth_model.gyro.noise.as_ref().unwrap().white_density[0]
+    );
+    assert_eq!(gyro["candidates"][0]["effect"], "g-sensitivity", "{gyro}");
+    assert_eq!(gyro["candidates"][0]["claimed"], true, "{gyro}");
+}
