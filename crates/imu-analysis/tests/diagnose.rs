@@ -58,39 +58,9 @@ random-walk = [1.0e-5, 1.0e-5, 1.0e-5]
 quantization-lsb = [2.6e-4, 2.6e-4, 2.6e-4]
 "#;
 
-/// Index table about x, then about y: 2 x 12 positions at 30 degrees, 20 s each (paper 3.1.2).
-const INDEX_TABLE: &str = r#"
-name = "index-table-diagnose"
-rate-hz = 100.0
-latitude-deg = 40.0
-
-[[segment]]
-kind = "static"
-orientation = { x = "north", z = "up" }
-duration-s = 20.0
-
-[[segment]]
-kind = "index-table"
-axis = "x"
-step-deg = 30.0
-positions = 12
-dwell-s = 20.0
-move-s = 3.0
-
-[[segment]]
-kind = "static"
-orientation = { y = "north", z = "up" }
-move-s = 5.0
-duration-s = 20.0
-
-[[segment]]
-kind = "index-table"
-axis = "y"
-step-deg = 30.0
-positions = 12
-dwell-s = 20.0
-move-s = 3.0
-"#;
+/// Index table about x, then about y: 2 x 12 positions at 30 degrees, 20 s each (paper 3.1.2):
+/// the shipped workbench demo's motion (its own truth model is overridden by each test's).
+const INDEX_TABLE: &str = include_str!("../../../config/scenarios/workbench-demo.toml");
 
 /// Rate table (paper 3.2.3): each axis vertical in turn, steps of both signs, 10 s plateaus.
 const RATE_TABLE: &str = r#"
