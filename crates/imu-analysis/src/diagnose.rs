@@ -117,10 +117,12 @@ pub struct NoiseFloor {
     pub white_per_sqrt_hz: [f64; 3],
     /// Bias instability per axis, U (the Allan floor is 0.664 of it).
     pub bias_instability: [f64; 3],
-    /// Random walk used for the drift between segments per axis, U sqrt(Hz).
+    /// Random walk fitted to the pooled Allan deviation per axis, U sqrt(Hz) (reported; the
+    /// floor itself uses the Allan variance at each segment's length).
     pub random_walk_sqrt_hz: [f64; 3],
-    /// True where the random walk is only an upper bound (not resolved by the data).
-    pub random_walk_is_bound: [bool; 3],
+    /// True where the data do not resolve the random walk (the value is then the fit's, possibly
+    /// 0; the candidate tests profile the drift from the residuals instead).
+    pub random_walk_unresolved: [bool; 3],
     /// Quantization per axis, U s.
     pub quantization_s: [f64; 3],
     /// Flicker Allan variance floor per axis, U^2 (`(0.664 B)^2`): its long-range correlation
@@ -181,7 +183,7 @@ impl NoiseFloor {
             white_per_sqrt_hz: m.white_density,
             bias_instability: m.bias_instability,
             random_walk_sqrt_hz: m.random_walk,
-            random_walk_is_bound: [false; 3],
+            random_walk_unresolved: [false; 3],
             quantization_s: m.quantization_lsb.map(|q| q / 12f64.sqrt() * tau0),
             flicker_var: m
                 .bias_instability
@@ -240,7 +242,7 @@ pub fn measure_noise_floor(
         white_per_sqrt_hz: [0.0; 3],
         bias_instability: [0.0; 3],
         random_walk_sqrt_hz: [0.0; 3],
-        random_walk_is_bound: [false; 3],
+        random_walk_unresolved: [false; 3],
         quantization_s: [0.0; 3],
         flicker_var: [0.0; 3],
         allan: Default::default(),
@@ -310,7 +312,7 @@ fn apply_terms(floor: &mut NoiseFloor, axis: usize, t: &NoiseTerms) {
     // marked as such (the candidate tests profile the drift from the residuals anyway).
     let k = &t.k_u_sqrt_hz;
     floor.random_walk_sqrt_hz[axis] = k.value;
-    floor.random_walk_is_bound[axis] = !k.significant;
+    floor.random_walk_unresolved[axis] = !k.significant;
 }
 
 /// The observations of one triad with the noise floor as their standard errors.
