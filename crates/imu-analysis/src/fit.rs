@@ -877,16 +877,30 @@ pub enum CalibrateError {
     },
 }
 
+/// The parameter name (`effect.name.x`) of a validation error's key (`effect.name[0]`).
+pub(crate) fn invalid_param_name(key: &str) -> String {
+    match key.strip_suffix(']').and_then(|k| k.rsplit_once('[')) {
+        Some((base, i)) => match i {
+            "0" => format!("{base}.x"),
+            "1" => format!("{base}.y"),
+            "2" => format!("{base}.z"),
+            _ => key.to_string(),
+        },
+        None => key.to_string(),
+    }
+}
+
 /// [`fit_triad`], then make sure the fitted model is one imud can load: while validation
 /// rejects a fitted parameter (in practice a cubic nonlinearity that data within +/-1 g cannot
 /// pin down, extrapolated to the +/-20 g over which the model must stay invertible), that
-/// parameter is held at its start value, reported as unobservable, and the rest refitted.
-fn fit_loadable(
+/// parameter is held at 0 (no such term), reported as unobservable, and the rest refitted.
+pub(crate) fn fit_loadable(
     model: &TriadModel,
     triad: Triad,
     points: &[FitPoint],
     opts: &FitOptions,
 ) -> Result<FitResult, CalibrateError> {
+    let mut start = model.clone();
     let mut fixed = vec![false; model.n_params()];
     let mut held: Vec<Unobservable> = Vec::new();
     loop {
@@ -894,7 +908,7 @@ fn fit_loadable(
             fixed: fixed.clone(),
             ..opts.clone()
         };
-        let mut r = fit_triad(model, triad, points, &o)?;
+        let mut r = fit_triad(&start, triad, points, &o)?;
         let Err(e) = r.model.validate(triad) else {
             for u in &held {
                 r.warnings
@@ -903,16 +917,7 @@ fn fit_loadable(
             r.unobservable.extend(held);
             return Ok(r);
         };
-        // `effect.name[i]` names parameter `effect.name.<axis i>`.
-        let name = match e.key.strip_suffix(']').and_then(|k| k.rsplit_once('[')) {
-            Some((base, i)) => match i {
-                "0" => format!("{base}.x"),
-                "1" => format!("{base}.y"),
-                "2" => format!("{base}.z"),
-                _ => e.key.clone(),
-            },
-            None => e.key.clone(),
-        };
+        let name = invalid_param_name(&e.key);
         let Some(i) = r
             .names
             .iter()
@@ -929,11 +934,14 @@ fn fit_loadable(
         held.push(Unobservable {
             name,
             reason: format!(
-                "fitted to {:.3e}{se}, it makes the model invalid ({}); held at its start value",
+                "fitted to {:.3e}{se}, it makes the model invalid ({}); held at 0 (no such term)",
                 r.params[i], e.message
             ),
         });
         fixed[i] = true;
+        let mut p = start.params();
+        p[i] = 0.0;
+        start.set_params(&p);
     }
 }
 

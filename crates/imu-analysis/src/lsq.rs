@@ -95,7 +95,7 @@ pub enum LsqError {
 }
 
 /// Numeric Jacobian of `f` at `p` with respect to the parameters `free` (central differences).
-fn jacobian<F: FnMut(&[f64]) -> DVector<f64>>(
+pub(crate) fn jacobian<F: FnMut(&[f64]) -> DVector<f64>>(
     f: &mut F,
     p: &[f64],
     free: &[usize],

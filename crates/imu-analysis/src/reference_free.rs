@@ -50,7 +50,7 @@ pub const PROCEDURE: &str = "reference-free multi-pose: accelerometer from the g
      between poses (imu-calibrate --reference-free)";
 
 /// Gyro effects fitted from the integrated rotations (the rest from the still poses).
-const GYRO_GAIN_KINDS: [EffectKind; 5] = [
+pub(crate) const GYRO_GAIN_KINDS: [EffectKind; 5] = [
     EffectKind::Misalignment,
     EffectKind::Scale,
     EffectKind::AsymmetricScale,
@@ -59,7 +59,7 @@ const GYRO_GAIN_KINDS: [EffectKind; 5] = [
 ];
 
 /// Accel misalignment entries held at 0 to fix the rotation gauge.
-const GAUGE: [&str; 3] = ["misalignment.xy", "misalignment.xz", "misalignment.yz"];
+pub(crate) const GAUGE: [&str; 3] = ["misalignment.xy", "misalignment.xz", "misalignment.yz"];
 
 /// WGS-84 normal gravity on the ellipsoid at a geodetic latitude (Somigliana's formula), m/s^2.
 /// Height lowers it by about 3.1e-6 m/s^2 per metre (not applied).
@@ -72,6 +72,32 @@ pub fn normal_gravity_m_s2(latitude_deg: f64) -> f64 {
     const E2: f64 = 0.006_694_379_990_14;
     let s2 = latitude_deg.to_radians().sin().powi(2);
     GAMMA_EQUATOR_M_S2 * (1.0 + K * s2) / (1.0 - E2 * s2).sqrt()
+}
+
+/// Local gravity for a reference-free fit, m/s^2, and the note saying where it came from: the
+/// given value, else WGS-84 normal gravity at the latitude, else standard gravity.
+pub fn local_gravity(gravity_m_s2: Option<f64>, latitude_deg: Option<f64>) -> (f64, String) {
+    match (gravity_m_s2, latitude_deg) {
+        (Some(g), _) => (g, format!("local gravity {g:.6} m/s^2 (given)")),
+        (None, Some(lat)) => {
+            let g = normal_gravity_m_s2(lat);
+            (
+                g,
+                format!(
+                    "local gravity {g:.6} m/s^2: WGS-84 normal gravity at latitude {lat} deg, \
+                     height 0 (about -3.1e-6 m/s^2 per metre above the ellipsoid)"
+                ),
+            )
+        }
+        (None, None) => (
+            STANDARD_GRAVITY_M_S2,
+            format!(
+                "local gravity {STANDARD_GRAVITY_M_S2} m/s^2 (standard; give --gravity-m-s2 or \
+                 --latitude-deg: gravity varies by 0.5 % over the Earth, and every accel scale \
+                 factor absorbs the relative error of g)"
+            ),
+        ),
+    }
 }
 
 /// What [`calibrate_reference_free`] fits and how.
@@ -301,6 +327,16 @@ pub enum ReferenceFreeError {
     /// The gyro offset fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
+    /// The fitted model is invalid even with the offending parameter held.
+    #[error("the fitted {triad} model is not valid at `{key}`: {message}; fit fewer effects")]
+    InvalidModel {
+        /// Triad.
+        triad: Triad,
+        /// Parameter.
+        key: String,
+        /// Why.
+        message: String,
+    },
 }
 
 /// Mask of the parameters of `names` (one triad) that `opts.hold` names.
@@ -335,11 +371,11 @@ fn effects_only(m: &TriadModel) -> TriadModel {
 
 /// Standard error of a segment mean per axis (floored so a quantised, noiseless axis cannot
 /// take all the weight).
-fn mean_se(std: [f64; 3], n: usize) -> Vec3 {
+pub(crate) fn mean_se(std: [f64; 3], n: usize) -> Vec3 {
     Vec3::from(std.map(|s| (s / (n as f64).sqrt()).max(1e-12)))
 }
 
-fn pose_conditions(series: &ImuSeries, seg: &Segment) -> Conditions {
+pub(crate) fn pose_conditions(series: &ImuSeries, seg: &Segment) -> Conditions {
     let mid_s = 0.5 * (seg.start_s + seg.end_s);
     let temp_c = series.temp_at(mid_s);
     Conditions {
@@ -354,7 +390,7 @@ fn pose_conditions(series: &ImuSeries, seg: &Segment) -> Conditions {
 
 /// Per-effect standard errors into `model`: `None` for an effect with a parameter neither
 /// fitted nor gauge-fixed, 0 for gauge-fixed entries.
-fn store_std_errors(model: &mut TriadModel, se: &[Option<f64>], gauge: &[usize]) {
+pub(crate) fn store_std_errors(model: &mut TriadModel, se: &[Option<f64>], gauge: &[usize]) {
     let mut offset = 0;
     for e in model.effects_mut() {
         let n = e.n_params();
@@ -367,7 +403,7 @@ fn store_std_errors(model: &mut TriadModel, se: &[Option<f64>], gauge: &[usize])
 }
 
 /// Warnings about poorly separated parameters of a solution.
-fn conditioning_warnings(
+pub(crate) fn conditioning_warnings(
     triad: Triad,
     sol: &LsqSolution,
     names: &[String],
@@ -796,7 +832,85 @@ fn fit_gyro_static(
 
 /// Detect the still poses of `series` and fit the accel model to the gravity magnitude and
 /// the gyro model to the still poses and the rotations between them (see the module docs).
+///
+/// A fitted model imud would reject (in practice a cubic nonlinearity that poses within +/-1 g
+/// cannot pin down, extrapolated over the +/-20 g range where the model must stay invertible)
+/// is refitted with the offending parameter held at 0 (no such term); a note and the
+/// unobservable list say so.
 pub fn calibrate_reference_free(
+    series: &ImuSeries,
+    opts: &ReferenceFreeOptions,
+) -> Result<ReferenceFreeFit, ReferenceFreeError> {
+    let mut opts = opts.clone();
+    let mut held: Vec<(Triad, Unobservable)> = Vec::new();
+    loop {
+        let mut fit = calibrate_reference_free_once(series, &opts)?;
+        let invalid = [Triad::Accel, Triad::Gyro].into_iter().find_map(|t| {
+            fit.calibration
+                .triad(t)
+                .validate(t)
+                .err()
+                .map(|e| (t, crate::fit::invalid_param_name(&e.key), e.message))
+        });
+        let Some((triad, name, message)) = invalid else {
+            for (t, u) in held {
+                fit.notes
+                    .push(format!("{t} {} not fitted: {}", u.name, u.reason));
+                let f = if t == Triad::Gyro {
+                    &mut fit.gyro
+                } else {
+                    &mut fit.accel
+                };
+                f.unobservable.push(u);
+            }
+            return Ok(fit);
+        };
+        let key = format!("{triad}.{name}");
+        let f = if triad == Triad::Gyro {
+            &fit.gyro
+        } else {
+            &fit.accel
+        };
+        let Some(i) = f.names.iter().position(|n| *n == name) else {
+            return Err(ReferenceFreeError::InvalidModel {
+                triad,
+                key: name,
+                message,
+            });
+        };
+        if opts.hold.contains(&key) {
+            return Err(ReferenceFreeError::InvalidModel {
+                triad,
+                key: name,
+                message,
+            });
+        }
+        let se = f.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
+        held.push((
+            triad,
+            Unobservable {
+                name,
+                reason: format!(
+                    "fitted to {:.3e}{se}, it makes the model invalid ({message}); held at 0 (no \
+                     such term)",
+                    f.params[i]
+                ),
+            },
+        ));
+        opts.hold.push(key);
+        let m = if triad == Triad::Gyro {
+            &mut opts.gyro
+        } else {
+            &mut opts.accel
+        };
+        let mut p = m.params();
+        p[i] = 0.0;
+        m.set_params(&p);
+    }
+}
+
+/// One reference-free fit of the options as given (see [`calibrate_reference_free`]).
+fn calibrate_reference_free_once(
     series: &ImuSeries,
     opts: &ReferenceFreeOptions,
 ) -> Result<ReferenceFreeFit, ReferenceFreeError> {
@@ -810,28 +924,8 @@ pub fn calibrate_reference_free(
     }
     let segmentation = crate::segment::detect(series, &opts.segment)?;
     let mut notes = Vec::new();
-    let g_m_s2 = match (opts.gravity_m_s2, opts.latitude_deg) {
-        (Some(g), _) => {
-            notes.push(format!("local gravity {g:.6} m/s^2 (given)"));
-            g
-        }
-        (None, Some(lat)) => {
-            let g = normal_gravity_m_s2(lat);
-            notes.push(format!(
-                "local gravity {g:.6} m/s^2: WGS-84 normal gravity at latitude {lat} deg, height \
-                 0 (about -3.1e-6 m/s^2 per metre above the ellipsoid)"
-            ));
-            g
-        }
-        (None, None) => {
-            notes.push(format!(
-                "local gravity {STANDARD_GRAVITY_M_S2} m/s^2 (standard; give --gravity-m-s2 or \
-                 --latitude-deg: gravity varies by 0.5 % over the Earth, and every accel scale \
-                 factor absorbs the relative error of g)"
-            ));
-            STANDARD_GRAVITY_M_S2
-        }
-    };
+    let (g_m_s2, gravity_note) = local_gravity(opts.gravity_m_s2, opts.latitude_deg);
+    notes.push(gravity_note);
     let seg_opts = &segmentation.options;
     let still_s = seg_opts.min_duration_s + seg_opts.window_s + 2.0 * seg_opts.trim_s;
     let pose_index: Vec<usize> = (0..segmentation.segments.len())
