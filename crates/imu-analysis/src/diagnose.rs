@@ -32,13 +32,14 @@
 
 use std::fmt::Write as _;
 
-use imu_model::{EffectKind, NoiseModel, Triad, TriadModel};
+use imu_model::nalgebra::{DMatrix, DVector};
+use imu_model::{EffectKind, NoiseModel, Triad, TriadModel, Vec3};
 use serde::Serialize;
 
 use crate::allan::{self, Kind, TauSet};
 use crate::fit::{
     CalibrateError, FitError, FitOptions, FitPoint, FitResult, Observations, Reference,
-    SharedNoise, fit_triad, segment_covariance,
+    SharedNoise, Unobservable, fit_triad, segment_covariance,
 };
 use crate::noise::NoiseTerms;
 use crate::segment::{SegmentKind, SegmentOptions};
@@ -547,6 +548,10 @@ pub struct Workbench<'a> {
     gyro_index: Vec<usize>,
     opts: DiagnoseOptions,
     spectral: [Vec<SpectralLine>; 2],
+    /// Reference-free: the accel observations are gravity magnitudes.
+    magnitude: Option<Magnitude>,
+    /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
+    pub notes: Vec<String>,
 }
 
 /// Effects whose time constant or shape a neutral start cannot find: fitted from several
@@ -599,7 +604,209 @@ impl<'a> Workbench<'a> {
             gyro_points,
             opts,
             spectral,
+            magnitude: None,
+            notes: Vec::new(),
         })
+    }
+
+    /// A workbench without a reference: the unit was held still in many orientations and
+    /// turned between them (as for `imu-calibrate --reference-free`).
+    ///
+    /// - The accel is held against the gravity magnitude at every still pose
+    ///   (`g - |corrected mean|`, one residual per pose; its floor is the per-axis floor
+    ///   projected on the pose's direction); the rotation gauge is fixed as in the
+    ///   reference-free calibration (accel misalignment `xy`, `xz`, `yz` held at 0).
+    /// - The gyro offsets (bias, g-sensitivity, temperature, warm-up) are held against the
+    ///   still poses, whose true rate is Earth's: its vertical part along the calibrated up
+    ///   direction when the latitude is given; the part a heading would fix (horizontal, or all
+    ///   of it without a latitude) is an extra noise of each pose mean.
+    /// - The gyro gains come from the moves between poses and are not held against data here;
+    ///   the ladder's calibration fits them as `imu-calibrate --reference-free` does.
+    pub fn reference_free(
+        series: &'a ImuSeries,
+        gravity_m_s2: Option<f64>,
+        latitude_deg: Option<f64>,
+        opts: DiagnoseOptions,
+    ) -> Result<Workbench<'a>, DiagnoseError> {
+        use crate::reference_free::{local_gravity, mean_se, pose_conditions};
+        use imu_model::units::EARTH_RATE_RAD_S;
+        let segmentation =
+            crate::segment::detect(series, &opts.segment).map_err(CalibrateError::from)?;
+        let (g_m_s2, gravity_note) = local_gravity(gravity_m_s2, latitude_deg);
+        let (vertical_rad_s, earth_note) = match latitude_deg {
+            Some(lat) => {
+                let l = lat.to_radians();
+                (
+                    EARTH_RATE_RAD_S * l.sin(),
+                    format!(
+                        "gyro: Earth's vertical rate at latitude {lat} deg is the true rate along \
+                         the calibrated up direction of each pose; its horizontal part \
+                         ({:.1e} rad/s, heading unknown) is counted as noise of each pose mean",
+                        EARTH_RATE_RAD_S * l.cos()
+                    ),
+                )
+            }
+            None => (
+                0.0,
+                format!(
+                    "gyro: Earth's rate ({EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
+                     frame without latitude and heading) is counted as noise of each pose mean; \
+                     give the latitude to remove its vertical part"
+                ),
+            ),
+        };
+        // Variance of the unknown part of Earth's rate on axis `a` of a pose whose up
+        // direction is `u`: a horizontal vector at a random heading, or, without a latitude,
+        // a vector in a random direction.
+        let earth_var = |u: &Vec3, a: usize| match latitude_deg {
+            Some(lat) => {
+                (EARTH_RATE_RAD_S * lat.to_radians().cos()).powi(2) * (1.0 - u[a] * u[a]) / 2.0
+            }
+            None => EARTH_RATE_RAD_S.powi(2) / 3.0,
+        };
+        let poses: Vec<usize> = (0..segmentation.segments.len())
+            .filter(|&i| segmentation.segments[i].kind == SegmentKind::Static)
+            .collect();
+        let dirs: Vec<Vec3> = poses
+            .iter()
+            .map(|&i| segmentation.segments[i].mean_accel().normalize())
+            .collect();
+        let point = |i: usize, up: &Vec3, gyro: bool| -> FitPoint {
+            let s = &segmentation.segments[i];
+            let c = pose_conditions(series, s);
+            FitPoint {
+                true_input: if gyro {
+                    up * vertical_rad_s
+                } else {
+                    up * g_m_s2
+                },
+                measured: if gyro { s.mean_gyro() } else { s.mean_accel() },
+                std_error: mean_se(
+                    if gyro {
+                        s.std_gyro_rad_s
+                    } else {
+                        s.std_accel_m_s2
+                    },
+                    s.n,
+                ),
+                conditions: imu_model::Conditions {
+                    specific_force_m_s2: up * g_m_s2,
+                    ..c
+                },
+                t_s: 0.5 * (s.start_s + s.end_s),
+                duration_s: s.end_s - s.start_s,
+            }
+        };
+        let unknown = crate::fit::SegmentTruth {
+            specific_force_m_s2: [f64::NAN; 3],
+            angular_rate_rad_s: [f64::NAN; 3],
+            temp_c: f64::NAN,
+            time_since_power_on_s: f64::NAN,
+        };
+        let mut obs = Observations {
+            segment_truth: vec![unknown; segmentation.segments.len()],
+            accel: poses
+                .iter()
+                .zip(&dirs)
+                .map(|(&i, u)| (i, point(i, u, false)))
+                .collect(),
+            gyro: poses
+                .iter()
+                .zip(&dirs)
+                .map(|(&i, u)| (i, point(i, u, true)))
+                .collect(),
+            segmentation,
+        };
+        let rate = series.sample_rate_hz();
+        let floor = |t: Triad, given: &Option<NoiseModel>| match given {
+            Some(m) => Ok(NoiseFloor::from_model(t, m, rate)),
+            None => measure_noise_floor(series, &obs, t),
+        };
+        let accel_floor = floor(Triad::Accel, &opts.accel_noise)?;
+        let gyro_floor = floor(Triad::Gyro, &opts.gyro_noise)?;
+        let n: Vec<usize> = poses
+            .iter()
+            .map(|&i| obs.segmentation.segments[i].n)
+            .collect();
+        let accel_points = floored_points(&obs.points(Triad::Accel), &accel_floor, rate, &n);
+        let spectral = [
+            spectral_lines(series, &obs, Triad::Accel),
+            spectral_lines(series, &obs, Triad::Gyro),
+        ];
+        let mut wb = Workbench {
+            series,
+            accel_index: poses.clone(),
+            gyro_index: poses.clone(),
+            obs: obs.clone(),
+            accel_floor,
+            gyro_floor,
+            accel_points,
+            gyro_points: Vec::new(),
+            opts,
+            spectral,
+            magnitude: Some(Magnitude {
+                g_m_s2,
+                dirs: dirs.clone(),
+                gravity_m_s2,
+                latitude_deg,
+            }),
+            notes: vec![
+                gravity_note,
+                "accel: held against the gravity magnitude at each still pose; misalignment xy, \
+                 xz, yz held at 0 (the magnitude cannot see a rotation of the whole frame: the \
+                 accelerometer axes define the frame)"
+                    .into(),
+                earth_note,
+                "gyro gains (scale, misalignment, asymmetry, nonlinearity, temperature scale) \
+                 come from the moves between poses (imu-calibrate --reference-free); here the \
+                 gyro offsets are held against the still poses"
+                    .into(),
+            ],
+        };
+        // The calibrated up direction of each pose, from a bias + scale + misalignment fit of
+        // the magnitudes (the measured direction if that fit fails).
+        let mut first = TriadModel::default();
+        for k in [
+            EffectKind::Bias,
+            EffectKind::Scale,
+            EffectKind::Misalignment,
+        ] {
+            first.add(k);
+        }
+        let mag = wb.magnitude.clone().expect("set above");
+        let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first) {
+            Ok(f) => wb
+                .accel_points
+                .iter()
+                .map(|p| f.fit.model.inverse(p.measured, &p.conditions).normalize())
+                .collect(),
+            Err(_) => dirs,
+        };
+        for (k, (_, p)) in obs.accel.iter_mut().enumerate() {
+            p.true_input = up[k] * g_m_s2;
+            p.conditions.specific_force_m_s2 = up[k] * g_m_s2;
+            wb.accel_points[k].true_input = p.true_input;
+            wb.accel_points[k].conditions.specific_force_m_s2 = p.true_input;
+        }
+        for (k, (i, p)) in obs.gyro.iter_mut().enumerate() {
+            p.true_input = up[k] * vertical_rad_s;
+            p.conditions.specific_force_m_s2 = up[k] * g_m_s2;
+            obs.segment_truth[*i] = crate::fit::SegmentTruth {
+                specific_force_m_s2: (up[k] * g_m_s2).into(),
+                angular_rate_rad_s: p.true_input.into(),
+                temp_c: p.conditions.temp_c,
+                time_since_power_on_s: p.conditions.time_since_power_on_s,
+            };
+        }
+        let mut gyro_points = floored_points(&obs.points(Triad::Gyro), &wb.gyro_floor, rate, &n);
+        for (p, u) in gyro_points.iter_mut().zip(&up) {
+            for a in 0..3 {
+                p.std_error[a] = (p.std_error[a].powi(2) + earth_var(u, a)).sqrt();
+            }
+        }
+        wb.gyro_points = gyro_points;
+        wb.obs = obs;
+        Ok(wb)
     }
 
     /// The series under study.
@@ -634,6 +841,49 @@ impl<'a> Workbench<'a> {
         }
     }
 
+    /// The gravity-magnitude observations when `t` is the accel of a reference-free workbench.
+    fn magnitude(&self, t: Triad) -> Option<&Magnitude> {
+        self.magnitude.as_ref().filter(|_| t == Triad::Accel)
+    }
+
+    /// Number of residuals of `t`: three per segment, one per pose for gravity magnitudes.
+    fn n_residuals(&self, t: Triad) -> usize {
+        let (points, _, _) = self.points(t);
+        if self.magnitude(t).is_some() {
+            points.len()
+        } else {
+            3 * points.len()
+        }
+    }
+
+    /// Noise parameters profiled out of every fit of `t`: a white scale and a random walk per
+    /// axis, or one of each for gravity magnitudes.
+    fn n_profiled(&self, t: Triad) -> f64 {
+        if self.magnitude(t).is_some() {
+            2.0
+        } else {
+            6.0
+        }
+    }
+
+    /// Generalised chi-square per axis of residuals `res` of `t` under the floor plus `shared`.
+    fn chi2_axes(&self, t: Triad, res: &[[f64; 3]], shared: &[SharedNoise; 3]) -> [f64; 3] {
+        let (points, _, _) = self.points(t);
+        match self.magnitude(t) {
+            Some(mag) => mag.chi2(res, points, shared),
+            None => floor_chi2(res, points, shared),
+        }
+    }
+
+    /// Expected residual RMS per axis of a fit of `t` with raw Jacobian `x`.
+    fn expected_rms(&self, t: Triad, x: &DMatrix<f64>, shared: &[SharedNoise; 3]) -> [f64; 3] {
+        let (points, _, _) = self.points(t);
+        match self.magnitude(t) {
+            Some(mag) => mag.expected_rms(points, x, shared),
+            None => expected_residual_rms(points, x, shared),
+        }
+    }
+
     /// The noise the segment means of `t` share: the floor's flicker at the median segment
     /// duration (no random walk: the tests profile it).
     fn shared(&self, t: Triad) -> [SharedNoise; 3] {
@@ -657,6 +907,27 @@ impl<'a> Workbench<'a> {
     /// The model actually fittable on this recording for `triad` (gyro gains held without
     /// plateaus), and a note when something was held.
     pub fn fittable(&self, triad: Triad, model: &TriadModel) -> (TriadModel, Option<String>) {
+        if triad == Triad::Gyro && self.magnitude.is_some() {
+            use crate::reference_free::GYRO_GAIN_KINDS;
+            let gains: Vec<EffectKind> = model
+                .kinds()
+                .into_iter()
+                .filter(|k| GYRO_GAIN_KINDS.contains(k))
+                .collect();
+            if gains.is_empty() {
+                return (model.clone(), None);
+            }
+            let mut m = model.clone();
+            for k in &gains {
+                m.remove(*k);
+            }
+            let note = format!(
+                "gyro {} come from the moves between poses (imu-calibrate --reference-free), not \
+                 from the still poses held against the model here",
+                gains.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
+            );
+            return (m, Some(note));
+        }
         if triad == Triad::Gyro {
             self.obs.gyro_model_for(model)
         } else {
@@ -668,6 +939,9 @@ impl<'a> Workbench<'a> {
     /// maximum-likelihood values alternated with the parameter fit): a slow wander of the
     /// bias, whatever its size, is then part of the noise model of every candidate alike.
     fn fit(&self, triad: Triad, model: &TriadModel) -> Result<Profiled, FitError> {
+        if let Some(mag) = self.magnitude(triad) {
+            return self.fit_magnitude(mag, model);
+        }
         let (points, _, _) = self.points(triad);
         let shared = self.shared(triad);
         let mut scale = [1.0_f64; 3];
@@ -719,6 +993,141 @@ impl<'a> Workbench<'a> {
                 rho,
             });
             if done {
+                break;
+            }
+        }
+        Ok(last.expect("at least one iteration"))
+    }
+
+    /// The reference-free accel fit: `g - |corrected mean|` at every pose, generalised least
+    /// squares under the magnitude covariance, with one white scale and one random walk
+    /// profiled out (alternated with the fit, as in [`Self::fit`]). The rotation gauge (accel
+    /// misalignment `xy`, `xz`, `yz`) is held at 0: the accelerometer axes define the frame.
+    fn fit_magnitude(&self, mag: &Magnitude, model: &TriadModel) -> Result<Profiled, FitError> {
+        use crate::lsq::{LsqError, LsqOptions, jacobian, least_squares};
+        use crate::reference_free::{GAUGE, conditioning_warnings, store_std_errors};
+        let triad = Triad::Accel;
+        let points = &self.accel_points;
+        let n = points.len();
+        let shared = self.shared(triad);
+        let names = model.param_names(triad);
+        let units = model.param_units(triad);
+        let gauge: Vec<usize> = GAUGE
+            .iter()
+            .filter_map(|g| names.iter().position(|x| x == g))
+            .collect();
+        let mut p = model.params();
+        let mut fixed = vec![false; names.len()];
+        for &i in &gauge {
+            p[i] = 0.0;
+            fixed[i] = true;
+        }
+        let lsq = LsqOptions {
+            max_iterations: self.opts.fit.max_iterations,
+            tolerance: self.opts.fit.tolerance,
+            min_eigenvalue: self.opts.fit.min_eigenvalue,
+        };
+        let cov = |rho: f64| mag.covariance(points, &with_random_walk(&shared, rho));
+        let unit = {
+            let c = cov(0.0);
+            c.diagonal().mean() / span_s(points).max(1e-9)
+        };
+        let (mut scale, mut rho) = (1.0_f64, 0.0_f64);
+        let mut last: Option<Profiled> = None;
+        for _ in 0..5 {
+            let ch = (cov(rho) * scale)
+                .cholesky()
+                .ok_or(FitError::BadObservation { triad, index: 0 })?;
+            let l = ch.l();
+            let mut work = model.clone();
+            let whitened = |q: &[f64]| {
+                work.set_params(q);
+                let e = mag.residuals(&work, points);
+                l.solve_lower_triangular(&e).unwrap_or(e)
+            };
+            let sol = least_squares(whitened, &p, &fixed, &names, &lsq).map_err(|e| match e {
+                LsqError::TooFewResiduals {
+                    n_residuals,
+                    n_free,
+                } => FitError::TooFewObservations {
+                    triad,
+                    n_points: n,
+                    n_obs: n_residuals,
+                    n_free,
+                },
+                _ => FitError::NothingToFit { triad },
+            })?;
+            let mut m = model.clone();
+            m.set_params(&sol.params);
+            let mut raw = |q: &[f64]| {
+                let mut w = model.clone();
+                w.set_params(q);
+                mag.residuals(&w, points)
+            };
+            let x = jacobian(&mut raw, &sol.params, &sol.free, n);
+            let e = mag.residuals(&m, points);
+            let (next_scale, next_rho, loglik) = profile_rho(e.as_slice(), cov, unit);
+            let residuals: Vec<[f64; 3]> = e
+                .iter()
+                .zip(&mag.dirs)
+                .map(|(v, u)| (u * *v).into())
+                .collect();
+            let residual_rms: [f64; 3] = std::array::from_fn(|a| {
+                (residuals.iter().map(|r| r[a] * r[a]).sum::<f64>() / n.max(1) as f64).sqrt()
+            });
+            store_std_errors(&mut m, &sol.std_errors, &gauge);
+            m.residual_rms = Some(residual_rms);
+            let mut unobservable: Vec<Unobservable> = gauge
+                .iter()
+                .map(|&i| Unobservable {
+                    name: names[i].clone(),
+                    reason: "gauge: the gravity magnitude cannot see a rotation of the whole \
+                             frame; held at 0 so that the accelerometer axes define the frame"
+                        .into(),
+                })
+                .collect();
+            unobservable.extend(sol.unobservable.iter().cloned());
+            let chi2_axis = mag.split(sol.chi2, e.as_slice(), &cov(rho));
+            let fit = FitResult {
+                triad,
+                model: m,
+                names: names.clone(),
+                units: units.clone(),
+                params: sol.params.clone(),
+                std_errors: sol.std_errors.clone(),
+                correlation: sol.correlation.clone(),
+                free: sol.free.clone(),
+                unobservable,
+                residual_rms,
+                residuals,
+                jacobian_raw: x,
+                chi2: sol.chi2,
+                chi2_axis,
+                dof: sol.dof,
+                reduced_chi2: sol.reduced_chi2,
+                drift_random_walk: [0.0; 3],
+                iterations: sol.iterations,
+                converged: sol.converged,
+                warnings: conditioning_warnings(
+                    triad,
+                    &sol,
+                    &names,
+                    crate::reference_free::ReferenceFreeOptions::default().weak_eigenvalue,
+                    "poses",
+                ),
+            };
+            let settled = (next_scale / scale - 1.0).abs() < 1e-3
+                && (next_rho - rho).abs() <= 1e-3 * rho.max(1e-300);
+            scale = next_scale;
+            rho = next_rho;
+            p = sol.params;
+            last = Some(Profiled {
+                fit,
+                loglik,
+                scale: [scale; 3],
+                rho: [rho; 3],
+            });
+            if settled {
                 break;
             }
         }
@@ -797,13 +1206,20 @@ impl<'a> Workbench<'a> {
         // flicker); a random walk the segments cannot resolve is not assumed (the candidate
         // tests profile it).
         let shared = self.shared(triad);
-        let chi2_axis = floor_chi2(&base.residuals, points, &shared);
+        let chi2_axis = self.chi2_axes(triad, &base.residuals, &shared);
         let chi2: f64 = chi2_axis.iter().sum();
         let p_value = stats::chi2_sf(chi2, dof as f64);
-        let free_per_axis = base.free.len() as f64 / 3.0;
-        let floor_expected = expected_residual_rms(points, &base.jacobian_raw, &shared);
+        let axis_dof: [f64; 3] = match self.magnitude(triad) {
+            // One residual per pose, shared by the axes by their squared direction cosines.
+            Some(mag) => std::array::from_fn(|a| {
+                let share = mag.dirs.iter().map(|u| u[a] * u[a]).sum::<f64>() / n.max(1) as f64;
+                (share * dof as f64).max(1.0)
+            }),
+            None => [(n as f64 - base.free.len() as f64 / 3.0).max(1.0); 3],
+        };
+        let floor_expected = self.expected_rms(triad, &base.jacobian_raw, &shared);
         let axes: [AxisVerdict; 3] = std::array::from_fn(|a| {
-            let dof_a = (n as f64 - free_per_axis).max(1.0);
+            let dof_a = axis_dof[a];
             AxisVerdict {
                 residual_rms: base.residual_rms[a],
                 noise_floor_rms: floor_expected[a],
@@ -813,13 +1229,24 @@ impl<'a> Workbench<'a> {
                 p_value: stats::chi2_sf(chi2_axis[a], dof_a),
             }
         });
+        let magnitude_sd: Option<Vec<f64>> = self.magnitude(triad).map(|mag| {
+            let c = mag.covariance(points, &shared);
+            (0..n).map(|k| c[(k, k)].max(0.0).sqrt()).collect()
+        });
         let segments: Vec<SegmentResidual> = points
             .iter()
             .zip(index)
             .zip(&base.residuals)
-            .map(|((p, &i), r)| {
+            .enumerate()
+            .map(|(k, ((p, &i), r))| {
                 let s = &self.obs.segmentation.segments[i];
-                let fl = [p.std_error[0], p.std_error[1], p.std_error[2]];
+                let fl: [f64; 3] = match (&magnitude_sd, self.magnitude(triad)) {
+                    // The magnitude's noise, split like the residual along the pose's direction.
+                    (Some(sd), Some(mag)) => {
+                        std::array::from_fn(|a| (sd[k] * mag.dirs[k][a].abs()).max(1e-300))
+                    }
+                    _ => [p.std_error[0], p.std_error[1], p.std_error[2]],
+                };
                 SegmentResidual {
                     segment: i,
                     kind: s.kind,
@@ -841,7 +1268,7 @@ impl<'a> Workbench<'a> {
 
         // Candidates.
         let excess = (chi2 - dof as f64).max(1e-12);
-        let n_obs = 3.0 * n as f64;
+        let n_obs = self.n_residuals(triad) as f64;
         let base_pattern: Vec<f64> = normalised(&base.residuals, points);
         let mut candidates: Vec<Candidate> = EffectKind::ALL
             .into_iter()
@@ -874,10 +1301,10 @@ impl<'a> Workbench<'a> {
                 // Likelihood ratio with the noise scale and drift profiled in both models, as an
                 // F statistic (exact for a linear model with one profiled scale).
                 let lr = (2.0 * (prof.loglik - profiled.loglik)).max(0.0);
-                let dof2 = (n_obs - r.free.len() as f64 - 6.0).max(1.0);
+                let dof2 = (n_obs - r.free.len() as f64 - self.n_profiled(triad)).max(1.0);
                 let f = (lr / n_obs).exp_m1() * dof2 / new_params as f64;
                 let p = stats::f_sf(f, new_params as f64, dof2);
-                let cand_chi2: f64 = floor_chi2(&r.residuals, points, &shared).iter().sum();
+                let cand_chi2: f64 = self.chi2_axes(triad, &r.residuals, &shared).iter().sum();
                 let d_chi2 = (chi2 - cand_chi2).max(0.0);
                 let pattern: Vec<f64> = normalised(&r.residuals, points)
                     .iter()
@@ -948,14 +1375,19 @@ impl<'a> Workbench<'a> {
             random_walk_q: q_ml[a],
             ..shared[a]
         });
-        let chi2_drift: f64 = floor_chi2(&base.residuals, points, &with_drift)
+        let chi2_drift: f64 = self
+            .chi2_axes(triad, &base.residuals, &with_drift)
             .iter()
             .sum();
-        let drift_params = q_ml.iter().filter(|q| **q > 0.0).count();
+        let mut drift_params = q_ml.iter().filter(|q| **q > 0.0).count();
+        if self.magnitude(triad).is_some() {
+            // One random walk, common to the axes.
+            drift_params = drift_params.min(1);
+        }
         let p_value_with_drift =
             stats::chi2_sf(chi2_drift, dof.saturating_sub(drift_params).max(1) as f64);
         let mut axes = axes;
-        let with_drift_expected = expected_residual_rms(points, &base.jacobian_raw, &with_drift);
+        let with_drift_expected = self.expected_rms(triad, &base.jacobian_raw, &with_drift);
         for (a, v) in axes.iter_mut().enumerate() {
             v.noise_floor_with_drift_rms = with_drift_expected[a];
         }
@@ -1025,19 +1457,21 @@ impl<'a> Workbench<'a> {
                 .filter_map(|(i, d)| d.candidates.first().filter(|c| c.claimed).map(|c| (i, c)))
                 .max_by(|a, b| a.1.delta_aic.total_cmp(&b.1.delta_aic));
             let Some((i, c)) = pick else {
-                let final_model = self.final_calibration(base, &diags);
+                let (calibration, notes) = self.final_calibration(base, &diags);
                 return Ok(Ladder {
                     steps,
                     final_diagnoses: diags,
-                    calibration: final_model,
+                    calibration,
+                    notes,
                 });
             };
             if steps.len() > self.opts.max_steps {
-                let final_model = self.final_calibration(base, &diags);
+                let (calibration, notes) = self.final_calibration(base, &diags);
                 return Ok(Ladder {
                     steps,
                     final_diagnoses: diags,
-                    calibration: final_model,
+                    calibration,
+                    notes,
                 });
             }
             added.push((triads[i], c.effect));
@@ -1053,11 +1487,64 @@ impl<'a> Workbench<'a> {
         &self,
         base: &imu_model::Calibration,
         diags: &[TriadDiagnosis; 2],
-    ) -> imu_model::Calibration {
+    ) -> (imu_model::Calibration, Vec<String>) {
+        let mut notes = self.notes.clone();
         let mut cal = base.clone();
         cal.accel = diags[0].fit.model.clone();
         cal.gyro = diags[1].fit.model.clone();
-        cal
+        if self.magnitude.is_none() {
+            // A model imud would reject (e.g. a cubic term extrapolated over the full range) is
+            // refitted with the offending parameter held, as imu-calibrate does.
+            for (d, t) in diags.iter().zip([Triad::Accel, Triad::Gyro]) {
+                if d.fit.model.validate(t).is_ok() {
+                    continue;
+                }
+                let (points, _, _) = self.points(t);
+                match crate::fit::fit_loadable(&d.fit.model, t, points, &self.fit_opts(t)) {
+                    Ok(r) => {
+                        notes.extend(
+                            r.unobservable
+                                .iter()
+                                .map(|u| format!("{t} {}: {}", u.name, u.reason)),
+                        );
+                        *cal.triad_mut(t) = r.model;
+                    }
+                    Err(e) => notes.push(format!("{t}: {e}")),
+                }
+            }
+        }
+        if let Some(mag) = &self.magnitude {
+            // Reference-free: the gyro gains come from the moves; the final model (the
+            // ladder's accel and gyro offsets, the base's gyro gains) is calibrated as
+            // imu-calibrate --reference-free does.
+            let mut gyro = base.gyro.clone();
+            for k in diags[1].fit.model.kinds() {
+                if !gyro.has(k) {
+                    gyro.add(k);
+                }
+            }
+            let o = crate::reference_free::ReferenceFreeOptions {
+                accel: diags[0].fit.model.clone(),
+                gyro,
+                gravity_m_s2: mag.gravity_m_s2,
+                latitude_deg: mag.latitude_deg,
+                segment: self.opts.segment.clone(),
+                ..Default::default()
+            };
+            match crate::reference_free::calibrate_reference_free(self.series, &o) {
+                Ok(f) => {
+                    cal.accel = f.calibration.accel;
+                    cal.gyro = f.calibration.gyro;
+                    notes.extend(f.notes);
+                }
+                Err(e) => notes.push(format!(
+                    "the reference-free calibration of the final model failed ({e}): the \
+                     calibration holds the workbench's accel and gyro offset fits and the base \
+                     model's gyro gains as given"
+                )),
+            }
+        }
+        (cal, notes)
     }
 }
 
@@ -1121,6 +1608,8 @@ pub struct Ladder {
     /// The final model as a calibration.
     #[serde(skip)]
     pub calibration: imu_model::Calibration,
+    /// Conventions and decisions behind it (reference-free: gravity, Earth rate, gyro gains).
+    pub notes: Vec<String>,
 }
 
 // ------------------------------------------------------------------------------ helpers
@@ -1137,13 +1626,20 @@ struct Profiled {
     rho: [f64; 3],
 }
 
-/// `r^T C^-1 r` and `ln |C|` for one axis's residuals under [`segment_covariance`].
-fn gls(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> Option<(f64, f64)> {
-    use imu_model::nalgebra::DVector;
-    let ch = segment_covariance(points, a, shared, 1.0).cholesky()?;
+/// `r^T C^-1 r` and `ln |C|` for residuals `r` with covariance `c`.
+fn gls(r: &[f64], c: DMatrix<f64>) -> Option<(f64, f64)> {
+    let ch = c.cholesky()?;
     let logdet = 2.0 * ch.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
     let z = ch.solve(&DVector::from_column_slice(r));
     Some((r.iter().zip(z.iter()).map(|(a, b)| a * b).sum(), logdet))
+}
+
+/// `shared` with the random-walk rate `q` on every axis.
+fn with_random_walk(shared: &[SharedNoise; 3], q: f64) -> [SharedNoise; 3] {
+    std::array::from_fn(|a| SharedNoise {
+        random_walk_q: q,
+        ..shared[a]
+    })
 }
 
 /// Generalised chi-square per axis against the noise floor (white part from the points'
@@ -1151,31 +1647,20 @@ fn gls(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> Option
 fn floor_chi2(res: &[[f64; 3]], points: &[FitPoint], shared: &[SharedNoise; 3]) -> [f64; 3] {
     std::array::from_fn(|a| {
         let r: Vec<f64> = res.iter().map(|v| v[a]).collect();
-        gls(&r, points, a, &shared[a]).map_or(f64::INFINITY, |(c, _)| c)
+        gls(&r, segment_covariance(points, a, &shared[a], 1.0)).map_or(f64::INFINITY, |(c, _)| c)
     })
 }
 
-/// Maximum-likelihood white scale and random-walk rate (relative to the scale) of one axis's
-/// residuals, and the log-likelihood there: `rho` on a log grid refined by golden section,
-/// the scale in closed form.
-fn profile_axis(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> (f64, f64, f64) {
+/// Maximum-likelihood white scale and random-walk rate (relative to the scale) of residuals
+/// `r` whose covariance at rate `rho` is `cov(rho)` (scale 1), and the log-likelihood there:
+/// `rho` on a log grid around `unit` refined by golden section, the scale in closed form.
+fn profile_rho(r: &[f64], cov: impl Fn(f64) -> DMatrix<f64>, unit: f64) -> (f64, f64, f64) {
     let n = r.len() as f64;
     let ll = |rho: f64| -> Option<(f64, f64)> {
-        let s = SharedNoise {
-            random_walk_q: rho,
-            ..*shared
-        };
-        let (chi2, logdet) = gls(r, points, a, &s)?;
+        let (chi2, logdet) = gls(r, cov(rho))?;
         let scale = (chi2 / n).max(1e-300);
         Some((scale, -0.5 * (n * scale.ln() + logdet + n)))
     };
-    let span = points
-        .iter()
-        .map(|p| p.t_s)
-        .fold(f64::NEG_INFINITY, f64::max)
-        - points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
-    let s2 = points.iter().map(|p| p.std_error[a].powi(2)).sum::<f64>() / n;
-    let unit = s2 / span.max(1e-9);
     let grid: Vec<f64> = std::iter::once(0.0)
         .chain((0..=32).map(|k| unit * 10f64.powf(-4.0 + k as f64 * 0.25)))
         .collect();
@@ -1215,17 +1700,57 @@ fn profile_axis(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) 
     (best.2, best.0, best.1)
 }
 
+/// Time span of the points, s.
+fn span_s(points: &[FitPoint]) -> f64 {
+    points
+        .iter()
+        .map(|p| p.t_s)
+        .fold(f64::NEG_INFINITY, f64::max)
+        - points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min)
+}
+
+/// [`profile_rho`] for one axis's residuals under [`segment_covariance`].
+fn profile_axis(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> (f64, f64, f64) {
+    let n = r.len() as f64;
+    let s2 = points.iter().map(|p| p.std_error[a].powi(2)).sum::<f64>() / n;
+    let cov = |rho: f64| {
+        let s = SharedNoise {
+            random_walk_q: rho,
+            ..*shared
+        };
+        segment_covariance(points, a, &s, 1.0)
+    };
+    profile_rho(r, cov, s2 / span_s(points).max(1e-9))
+}
+
+/// Expected covariance of the residuals of a generalised least-squares fit with raw Jacobian
+/// `x` when the observations have covariance `c`: with the residual maker
+/// `M = I - X (X^T C^-1 X)^-1 X^T C^-1`, `M C M^T` (`c` itself when `x` is empty or singular).
+fn residual_covariance(c: DMatrix<f64>, x: &DMatrix<f64>) -> DMatrix<f64> {
+    let big = c.nrows();
+    if x.nrows() != big || x.ncols() == 0 {
+        return c;
+    }
+    let Some(ch) = c.clone().cholesky() else {
+        return c;
+    };
+    let cinv_x = ch.solve(x);
+    let Some(info_inv) = (x.transpose() * &cinv_x).try_inverse() else {
+        return c;
+    };
+    let m = DMatrix::identity(big, big) - x * info_inv * cinv_x.transpose();
+    &m * &c * m.transpose()
+}
+
 /// RMS per axis the residuals of a fit with raw Jacobian `x` (rows `3 k + axis`) would have if
 /// the model were right and the means had their own floor plus the `shared` noise. The fit is
 /// generalised least squares, whose estimates (the bias above all) are not plain means when the
-/// means are correlated: with `C` that covariance (block-diagonal over axes) and the residual
-/// maker `M = I - X (X^T C^-1 X)^-1 X^T C^-1`, the expected residual covariance is `M C M^T`.
+/// means are correlated: see [`residual_covariance`].
 fn expected_residual_rms(
     points: &[FitPoint],
-    x: &imu_model::nalgebra::DMatrix<f64>,
+    x: &DMatrix<f64>,
     shared: &[SharedNoise; 3],
 ) -> [f64; 3] {
-    use imu_model::nalgebra::DMatrix;
     let n = points.len();
     let big = 3 * n;
     let mut c = DMatrix::zeros(big, big);
@@ -1237,25 +1762,117 @@ fn expected_residual_rms(
             }
         }
     }
-    let per_axis = |e: &DMatrix<f64>| -> [f64; 3] {
+    let e = residual_covariance(c, x);
+    std::array::from_fn(|a| {
+        ((0..n).map(|k| e[(3 * k + a, 3 * k + a)]).sum::<f64>() / n.max(1) as f64)
+            .max(0.0)
+            .sqrt()
+    })
+}
+
+// ------------------------------------------------------------------------------ magnitude
+
+/// Accel observations without a reference (still poses in unknown orientations): only the
+/// magnitude of the corrected specific force is known, local gravity. Each pose gives one
+/// residual, `g - |corrected mean|`, stored as a vector along the pose's measured direction
+/// (so per-axis summaries keep their meaning); its noise is the mean's per-axis noise projected
+/// on that direction.
+#[derive(Clone, Debug)]
+struct Magnitude {
+    /// Local gravity, m/s^2.
+    g_m_s2: f64,
+    /// Unit direction of each pose's measured specific force (order of the accel points).
+    dirs: Vec<Vec3>,
+    /// Local gravity as given (for the final reference-free calibration).
+    gravity_m_s2: Option<f64>,
+    /// Latitude as given, deg.
+    latitude_deg: Option<f64>,
+}
+
+impl Magnitude {
+    /// Covariance of the magnitude residuals: the per-axis covariance of the means
+    /// ([`segment_covariance`]: white floor, flicker, random walk) projected on each pose's
+    /// direction, `C_kl = sum_a u_ka u_la C^a_kl`.
+    fn covariance(&self, points: &[FitPoint], shared: &[SharedNoise; 3]) -> DMatrix<f64> {
+        let n = points.len();
+        let mut c = DMatrix::zeros(n, n);
+        for (a, sh) in shared.iter().enumerate() {
+            let ca = segment_covariance(points, a, sh, 1.0);
+            for k in 0..n {
+                for l in 0..n {
+                    c[(k, l)] += self.dirs[k][a] * self.dirs[l][a] * ca[(k, l)];
+                }
+            }
+        }
+        c
+    }
+
+    /// The scalar residuals of stored residual vectors.
+    fn scalar(&self, res: &[[f64; 3]]) -> Vec<f64> {
+        res.iter()
+            .zip(&self.dirs)
+            .map(|(r, u)| Vec3::from(*r).dot(u))
+            .collect()
+    }
+
+    /// `chi2` split over the axes by each pose's squared direction cosines (the magnitude mixes
+    /// the axes: the split is the diagonal's, the total the full generalised chi-square).
+    fn split(&self, chi2: f64, e: &[f64], c: &DMatrix<f64>) -> [f64; 3] {
+        let w: [f64; 3] = std::array::from_fn(|a| {
+            e.iter()
+                .enumerate()
+                .map(|(k, v)| self.dirs[k][a].powi(2) * v * v / c[(k, k)].max(1e-300))
+                .sum()
+        });
+        let total: f64 = w.iter().sum();
+        if total > 0.0 {
+            w.map(|v| chi2 * v / total)
+        } else {
+            [chi2 / 3.0; 3]
+        }
+    }
+
+    /// Generalised chi-square (split over the axes) of stored residuals.
+    fn chi2(&self, res: &[[f64; 3]], points: &[FitPoint], shared: &[SharedNoise; 3]) -> [f64; 3] {
+        let e = self.scalar(res);
+        let c = self.covariance(points, shared);
+        match gls(&e, c.clone()) {
+            Some((chi2, _)) => self.split(chi2, &e, &c),
+            None => [f64::INFINITY; 3],
+        }
+    }
+
+    /// Expected residual RMS per axis (as [`expected_residual_rms`], rows of `x` per pose).
+    fn expected_rms(
+        &self,
+        points: &[FitPoint],
+        x: &DMatrix<f64>,
+        shared: &[SharedNoise; 3],
+    ) -> [f64; 3] {
+        let e = residual_covariance(self.covariance(points, shared), x);
+        let n = points.len().max(1) as f64;
         std::array::from_fn(|a| {
-            ((0..n).map(|k| e[(3 * k + a, 3 * k + a)]).sum::<f64>() / n.max(1) as f64)
+            (self
+                .dirs
+                .iter()
+                .enumerate()
+                .map(|(k, u)| u[a] * u[a] * e[(k, k)])
+                .sum::<f64>()
+                / n)
                 .max(0.0)
                 .sqrt()
         })
-    };
-    let Some(ch) = c.clone().cholesky() else {
-        return per_axis(&c);
-    };
-    if x.nrows() != big || x.ncols() == 0 {
-        return per_axis(&c);
     }
-    let cinv_x = ch.solve(x);
-    let Some(info_inv) = (x.transpose() * &cinv_x).try_inverse() else {
-        return per_axis(&c);
-    };
-    let m = DMatrix::identity(big, big) - x * info_inv * cinv_x.transpose();
-    per_axis(&(&m * &c * m.transpose()))
+
+    /// `g - |corrected mean|` per pose under `m`.
+    fn residuals(&self, m: &TriadModel, points: &[FitPoint]) -> DVector<f64> {
+        DVector::from_iterator(
+            points.len(),
+            points
+                .iter()
+                .map(|p| self.g_m_s2 - m.inverse(p.measured, &p.conditions).norm()),
+        )
+    }
 }
 
 fn normalised(res: &[[f64; 3]], points: &[FitPoint]) -> Vec<f64> {
