@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use std::str::FromStr;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Parser, Subcommand};
+use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
 use imu_analysis::diagnose::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::input::{CsvOptions, read_any};
@@ -71,7 +71,13 @@ struct DiagnoseArgs {
 /// Where the true input comes from, as for imu-calibrate: exactly one of a test plan or a
 /// reference file.
 #[derive(Debug, Args)]
-#[group(id = "truth-source", required = true, multiple = false)]
+#[group(skip)]
+#[command(group(
+    ArgGroup::new("truth-source")
+        .required(true)
+        .multiple(false)
+        .args(["plan", "reference", "reference_free"])
+))]
 struct RefArgs {
     /// Test plan: the procedure and its nominal inputs, in order (format imud-plan/1; see
     /// config/plans/).
@@ -91,15 +97,54 @@ struct RefArgs {
         allow_negative_numbers = true
     )]
     reference_offset_s: Option<f64>,
+    /// No reference: the unit was held still in many (30 or more) orientations and turned
+    /// between them, as for `imu-calibrate --reference-free`. The accel is held against the
+    /// gravity magnitude at each still pose (its axes define the frame), the gyro offsets (bias,
+    /// g-sensitivity, temperature, warm-up) against the still poses with Earth's rate as their
+    /// true rate; the gyro gains come from the moves between poses (the ladder's calibration
+    /// fits them).
+    #[arg(long)]
+    reference_free: bool,
+    /// Local gravity for --reference-free, m/s^2 (default: WGS-84 normal gravity at
+    /// --latitude-deg, else 9.80665).
+    #[arg(long, value_name = "M_S2", conflicts_with_all = ["plan", "reference"])]
+    gravity_m_s2: Option<f64>,
+    /// Geodetic latitude for --reference-free, degrees: local gravity (unless given) and the
+    /// vertical part of Earth's rate, the gyro's true rate at rest.
+    #[arg(
+        long,
+        value_name = "DEG",
+        conflicts_with_all = ["plan", "reference"],
+        allow_negative_numbers = true
+    )]
+    latitude_deg: Option<f64>,
 }
 
 impl RefArgs {
-    /// The file that holds the reference.
-    fn path(&self) -> &Path {
-        self.plan
-            .as_deref()
-            .or(self.reference.as_deref())
-            .expect("clap requires one of --plan and --reference")
+    /// The file that holds the reference (None: reference-free).
+    fn path(&self) -> Option<&Path> {
+        self.plan.as_deref().or(self.reference.as_deref())
+    }
+
+    /// Where the true input comes from, for the JSON output.
+    fn describe(&self) -> String {
+        self.path().map_or_else(
+            || "reference-free (gravity magnitude, Earth rate)".to_string(),
+            |p| p.display().to_string(),
+        )
+    }
+
+    /// The workbench on `series`: against the reference, or reference-free.
+    fn workbench<'a>(
+        &self,
+        series: &'a ImuSeries,
+        reference: Option<&Reference>,
+        opts: DiagnoseOptions,
+    ) -> Result<Workbench<'a>> {
+        Ok(match reference {
+            Some(r) => Workbench::new(series, r, opts)?,
+            None => Workbench::reference_free(series, self.gravity_m_s2, self.latitude_deg, opts)?,
+        })
     }
 }
 
@@ -153,6 +198,8 @@ struct DiagnoseJson<'a> {
     recording: String,
     reference: String,
     model: Option<String>,
+    /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
+    notes: &'a [String],
     added: Vec<(Triad, EffectKind)>,
     verdict: Verdicts,
     candidates: Vec<CandidateRow>,
@@ -165,6 +212,8 @@ struct LadderJson<'a> {
     recording: String,
     reference: String,
     base: Option<String>,
+    /// Conventions and decisions behind the calibration.
+    notes: &'a [String],
     output: Option<String>,
     report: Option<String>,
     added: Vec<(Triad, EffectKind)>,
@@ -260,11 +309,14 @@ fn input_file(path: &Path) -> Result<InputFile> {
 }
 
 /// Reads the recording and the reference.
-fn read_inputs(recording: &Path, r: &RefArgs) -> Result<(ImuSeries, Reference)> {
+fn read_inputs(recording: &Path, r: &RefArgs) -> Result<(ImuSeries, Option<Reference>)> {
     let series = read_any(recording, Source::Raw, &CsvOptions::default())
         .with_context(|| format!("reading {}", recording.display()))?;
     if series.is_empty() {
         bail!("{}: no samples", recording.display());
+    }
+    if r.reference_free {
+        return Ok((series, None));
     }
     let reference = Reference::open(
         r.plan.as_deref(),
@@ -272,8 +324,8 @@ fn read_inputs(recording: &Path, r: &RefArgs) -> Result<(ImuSeries, Reference)> 
         r.reference_offset_s,
         &series,
     )?
-    .context("no reference: give --plan or --reference")?;
-    Ok((series, reference))
+    .context("no reference: give --plan, --reference or --reference-free")?;
+    Ok((series, Some(reference)))
 }
 
 fn effects_text(m: &[EffectKind]) -> String {
@@ -431,7 +483,7 @@ fn candidate_rows(d: &TriadDiagnosis) -> impl Iterator<Item = CandidateRow> + '_
 
 fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     let Some(recording) = &a.recording else {
-        bail!("a RECORDING and --plan or --reference are required");
+        bail!("a RECORDING and --plan, --reference or --reference-free are required");
     };
     let reference = &a.reference;
     let mut model = load_model(a.model.as_deref())?;
@@ -450,7 +502,8 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
         }
     }
     let (series, truth) = read_inputs(recording, reference)?;
-    let wb = Workbench::new(&series, &truth, options(a.model.as_deref())?)
+    let wb = reference
+        .workbench(&series, truth.as_ref(), options(a.model.as_deref())?)
         .with_context(|| format!("segmenting {}", recording.display()))?;
     let accel = wb.diagnose(Triad::Accel, &model.accel)?;
     let gyro = wb.diagnose(Triad::Gyro, &model.gyro)?;
@@ -473,8 +526,9 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     if a.json {
         let j = DiagnoseJson {
             recording: recording.display().to_string(),
-            reference: reference.path().display().to_string(),
+            reference: reference.describe(),
             model: a.model.as_ref().map(|p| p.display().to_string()),
+            notes: &wb.notes,
             added,
             verdict: Verdicts {
                 accel: accel.verdict.clone(),
@@ -497,6 +551,9 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
             s.count(SegmentKind::Static),
             s.count(SegmentKind::Plateau)
         )?;
+        for n in &wb.notes {
+            writeln!(out, "note: {n}")?;
+        }
         for (t, k) in &added {
             writeln!(out, "added {t} {k}")?;
         }
@@ -513,12 +570,15 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
 fn run_ladder(a: &LadderArgs) -> Result<()> {
     let base = load_model(a.base.as_deref())?;
     let (series, truth) = read_inputs(&a.recording, &a.reference)?;
-    let wb = Workbench::new(&series, &truth, options(a.base.as_deref())?)
+    let wb = a
+        .reference
+        .workbench(&series, truth.as_ref(), options(a.base.as_deref())?)
         .with_context(|| format!("segmenting {}", a.recording.display()))?;
     let Ladder {
         steps,
         final_diagnoses,
         mut calibration,
+        notes,
     } = wb.ladder(&base)?;
     let added: Vec<(Triad, EffectKind)> = steps.iter().filter_map(|s| s.added).collect();
 
@@ -533,8 +593,15 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
     ));
     cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
     cal.provenance.tool = Some(format!("imu-diagnose {}", env!("CARGO_PKG_VERSION")));
-    cal.provenance.procedure = Some("imu-diagnose ladder".into());
-    let mut inputs = vec![input_file(&a.recording)?, input_file(a.reference.path())?];
+    cal.provenance.procedure = Some(if a.reference.reference_free {
+        "imu-diagnose ladder --reference-free".into()
+    } else {
+        "imu-diagnose ladder".into()
+    });
+    let mut inputs = vec![input_file(&a.recording)?];
+    if let Some(r) = a.reference.path() {
+        inputs.push(input_file(r)?);
+    }
     if let Some(b) = &a.base {
         inputs.push(input_file(b)?);
     }
@@ -577,8 +644,9 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
     if a.json {
         let j = LadderJson {
             recording: a.recording.display().to_string(),
-            reference: a.reference.path().display().to_string(),
+            reference: a.reference.describe(),
             base: a.base.as_ref().map(|p| p.display().to_string()),
+            notes: &notes,
             output: a.output.as_ref().map(|p| p.display().to_string()),
             report: a.report.as_ref().map(|p| p.display().to_string()),
             added,
@@ -596,6 +664,9 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
         writeln!(out)?;
         for d in &final_diagnoses {
             writeln!(out, "{}", d.verdict)?;
+        }
+        for n in &notes {
+            writeln!(out, "note: {n}")?;
         }
         if let Some(p) = &a.output {
             writeln!(out, "\nwrote {}", p.display())?;

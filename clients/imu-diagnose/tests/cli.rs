@@ -195,3 +195,110 @@ fn noise_tables_of_the_model_file_are_the_floor() {
     assert_eq!(gyro["candidates"][0]["effect"], "g-sensitivity", "{gyro}");
     assert_eq!(gyro["candidates"][0]["claimed"], true, "{gyro}");
 }
+
+/// Without a reference: 36 hand-held still poses (config/scenarios/multi-pose.toml) of the
+/// workbench demo's truth (a gyro g-sensitivity hidden under bias, scale and misalignment). The
+/// ladder must find the g-sensitivity from the still poses alone and write a calibration with
+/// it and with the gyro gains fitted from the moves.
+#[test]
+fn reference_free_ladder_finds_the_hidden_gyro_g_sensitivity() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = imud::offline::record_session(
+        dir.path(),
+        "t",
+        &config("scenarios/multi-pose.toml"),
+        Some(&config("models/workbench-demo.toml")),
+        41,
+        None,
+    )
+    .unwrap();
+    let cal_path = dir.path().join("cal.toml");
+    let j = run(&[
+        "ladder".as_ref(),
+        s.recording.as_os_str(),
+        "--reference-free".as_ref(),
+        "--latitude-deg".as_ref(),
+        "40".as_ref(),
+        "-o".as_ref(),
+        cal_path.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    let added: Vec<&serde_json::Value> = j["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| &s["added"])
+        .filter(|a| !a.is_null())
+        .collect();
+    assert_eq!(
+        added,
+        vec![&serde_json::json!(["gyro", "g-sensitivity"])],
+        "{}",
+        j["verdict"]
+    );
+    assert!(j["reference"].as_str().unwrap().contains("reference-free"));
+    assert!(
+        j["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("gravity magnitude")),
+        "{}",
+        j["notes"]
+    );
+    let cal = Calibration::load(&cal_path).unwrap();
+    assert!(cal.gyro.has(EffectKind::GSensitivity), "{cal:?}");
+    assert!(
+        cal.gyro.has(EffectKind::Scale),
+        "gyro gains from the moves: {cal:?}"
+    );
+    assert_eq!(
+        cal.provenance.procedure.as_deref(),
+        Some("imu-diagnose ladder --reference-free")
+    );
+    // The fitted g-sensitivity agrees with the hidden one on its largest entry.
+    let truth = Calibration::load(&config("models/workbench-demo.toml")).unwrap();
+    let names = cal.gyro.param_names(imu_model::Triad::Gyro);
+    let zz = names.iter().position(|n| n == "g-sensitivity.zz").unwrap();
+    let tz = truth
+        .gyro
+        .param_names(imu_model::Triad::Gyro)
+        .iter()
+        .position(|n| n == "g-sensitivity.zz")
+        .unwrap();
+    let (fit, want) = (cal.gyro.params()[zz], truth.gyro.params()[tz]);
+    let se = cal.gyro.std_errors()[zz].expect("fitted with a standard error");
+    assert!(
+        (fit - want).abs() < 4.0 * se,
+        "g-sensitivity.zz {fit:.3e} +/- {se:.1e}, truth {want:.3e}"
+    );
+}
+
+/// Exactly one truth source; the reference-free options only with --reference-free; a
+/// reference log's clock offset is not a second source.
+#[test]
+fn truth_source_arguments_are_checked() {
+    let args = |a: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_imu-diagnose"))
+            .args(a)
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = args(&["rec.mcap", "--plan", "p.toml", "--reference-free"]);
+    assert!(e.contains("cannot be used with"), "{e}");
+    let e = args(&["rec.mcap", "--reference", "l.csv", "--latitude-deg", "40"]);
+    assert!(e.contains("cannot be used with"), "{e}");
+    let e = args(&["rec.mcap"]);
+    assert!(e.contains("--reference-free"), "{e}");
+    let e = args(&[
+        "rec.mcap",
+        "--reference",
+        "l.csv",
+        "--reference-offset-s",
+        "0.5",
+    ]);
+    assert!(!e.contains("cannot be used with"), "{e}");
+    assert!(e.contains("rec.mcap"), "{e}");
+}
