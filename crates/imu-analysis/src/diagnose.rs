@@ -1535,7 +1535,11 @@ impl<'a> Workbench<'a> {
                 Ok(f) => {
                     cal.accel = f.calibration.accel;
                     cal.gyro = f.calibration.gyro;
-                    notes.extend(f.notes);
+                    for n in f.notes {
+                        if !notes.contains(&n) {
+                            notes.push(n);
+                        }
+                    }
                 }
                 Err(e) => notes.push(format!(
                     "the reference-free calibration of the final model failed ({e}): the \
