@@ -196,7 +196,7 @@ fn noise_tables_of_the_model_file_are_the_floor() {
     assert_eq!(gyro["candidates"][0]["claimed"], true, "{gyro}");
 }
 
-/// Without a reference: 36 hand-held still poses (config/scenarios/multi-pose.toml) of the
+/// Without a reference: 36 hand-held still poses (config/scenarios/workbench-poses.toml) of the
 /// workbench demo's truth (a gyro g-sensitivity hidden under bias, scale and misalignment). The
 /// ladder must find the g-sensitivity from the still poses alone and write a calibration with
 /// it and with the gyro gains fitted from the moves.
@@ -206,8 +206,8 @@ fn reference_free_ladder_finds_the_hidden_gyro_g_sensitivity() {
     let s = imud::offline::record_session(
         dir.path(),
         "t",
-        &config("scenarios/multi-pose.toml"),
-        Some(&config("models/workbench-demo.toml")),
+        &config("scenarios/workbench-poses.toml"),
+        None,
         41,
         None,
     )
