@@ -304,6 +304,24 @@ pub fn measure_noise_floor(
     Ok(floor)
 }
 
+/// The accel and gyro noise floors: the given noise characterisations, else measured from the
+/// static segments of `obs`.
+fn floors(
+    series: &ImuSeries,
+    obs: &Observations,
+    opts: &DiagnoseOptions,
+) -> Result<(NoiseFloor, NoiseFloor), DiagnoseError> {
+    let rate = series.sample_rate_hz();
+    let floor = |t: Triad, given: &Option<NoiseModel>| match given {
+        Some(m) => Ok(NoiseFloor::from_model(t, m, rate)),
+        None => measure_noise_floor(series, obs, t),
+    };
+    Ok((
+        floor(Triad::Accel, &opts.accel_noise)?,
+        floor(Triad::Gyro, &opts.gyro_noise)?,
+    ))
+}
+
 fn apply_terms(floor: &mut NoiseFloor, axis: usize, t: &NoiseTerms) {
     floor.white_per_sqrt_hz[axis] = t.n_u_per_sqrt_hz.value;
     floor.bias_instability[axis] = t.b_u.value;
@@ -575,12 +593,7 @@ impl<'a> Workbench<'a> {
     ) -> Result<Workbench<'a>, DiagnoseError> {
         let obs = Observations::from_recording(series, reference, &opts.segment, true)?;
         let rate = series.sample_rate_hz();
-        let floor = |t: Triad, given: &Option<NoiseModel>| match given {
-            Some(m) => Ok(NoiseFloor::from_model(t, m, rate)),
-            None => measure_noise_floor(series, &obs, t),
-        };
-        let accel_floor = floor(Triad::Accel, &opts.accel_noise)?;
-        let gyro_floor = floor(Triad::Gyro, &opts.gyro_noise)?;
+        let (accel_floor, gyro_floor) = floors(series, &obs, &opts)?;
         let n_of = |v: &[(usize, FitPoint)]| -> Vec<usize> {
             v.iter()
                 .map(|(i, _)| obs.segmentation.segments[*i].n)
@@ -718,12 +731,7 @@ impl<'a> Workbench<'a> {
             segmentation,
         };
         let rate = series.sample_rate_hz();
-        let floor = |t: Triad, given: &Option<NoiseModel>| match given {
-            Some(m) => Ok(NoiseFloor::from_model(t, m, rate)),
-            None => measure_noise_floor(series, &obs, t),
-        };
-        let accel_floor = floor(Triad::Accel, &opts.accel_noise)?;
-        let gyro_floor = floor(Triad::Gyro, &opts.gyro_noise)?;
+        let (accel_floor, gyro_floor) = floors(series, &obs, &opts)?;
         let n: Vec<usize> = poses
             .iter()
             .map(|&i| obs.segmentation.segments[i].n)

@@ -226,6 +226,11 @@ fn assert_found(
 ) {
     let run = record(scenario, hidden, seed);
     let wb = Workbench::new(&run.series, &run.reference, DiagnoseOptions::default()).unwrap();
+    assert_found_by(&wb, triad, effect, max_ratio);
+}
+
+/// (a)-(c) on an open workbench; returns the ladder.
+fn assert_found_by(wb: &Workbench, triad: Triad, effect: EffectKind, max_ratio: f64) -> Ladder {
     let d = wb.diagnose(triad, &base_model()).unwrap();
     show(&d);
     // (a) the base model is inconsistent with the noise floor.
@@ -255,6 +260,7 @@ fn assert_found(
         ratio <= max_ratio,
         "residual RMS {ratio:.2}x the noise floor"
     );
+    ladder
 }
 
 /// Residual RMS over the noise floor RMS, all three axes together.
@@ -605,26 +611,7 @@ fn reference_free_workbench(run: &Run) -> Workbench<'_> {
 /// the residual falls to within 20 % of the noise floor.
 fn assert_found_reference_free(hidden: &str, triad: Triad, effect: EffectKind, seed: u64) {
     let run = reference_free_run(hidden, seed);
-    let wb = reference_free_workbench(&run);
-    let d = wb.diagnose(triad, &base_model()).unwrap();
-    show(&d);
-    assert!(!d.consistent, "base model called consistent: {}", d.verdict);
-    let top = &d.candidates[0];
-    assert_eq!(top.effect, effect, "{}", d.verdict);
-    assert!(top.p_value < 1e-3 && top.claimed, "{}", d.verdict);
-    let ladder = wb.ladder(&base_calibration()).unwrap();
-    show_ladder(&ladder);
-    let added: Vec<_> = ladder.steps.iter().filter_map(|s| s.added).collect();
-    assert_eq!(added, vec![(triad, effect)], "ladder added {added:?}");
-    let last = ladder.steps.last().unwrap();
-    let s = if triad == Triad::Gyro {
-        &last.gyro
-    } else {
-        &last.accel
-    };
-    let ratio = rms_ratio(s);
-    eprintln!("REFERENCE-FREE RATIO {effect}: {ratio:.3}");
-    assert!(ratio <= 1.2, "residual RMS {ratio:.2}x the noise floor");
+    let ladder = assert_found_by(&reference_free_workbench(&run), triad, effect, 1.2);
     eprintln!("ladder notes: {:#?}", ladder.notes);
     // The final calibration is loadable and carries the added effect.
     let text = ladder.calibration.to_toml_string();
