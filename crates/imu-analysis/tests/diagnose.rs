@@ -430,21 +430,38 @@ fn monotonic_warmup_cannot_separate_temperature_bias_from_warmup() {
 /// run, for the example 3DM-GX1 noise and for a sensor whose noise is dominated by bias
 /// instability and random walk.
 fn negative_control(name: &str, truth: &str) {
-    let mut flagged = Vec::new();
-    for seed in 100..120 {
+    negative_control_by(name, 100..120, |seed| {
         let run = record_with_truth(INDEX_TABLE, truth, seed);
         let wb = Workbench::new(&run.series, &run.reference, DiagnoseOptions::default()).unwrap();
-        for triad in [Triad::Accel, Triad::Gyro] {
-            let d = wb.diagnose(triad, &base_model()).unwrap();
+        diagnose_both(&wb)
+    });
+}
+
+fn diagnose_both(wb: &Workbench) -> [TriadDiagnosis; 2] {
+    [Triad::Accel, Triad::Gyro].map(|t| wb.diagnose(t, &base_model()).unwrap())
+}
+
+/// Runs `diagnose(seed)` over `seeds`: asserts that at most one run has a significant
+/// candidate; returns how many verdicts were inconsistent even with the bias wander allowed.
+fn negative_control_by(
+    name: &str,
+    seeds: std::ops::Range<u64>,
+    diagnose: impl Fn(u64) -> [TriadDiagnosis; 2],
+) -> usize {
+    let mut flagged = Vec::new();
+    let mut inconsistent = 0;
+    for seed in seeds {
+        for d in diagnose(seed) {
+            inconsistent += usize::from(!d.consistent_with_drift);
             for c in d.candidates.iter().filter(|c| c.significant) {
                 flagged.push(format!(
-                    "seed {seed} {triad} {} p {:.1e}",
-                    c.effect, c.p_value
+                    "seed {seed} {} {} p {:.1e}",
+                    d.triad, c.effect, c.p_value
                 ));
             }
         }
     }
-    eprintln!("{name}: {flagged:?}");
+    eprintln!("{name}: {flagged:?}, {inconsistent} verdicts inconsistent with drift");
     let runs: std::collections::BTreeSet<&str> = flagged
         .iter()
         .map(|f| f.split(' ').nth(1).unwrap_or(""))
@@ -454,6 +471,7 @@ fn negative_control(name: &str, truth: &str) {
         "{name}: effects claimed in {} runs: {flagged:?}",
         runs.len()
     );
+    inconsistent
 }
 
 #[test]
@@ -647,34 +665,10 @@ fn reference_free_finds_hidden_gyro_g_sensitivity() {
 /// than one run, and the base model is called consistent (allowing the bias wander) in most.
 #[test]
 fn reference_free_negative_control_over_20_seeds() {
-    let mut flagged = Vec::new();
-    let mut inconsistent = 0;
-    for seed in 200..220 {
+    let inconsistent = negative_control_by("reference-free", 200..220, |seed| {
         let run = reference_free_run("", seed);
-        let wb = reference_free_workbench(&run);
-        for triad in [Triad::Accel, Triad::Gyro] {
-            let d = wb.diagnose(triad, &base_model()).unwrap();
-            if !d.consistent_with_drift {
-                inconsistent += 1;
-            }
-            for c in d.candidates.iter().filter(|c| c.significant) {
-                flagged.push(format!(
-                    "seed {seed} {triad} {} p {:.1e}",
-                    c.effect, c.p_value
-                ));
-            }
-        }
-    }
-    eprintln!("reference-free negative control: {flagged:?}, {inconsistent} of 40 inconsistent");
-    let runs: std::collections::BTreeSet<&str> = flagged
-        .iter()
-        .map(|f| f.split(' ').nth(1).unwrap_or(""))
-        .collect();
-    assert!(
-        runs.len() <= 1,
-        "effects claimed in {} runs: {flagged:?}",
-        runs.len()
-    );
+        diagnose_both(&reference_free_workbench(&run))
+    });
     // At alpha = 0.001 over 40 verdicts, more than 2 rejections means a wrong floor.
     assert!(
         inconsistent <= 2,
