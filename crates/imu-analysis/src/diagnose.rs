@@ -1312,6 +1312,15 @@ impl<'a> Workbench<'a> {
                 let dof2 = (n_obs - r.free.len() as f64 - self.n_profiled(triad)).max(1.0);
                 let f = (lr / n_obs).exp_m1() * dof2 / new_params as f64;
                 let p = stats::f_sf(f, new_params as f64, dof2);
+                if p >= self.opts.alpha {
+                    // Not significant, and its values say nothing: show why instead of them.
+                    let weak = barely_excited(k, &r, span_s(points));
+                    if !weak.is_empty() {
+                        let mut c = unobservable_candidate(k, triad, weak.join("; "));
+                        c.not_observable = weak;
+                        return Some(c);
+                    }
+                }
                 let cand_chi2: f64 = self.chi2_axes(triad, &r.residuals, &shared).iter().sum();
                 let d_chi2 = (chi2 - cand_chi2).max(0.0);
                 let pattern: Vec<f64> = normalised(&r.residuals, points)
@@ -1891,6 +1900,35 @@ fn normalised(res: &[[f64; 3]], points: &[FitPoint]) -> Vec<f64> {
     res.iter()
         .zip(points)
         .flat_map(|(r, p)| (0..3).map(move |a| r[a] / p.std_error[a]))
+        .collect()
+}
+
+/// Physical upper bound of a lever arm inside an IMU package, m.
+const MAX_LEVER_ARM_M: f64 = 1.0;
+
+/// Parameters of candidate `k` that the recording excites so weakly that their standard error
+/// exceeds any physically possible value (a lever arm seen only through Earth's rate, a
+/// time constant longer than the recording): what to say instead of their fitted values.
+fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<String> {
+    let prefix = format!("{}.", k.id());
+    (0..r.names.len())
+        .filter(|&i| r.names[i].starts_with(&prefix))
+        .filter_map(|i| {
+            let se = r.std_errors[i]?;
+            let name = &r.names[i];
+            match k {
+                EffectKind::LeverArm if se > MAX_LEVER_ARM_M => Some(format!(
+                    "{name}: standard error {se:.1e} m, more than any lever arm inside an IMU \
+                     package ({MAX_LEVER_ARM_M} m): the recording barely excites it (rotate \
+                     about each axis at several rates)"
+                )),
+                EffectKind::Warmup if name.ends_with("tau_s") && se > span_s => Some(format!(
+                    "{name}: standard error {se:.0} s, longer than the recording ({span_s:.0} s): \
+                     no decay is resolved (record from power-on)"
+                )),
+                _ => None,
+            }
+        })
         .collect()
 }
 

@@ -675,3 +675,27 @@ fn reference_free_negative_control_over_20_seeds() {
         "{inconsistent} of 40 verdicts inconsistent"
     );
 }
+
+/// An index table turns nothing: a lever arm is excited only by Earth's rate, and its fit
+/// would give hundreds of kilometres. The candidate is reported as not measurable here, with
+/// the reason, instead of with such a value.
+#[test]
+fn a_barely_excited_candidate_says_so_instead_of_giving_absurd_values() {
+    let run = record(INDEX_TABLE, "", 23);
+    let wb = Workbench::new(&run.series, &run.reference, DiagnoseOptions::default()).unwrap();
+    let d = wb.diagnose(Triad::Accel, &base_model()).unwrap();
+    let c = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == EffectKind::LeverArm)
+        .unwrap();
+    assert_eq!(c.new_params, 0, "{}", c.explanation);
+    assert!(c.params.is_empty());
+    assert!(
+        c.not_observable
+            .iter()
+            .any(|w| w.contains("barely excites")),
+        "{:?}",
+        c.not_observable
+    );
+}
