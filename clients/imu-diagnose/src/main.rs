@@ -456,6 +456,13 @@ fn print_ladder(out: &mut impl Write, steps: &[LadderStep]) -> std::io::Result<(
             "",
             cell(&s.gyro)
         )?;
+        if let Some(m) = &s.gyro.moves {
+            writeln!(
+                out,
+                "{:<31} gyro gains, {} moves: {:.2e}/{:.2e} rad p {:.1e}",
+                "", m.n_moves, m.residual_rms_rad, m.expected_rms_rad, m.p_value
+            )?;
+        }
     }
     Ok(())
 }

@@ -549,6 +549,43 @@ pub struct TriadDiagnosis {
     pub fit: FitResult,
     /// The noise floor used.
     pub noise_floor: NoiseFloor,
+    /// Reference-free gyro: the gains held against the moves between poses.
+    pub moves: Option<MovesVerdict>,
+}
+
+/// The gyro gains held against the rotations integrated over the moves between still poses
+/// (reference-free workbench).
+#[derive(Clone, Debug, Serialize)]
+pub struct MovesVerdict {
+    /// Moves used.
+    pub n_moves: usize,
+    /// Moves skipped (lost samples).
+    pub skipped: usize,
+    /// Gain effects of the model.
+    pub effects: Vec<EffectKind>,
+    /// RMS of the gravity-direction error after each move (per component), rad.
+    pub residual_rms_rad: f64,
+    /// RMS expected from the noise (white gyro noise over the move, the pose means), rad.
+    pub expected_rms_rad: f64,
+    /// Chi-square of the whitened errors.
+    pub chi2: f64,
+    /// Its degrees of freedom.
+    pub dof: usize,
+    /// P(chi-square > chi2) if the model were right.
+    pub p_value: f64,
+    /// p >= alpha.
+    pub consistent: bool,
+}
+
+/// What [`Workbench::diagnose_moves`] finds.
+struct MovesDiagnosis {
+    verdict: MovesVerdict,
+    candidates: Vec<Candidate>,
+    ambiguities: Vec<Ambiguity>,
+    /// The fitted gain model.
+    gains: TriadModel,
+    /// The verdict in words.
+    text: String,
 }
 
 /// The workbench's state: a recording's observations and noise floors.
@@ -568,6 +605,10 @@ pub struct Workbench<'a> {
     spectral: [Vec<SpectralLine>; 2],
     /// Reference-free: the accel observations are gravity magnitudes.
     magnitude: Option<Magnitude>,
+    /// Reference-free: the moves between consecutive still poses (gyro gains).
+    moves: Vec<crate::reference_free::MoveData>,
+    /// Moves skipped (lost samples).
+    moves_skipped: usize,
     /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
     pub notes: Vec<String>,
 }
@@ -618,6 +659,8 @@ impl<'a> Workbench<'a> {
             opts,
             spectral,
             magnitude: None,
+            moves: Vec::new(),
+            moves_skipped: 0,
             notes: Vec::new(),
         })
     }
@@ -633,8 +676,10 @@ impl<'a> Workbench<'a> {
     ///   still poses, whose true rate is Earth's: its vertical part along the calibrated up
     ///   direction when the latitude is given; the part a heading would fix (horizontal, or all
     ///   of it without a latitude) is an extra noise of each pose mean.
-    /// - The gyro gains come from the moves between poses and are not held against data here;
-    ///   the ladder's calibration fits them as `imu-calibrate --reference-free` does.
+    /// - The gyro gains (scale, misalignment, asymmetry, nonlinearity) are held against the
+    ///   rotations integrated over the moves between poses, as `imu-calibrate
+    ///   --reference-free` fits them, with the gain effects of the library as candidates; the
+    ///   ladder's calibration is that procedure's fit of the final model.
     pub fn reference_free(
         series: &'a ImuSeries,
         gravity_m_s2: Option<f64>,
@@ -758,6 +803,8 @@ impl<'a> Workbench<'a> {
                 gravity_m_s2,
                 latitude_deg,
             }),
+            moves: Vec::new(),
+            moves_skipped: 0,
             notes: vec![
                 gravity_note,
                 "accel: held against the gravity magnitude at each still pose; misalignment xy, \
@@ -766,8 +813,8 @@ impl<'a> Workbench<'a> {
                     .into(),
                 earth_note,
                 "gyro gains (scale, misalignment, asymmetry, nonlinearity, temperature scale) \
-                 come from the moves between poses (imu-calibrate --reference-free); here the \
-                 gyro offsets are held against the still poses"
+                 are held against the rotations integrated over the moves between poses, the \
+                 gyro offsets against the still poses"
                     .into(),
             ],
         };
@@ -813,6 +860,16 @@ impl<'a> Workbench<'a> {
             }
         }
         wb.gyro_points = gyro_points;
+        let pose_segs: Vec<&crate::segment::Segment> = poses
+            .iter()
+            .map(|&i| &obs.segmentation.segments[i])
+            .collect();
+        let conditions: Vec<imu_model::Conditions> = pose_segs
+            .iter()
+            .map(|s| pose_conditions(series, s))
+            .collect();
+        (wb.moves, wb.moves_skipped) =
+            crate::reference_free::prepare_moves(series, &pose_segs, &up, &conditions, g_m_s2);
         wb.obs = obs;
         Ok(wb)
     }
@@ -1204,6 +1261,7 @@ impl<'a> Workbench<'a> {
         triad: Triad,
         model: &TriadModel,
     ) -> Result<TriadDiagnosis, DiagnoseError> {
+        let full_model = model.clone();
         let (model, _) = self.fittable(triad, model);
         let profiled = self.fit(triad, &model)?;
         let base = profiled.fit.clone();
@@ -1351,42 +1409,8 @@ impl<'a> Workbench<'a> {
                 })
             })
             .collect();
-        candidates.sort_by(|a, b| {
-            (b.new_params > 0)
-                .cmp(&(a.new_params > 0))
-                .then(b.delta_aic.total_cmp(&a.delta_aic))
-        });
-
-        // Ambiguities among the significant candidates.
-        let mut ambiguities = Vec::new();
-        let sig: Vec<usize> = (0..candidates.len())
-            .filter(|&i| candidates[i].significant)
-            .collect();
-        for (ai, &i) in sig.iter().enumerate() {
-            for &j in &sig[ai + 1..] {
-                let (ci, cj) = (&candidates[i], &candidates[j]);
-                let r = stats::correlation(&ci.pattern, &cj.pattern);
-                // Comparable likelihoods: an AIC difference under 10 (a likelihood ratio
-                // under e^5) does not pick one of two non-nested models with confidence.
-                let comparable = (ci.delta_aic - cj.delta_aic).abs() < AMBIGUOUS_AIC;
-                if r.abs() >= self.opts.ambiguity_correlation && comparable {
-                    ambiguities.push(Ambiguity {
-                        triad,
-                        effects: [ci.effect, cj.effect],
-                        correlation: r,
-                        separating_recording: separating_recording(ci.effect, cj.effect),
-                    });
-                }
-            }
-        }
         let consistent_before = p_value >= self.opts.alpha;
-        if let Some(top) = candidates.first_mut() {
-            let confused = ambiguities.iter().any(|a| a.effects.contains(&top.effect));
-            top.claimed = !consistent_before
-                && top.significant
-                && top.share_of_excess >= self.opts.min_share
-                && !confused;
-        }
+        let mut ambiguities = rank_and_claim(&mut candidates, consistent_before, triad, &self.opts);
         let q_ml: [f64; 3] = std::array::from_fn(|a| profiled.scale[a] * profiled.rho[a]);
         let with_drift: [SharedNoise; 3] = std::array::from_fn(|a| SharedNoise {
             random_walk_q: q_ml[a],
@@ -1408,10 +1432,11 @@ impl<'a> Workbench<'a> {
         for (a, v) in axes.iter_mut().enumerate() {
             v.noise_floor_with_drift_rms = with_drift_expected[a];
         }
-        let consistent = consistent_before && spectral_lines.is_empty();
-        let consistent_with_drift = (consistent_before || p_value_with_drift >= self.opts.alpha)
+        let mut consistent = consistent_before && spectral_lines.is_empty();
+        let mut consistent_with_drift = (consistent_before
+            || p_value_with_drift >= self.opts.alpha)
             && spectral_lines.is_empty();
-        let verdict = verdict_text(
+        let mut verdict = verdict_text(
             triad,
             &model,
             consistent_before,
@@ -1424,6 +1449,29 @@ impl<'a> Workbench<'a> {
             &structure,
             &spectral_lines,
         );
+        let mut base = base;
+        let mut moves = None;
+        if triad == Triad::Gyro && self.magnitude.is_some() {
+            // Reference-free: the gains are held against the moves between poses.
+            let m = self.diagnose_moves(&full_model, &base.model)?;
+            consistent &= m.verdict.consistent;
+            consistent_with_drift &= m.verdict.consistent;
+            let _ = write!(verdict, " {}", m.text);
+            // Every model handed on (to the ladder, into the calibration) is the whole gyro
+            // model: the offsets from the still poses, the gains from the moves.
+            base.model = merged(&full_model, &[&base.model, &m.gains]);
+            for c in &mut candidates {
+                if let Some(f) = c.fit.as_mut() {
+                    let mut spec = full_model.clone();
+                    spec.add(c.effect);
+                    f.model = merged(&spec, &[&f.model, &m.gains]);
+                }
+            }
+            candidates.extend(m.candidates);
+            sort_candidates(&mut candidates);
+            ambiguities.extend(m.ambiguities);
+            moves = Some(m.verdict);
+        }
         Ok(TriadDiagnosis {
             triad,
             effects: model.kinds(),
@@ -1447,6 +1495,245 @@ impl<'a> Workbench<'a> {
             verdict,
             fit: base,
             noise_floor: floor.clone(),
+            moves,
+        })
+    }
+
+    /// Reference-free: the gyro gain effects of `full` fitted to the rotations integrated over
+    /// the moves between poses, their verdict against the moves' noise, and every library gain
+    /// effect not in the model tried as a candidate (F test with the scale profiled, AIC,
+    /// share of the excess). `offsets` is the still-pose fit (its values join each candidate's
+    /// model).
+    fn diagnose_moves(
+        &self,
+        full: &TriadModel,
+        offsets: &TriadModel,
+    ) -> Result<MovesDiagnosis, DiagnoseError> {
+        use crate::reference_free::{GYRO_GAIN_KINDS, fit_gains};
+        let triad = Triad::Gyro;
+        let gain_model = |kinds: &[EffectKind]| {
+            let mut g = TriadModel::default();
+            for k in kinds {
+                g.add(*k);
+            }
+            merged(&g, &[full])
+        };
+        let kinds: Vec<EffectKind> = full
+            .kinds()
+            .into_iter()
+            .filter(|k| GYRO_GAIN_KINDS.contains(k))
+            .collect();
+        let lsq = crate::lsq::LsqOptions {
+            max_iterations: self.opts.fit.max_iterations,
+            tolerance: self.opts.fit.tolerance,
+            min_eigenvalue: self.opts.fit.min_eigenvalue,
+        };
+        let n_res = 2 * self.moves.len();
+        // Whitened residuals of a gain model (nothing fitted when it has no parameters).
+        let whitened = |g: &TriadModel| -> Vec<f64> {
+            self.moves
+                .iter()
+                .flat_map(|m| m.residual(g).map(|v| v / m.sigma_rad))
+                .collect()
+        };
+        let raw_rms = |g: &TriadModel| -> f64 {
+            let sq: f64 = self
+                .moves
+                .iter()
+                .map(|m| m.residual(g).iter().map(|v| v * v).sum::<f64>())
+                .sum();
+            (sq / n_res.max(1) as f64).sqrt()
+        };
+        let fit =
+            |g: &TriadModel| -> Result<(TriadModel, Option<crate::lsq::LsqSolution>), FitError> {
+                if g.n_params() == 0 {
+                    return Ok((g.clone(), None));
+                }
+                let sol = fit_gains(&self.moves, g, &vec![false; g.n_params()], &lsq).map_err(
+                    |e| match e {
+                        crate::lsq::LsqError::TooFewResiduals {
+                            n_residuals,
+                            n_free,
+                        } => FitError::TooFewObservations {
+                            triad,
+                            n_points: self.moves.len(),
+                            n_obs: n_residuals,
+                            n_free,
+                        },
+                        _ => FitError::NothingToFit { triad },
+                    },
+                )?;
+                let mut m = g.clone();
+                m.set_params(&sol.params);
+                Ok((m, Some(sol)))
+            };
+        let chi2_of = |g: &TriadModel| whitened(g).iter().map(|v| v * v).sum::<f64>();
+        let (gains, sol0) = fit(&gain_model(&kinds))?;
+        let free0 = sol0.as_ref().map_or(0, |s| s.free.len());
+        let chi2_0 = chi2_of(&gains);
+        let dof_0 = n_res.saturating_sub(free0).max(1);
+        let p0 = stats::chi2_sf(chi2_0, dof_0 as f64);
+        let expected_rms_rad = (self
+            .moves
+            .iter()
+            .map(|m| m.sigma_rad * m.sigma_rad)
+            .sum::<f64>()
+            / self.moves.len().max(1) as f64)
+            .sqrt();
+        let verdict = MovesVerdict {
+            n_moves: self.moves.len(),
+            skipped: self.moves_skipped,
+            effects: kinds.clone(),
+            residual_rms_rad: raw_rms(&gains),
+            expected_rms_rad,
+            chi2: chi2_0,
+            dof: dof_0,
+            p_value: p0,
+            consistent: p0 >= self.opts.alpha,
+        };
+        let base_pattern = whitened(&gains);
+        let excess = (chi2_0 - dof_0 as f64).max(1e-12);
+        let mut candidates: Vec<Candidate> = GYRO_GAIN_KINDS
+            .into_iter()
+            .filter(|k| !kinds.contains(k))
+            .map(|k| {
+                let mut with = kinds.clone();
+                with.push(k);
+                let Ok((g, Some(sol))) = fit(&gain_model(&with)) else {
+                    return unobservable_candidate(k, triad, "the moves cannot fit it".into());
+                };
+                let new_params = sol.free.len().saturating_sub(free0);
+                let not_obs: Vec<String> = sol
+                    .unobservable
+                    .iter()
+                    .filter(|u| u.name.starts_with(k.id()))
+                    .map(|u| format!("{}: {}", u.name, u.reason))
+                    .collect();
+                if new_params == 0 || sol.dof == 0 {
+                    let mut c = unobservable_candidate(k, triad, not_obs.join("; "));
+                    c.not_observable = not_obs;
+                    return c;
+                }
+                let chi2_1 = chi2_of(&g).max(1e-300);
+                let f = ((chi2_0 - chi2_1).max(0.0) / new_params as f64)
+                    / (chi2_1 / sol.dof.max(1) as f64);
+                let p = stats::f_sf(f, new_params as f64, sol.dof.max(1) as f64);
+                let lr = n_res as f64 * (chi2_0 / chi2_1).ln();
+                let pattern: Vec<f64> = whitened(&g)
+                    .iter()
+                    .zip(&base_pattern)
+                    .map(|(a, b)| b - a)
+                    .collect();
+                let rms = raw_rms(&g);
+                let residuals: Vec<[f64; 3]> = self
+                    .moves
+                    .iter()
+                    .map(|m| {
+                        let [a, b] = m.residual(&g);
+                        [a, b, 0.0]
+                    })
+                    .collect();
+                let mut spec = full.clone();
+                spec.add(k);
+                let r = FitResult {
+                    triad,
+                    model: merged(&spec, &[offsets, &g]),
+                    names: g.param_names(triad),
+                    units: g.param_units(triad),
+                    params: sol.params.clone(),
+                    std_errors: sol.std_errors.clone(),
+                    correlation: sol.correlation.clone(),
+                    free: sol.free.clone(),
+                    unobservable: sol.unobservable.clone(),
+                    residual_rms: [rms; 3],
+                    residuals,
+                    jacobian_raw: DMatrix::zeros(0, 0),
+                    chi2: chi2_1,
+                    chi2_axis: [chi2_1 / 3.0; 3],
+                    dof: sol.dof,
+                    reduced_chi2: sol.reduced_chi2,
+                    drift_random_walk: [0.0; 3],
+                    iterations: sol.iterations,
+                    converged: sol.converged,
+                    warnings: Vec::new(),
+                };
+                let params = effect_params(&r, k);
+                let best = params
+                    .iter()
+                    .max_by(|a, b| {
+                        let t = |p: &ParamValue| p.std_error.map_or(0.0, |s| (p.value / s).abs());
+                        t(a).total_cmp(&t(b))
+                    })
+                    .map(|p| {
+                        format!(
+                            " ({} = {:.3e}{} {})",
+                            p.name,
+                            p.value,
+                            p.std_error
+                                .map_or(String::new(), |e| format!(" +/- {e:.1e}")),
+                            p.unit
+                        )
+                    })
+                    .unwrap_or_default();
+                Candidate {
+                    effect: k,
+                    triad,
+                    new_params,
+                    not_observable: not_obs,
+                    chi2: chi2_1,
+                    dof: sol.dof,
+                    f,
+                    p_value: p,
+                    delta_aic: lr - 2.0 * new_params as f64,
+                    share_of_excess: (chi2_0 - chi2_1).max(0.0) / excess,
+                    residual_rms: [rms; 3],
+                    significant: p < self.opts.alpha,
+                    claimed: false,
+                    explanation: format!(
+                        "{}{best}: the rotations integrated over the moves between poses \
+                         need it; direction error after the moves {:.2e} rad RMS with it, \
+                         {:.2e} rad without",
+                        k.description(),
+                        rms,
+                        verdict.residual_rms_rad
+                    ),
+                    model_change: model_change(triad, &r.model, k),
+                    params,
+                    fit: Some(r),
+                    pattern,
+                }
+            })
+            .collect();
+        let ambiguities = rank_and_claim(&mut candidates, verdict.consistent, triad, &self.opts);
+        let mut text = format!(
+            "Gyro gains [{}] against {} moves between poses: direction error {:.2e} rad RMS vs \
+             {:.2e} expected (p = {:.1e}): {}.",
+            kinds.iter().map(|k| k.id()).collect::<Vec<_>>().join(", "),
+            verdict.n_moves,
+            verdict.residual_rms_rad,
+            verdict.expected_rms_rad,
+            p0,
+            if verdict.consistent {
+                "consistent"
+            } else {
+                "NOT consistent"
+            }
+        );
+        if let Some(c) = candidates.iter().find(|c| c.claimed) {
+            let _ = write!(
+                text,
+                " Missing gain effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
+                c.explanation,
+                c.p_value,
+                100.0 * c.share_of_excess.min(1.0)
+            );
+        }
+        Ok(MovesDiagnosis {
+            verdict,
+            candidates,
+            ambiguities,
+            gains,
+            text,
         })
     }
 
@@ -1471,7 +1758,7 @@ impl<'a> Workbench<'a> {
             let pick = diags
                 .iter()
                 .enumerate()
-                .filter_map(|(i, d)| d.candidates.first().filter(|c| c.claimed).map(|c| (i, c)))
+                .filter_map(|(i, d)| d.candidates.iter().find(|c| c.claimed).map(|c| (i, c)))
                 .max_by(|a, b| a.1.delta_aic.total_cmp(&b.1.delta_aic));
             let Some((i, c)) = pick else {
                 let (calibration, notes) = self.final_calibration(base, &diags);
@@ -1534,15 +1821,9 @@ impl<'a> Workbench<'a> {
             // Reference-free: the gyro gains come from the moves; the final model (the
             // ladder's accel and gyro offsets, the base's gyro gains) is calibrated as
             // imu-calibrate --reference-free does.
-            let mut gyro = base.gyro.clone();
-            for k in diags[1].fit.model.kinds() {
-                if !gyro.has(k) {
-                    gyro.add(k);
-                }
-            }
             let o = crate::reference_free::ReferenceFreeOptions {
                 accel: diags[0].fit.model.clone(),
-                gyro,
+                gyro: diags[1].fit.model.clone(),
                 gravity_m_s2: mag.gravity_m_s2,
                 latitude_deg: mag.latitude_deg,
                 segment: self.opts.segment.clone(),
@@ -1601,6 +1882,8 @@ pub struct StepSummary {
     pub consistent: bool,
     /// Consistent once a slow bias wander is allowed.
     pub consistent_with_drift: bool,
+    /// Reference-free gyro: the gains against the moves between poses.
+    pub moves: Option<MovesVerdict>,
 }
 
 impl StepSummary {
@@ -1615,6 +1898,7 @@ impl StepSummary {
             p_value: d.p_value,
             consistent: d.consistent,
             consistent_with_drift: d.consistent_with_drift,
+            moves: d.moves.clone(),
         }
     }
 }
@@ -1901,6 +2185,76 @@ fn normalised(res: &[[f64; 3]], points: &[FitPoint]) -> Vec<f64> {
         .zip(points)
         .flat_map(|(r, p)| (0..3).map(move |a| r[a] / p.std_error[a]))
         .collect()
+}
+
+/// `spec`'s effects with their values taken, by parameter name, from the first of `parts` that
+/// has them (else `spec`'s own).
+fn merged(spec: &TriadModel, parts: &[&TriadModel]) -> TriadModel {
+    let t = Triad::Gyro;
+    let names = spec.param_names(t);
+    let mut p = spec.params();
+    for (i, n) in names.iter().enumerate() {
+        if let Some(v) = parts.iter().find_map(|m| {
+            m.param_names(t)
+                .iter()
+                .position(|x| x == n)
+                .map(|j| m.params()[j])
+        }) {
+            p[i] = v;
+        }
+    }
+    let mut out = spec.clone();
+    out.set_params(&p);
+    out
+}
+
+/// Observable candidates first, by AIC improvement.
+fn sort_candidates(c: &mut [Candidate]) {
+    c.sort_by(|a, b| {
+        (b.new_params > 0)
+            .cmp(&(a.new_params > 0))
+            .then(b.delta_aic.total_cmp(&a.delta_aic))
+    });
+}
+
+/// Sorts `candidates`, finds the pairs this recording cannot tell apart (significant, their
+/// explained patterns correlated, comparable AIC), and claims the best one when the model is
+/// not `consistent` with the noise, it is significant, explains a substantial share of the
+/// excess and is not confused with another.
+fn rank_and_claim(
+    candidates: &mut [Candidate],
+    consistent: bool,
+    triad: Triad,
+    opts: &DiagnoseOptions,
+) -> Vec<Ambiguity> {
+    sort_candidates(candidates);
+    let mut ambiguities = Vec::new();
+    let sig: Vec<usize> = (0..candidates.len())
+        .filter(|&i| candidates[i].significant)
+        .collect();
+    for (ai, &i) in sig.iter().enumerate() {
+        for &j in &sig[ai + 1..] {
+            let (ci, cj) = (&candidates[i], &candidates[j]);
+            let r = stats::correlation(&ci.pattern, &cj.pattern);
+            // Comparable likelihoods: an AIC difference under 10 (a likelihood ratio under
+            // e^5) does not pick one of two non-nested models with confidence.
+            let comparable = (ci.delta_aic - cj.delta_aic).abs() < AMBIGUOUS_AIC;
+            if r.abs() >= opts.ambiguity_correlation && comparable {
+                ambiguities.push(Ambiguity {
+                    triad,
+                    effects: [ci.effect, cj.effect],
+                    correlation: r,
+                    separating_recording: separating_recording(ci.effect, cj.effect),
+                });
+            }
+        }
+    }
+    if let Some(top) = candidates.first_mut() {
+        let confused = ambiguities.iter().any(|a| a.effects.contains(&top.effect));
+        top.claimed =
+            !consistent && top.significant && top.share_of_excess >= opts.min_share && !confused;
+    }
+    ambiguities
 }
 
 /// Physical upper bound of a lever arm inside an IMU package, m.

@@ -644,7 +644,8 @@ fn fit_accel(
 }
 
 /// One move prepared for integration.
-struct MoveData {
+#[derive(Clone, Debug)]
+pub(crate) struct MoveData {
     from_pose: usize,
     to_pose: usize,
     /// Gyro sample minus the interpolated still-pose rate, rad/s, from the last sample of the
@@ -660,7 +661,7 @@ struct MoveData {
     /// Conditions for the gain model (those of the pose before).
     conditions: Conditions,
     /// Expected noise of each residual component, rad.
-    sigma_rad: f64,
+    pub(crate) sigma_rad: f64,
 }
 
 impl MoveData {
@@ -679,7 +680,7 @@ impl MoveData {
 
     /// Predicted minus measured up direction after the move, in the plane normal to the
     /// measured one, rad.
-    fn residual(&self, gains: &TriadModel) -> [f64; 2] {
+    pub(crate) fn residual(&self, gains: &TriadModel) -> [f64; 2] {
         let predicted = self
             .rotation(gains)
             .inverse_transform_vector(&self.up_before);
@@ -698,8 +699,31 @@ fn normal_basis(u: Vec3) -> (Vec3, Vec3) {
     (e1, u.cross(&e1))
 }
 
+/// The gyro gain model `gains` fitted to the integrated rotations of `moves` (two whitened
+/// residuals per move), with the parameters marked in `fixed` held.
+pub(crate) fn fit_gains(
+    moves: &[MoveData],
+    gains: &TriadModel,
+    fixed: &[bool],
+    lsq: &LsqOptions,
+) -> Result<LsqSolution, LsqError> {
+    let mut work = gains.clone();
+    let residual = |p: &[f64]| {
+        work.set_params(p);
+        let mut r = DVector::zeros(2 * moves.len());
+        for (k, m) in moves.iter().enumerate() {
+            let [a, b] = m.residual(&work);
+            r[2 * k] = a / m.sigma_rad;
+            r[2 * k + 1] = b / m.sigma_rad;
+        }
+        r
+    };
+    let names = gains.param_names(Triad::Gyro);
+    least_squares(residual, &gains.params(), fixed, &names, lsq)
+}
+
 /// Prepares the moves between consecutive poses; returns them and the number skipped.
-fn prepare_moves(
+pub(crate) fn prepare_moves(
     series: &ImuSeries,
     poses: &[&Segment],
     up: &[Vec3],
@@ -1024,23 +1048,13 @@ fn calibrate_reference_free_once(
                 n_free,
             });
         }
-        let mut work = gains.clone();
-        let residual = |p: &[f64]| {
-            work.set_params(p);
-            let mut r = DVector::zeros(2 * moves.len());
-            for (k, m) in moves.iter().enumerate() {
-                let [a, b] = m.residual(&work);
-                r[2 * k] = a / m.sigma_rad;
-                r[2 * k + 1] = b / m.sigma_rad;
-            }
-            r
-        };
         let fixed = held(Triad::Gyro, &gain_names, &opts.hold);
-        let sol = least_squares(residual, &gains.params(), &fixed, &gain_names, &opts.lsq)
-            .map_err(|source| ReferenceFreeError::Lsq {
+        let sol = fit_gains(&moves, &gains, &fixed, &opts.lsq).map_err(|source| {
+            ReferenceFreeError::Lsq {
                 triad: Triad::Gyro,
                 source,
-            })?;
+            }
+        })?;
         gains.set_params(&sol.params);
         Some(sol)
     } else {

@@ -387,27 +387,36 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
             ];
             r.extend(step_cells(&s.accel));
             r.extend(step_cells(&s.gyro));
+            if let Some(m) = &s.gyro.moves {
+                r.push(format!(
+                    "{} / {} (p {})",
+                    g(m.residual_rms_rad),
+                    g(m.expected_rms_rad),
+                    g(m.p_value)
+                ));
+            }
             r
         })
         .collect();
-    table(
-        &mut h,
-        &[
-            "step",
-            "added",
-            "accel x",
-            "accel y",
-            "accel z",
-            "accel p",
-            "accel ok (drift)",
-            "gyro x",
-            "gyro y",
-            "gyro z",
-            "gyro p",
-            "gyro ok (drift)",
-        ],
-        &rows,
-    );
+    let mut header = vec![
+        "step",
+        "added",
+        "accel x",
+        "accel y",
+        "accel z",
+        "accel p",
+        "accel ok (drift)",
+        "gyro x",
+        "gyro y",
+        "gyro z",
+        "gyro p",
+        "gyro ok (drift)",
+    ];
+    if steps.iter().any(|s| s.gyro.moves.is_some()) {
+        // Reference-free: the gyro gains against the moves between poses.
+        header.push("gyro gains: direction error / expected after the moves (rad)");
+    }
+    table(&mut h, &header, &rows);
     figures(
         &mut h,
         &[
@@ -761,6 +770,7 @@ mod tests {
             p_value: 0.4,
             consistent: rms <= floor,
             consistent_with_drift: rms <= floor,
+            moves: None,
         }
     }
 
