@@ -149,12 +149,21 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
     assert_eq!(p.entries.len(), 24);
     let by_plan = fit(run, &Reference::Plan(p), &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
-    assert_eq!(by_plan.segmentation.count(SegmentKind::Static), 24);
+    assert_eq!(
+        by_plan.recordings[0]
+            .segmentation
+            .count(SegmentKind::Static),
+        24
+    );
     let n = assert_within_3_se("accel", &by_plan.accel, &run.truth_model.accel);
     assert!(n >= 16, "{:?}", by_plan.accel.unobservable);
     // Same specific force in every segment: the fits are the same.
     assert_agree("accel", &by_plan.accel, &by_truth.accel, 1e-3);
-    for (a, b) in by_plan.segment_truth.iter().zip(&by_truth.segment_truth) {
+    for (a, b) in by_plan.recordings[0]
+        .segment_truth
+        .iter()
+        .zip(&by_truth.recordings[0].segment_truth)
+    {
         let d = Vec3::from(a.specific_force_m_s2) - Vec3::from(b.specific_force_m_s2);
         assert!(d.norm() < 1e-9, "{a:?} vs {b:?}");
     }
@@ -167,7 +176,11 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
         .unwrap_or_else(|| panic!("{:?}", by_plan.notes));
     eprintln!("{note}");
     let h = EARTH_RATE_RAD_S * 40f64.to_radians().cos();
-    for (a, b) in by_plan.segment_truth.iter().zip(&by_truth.segment_truth) {
+    for (a, b) in by_plan.recordings[0]
+        .segment_truth
+        .iter()
+        .zip(&by_truth.recordings[0].segment_truth)
+    {
         let d = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
         assert!(d.norm() <= h * (1.0 + 1e-6), "{d:?}");
     }
@@ -188,13 +201,18 @@ fn earth_rate_plan_gives_table_1_inputs_and_the_g_dependent_bias() {
     let opts = options(run, &[Bias], &[Bias, GSensitivity]);
     let by_plan = fit(run, &Reference::Plan(plan("earth-rate-8pos.toml")), &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
-    assert_eq!(by_plan.segmentation.count(SegmentKind::Static), 8);
+    assert_eq!(
+        by_plan.recordings[0]
+            .segmentation
+            .count(SegmentKind::Static),
+        8
+    );
     // Full orientation at latitude 40 deg: Earth's rate in the sensor frame is the truth's,
     // to rounding, and nothing is carried as unknown.
-    for (k, (a, b)) in by_plan
+    for (k, (a, b)) in by_plan.recordings[0]
         .segment_truth
         .iter()
-        .zip(&by_truth.segment_truth)
+        .zip(&by_truth.recordings[0].segment_truth)
         .enumerate()
     {
         let dw = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
@@ -209,7 +227,7 @@ fn earth_rate_plan_gives_table_1_inputs_and_the_g_dependent_bias() {
     );
     // Table 1, position 5: spin (z) north, input1 (x) east, input2 (y) down.
     let l = 40f64.to_radians();
-    let w5 = Vec3::from(by_plan.segment_truth[4].angular_rate_rad_s);
+    let w5 = Vec3::from(by_plan.recordings[0].segment_truth[4].angular_rate_rad_s);
     let want = Vec3::new(0.0, -l.sin(), l.cos()) * EARTH_RATE_RAD_S;
     assert!((w5 - want).norm() < 1e-15, "{w5:?}");
     // Bias and g-dependent bias (Eq. 3-4): 12 parameters, each within 3 SE of the truth, and
@@ -244,7 +262,7 @@ fn rate_table_plan_recovers_gyro_scale_and_misalignment() {
     let opts = rate_table_options(run);
     let by_plan = fit(run, &Reference::Plan(plan("rate-table.toml")), &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
-    let s = &by_plan.segmentation;
+    let s = &by_plan.recordings[0].segmentation;
     assert_eq!(
         (s.count(SegmentKind::Static), s.count(SegmentKind::Plateau)),
         (9, 42)
@@ -448,7 +466,12 @@ fn time_ranges_given_by_hand_bypass_detection() {
     use EffectKind::*;
     let opts = options(run, &[Bias], &[Bias, GSensitivity]);
     let by_hand = fit(run, &Reference::Plan(p), &opts);
-    for (seg, w) in by_hand.segmentation.segments.iter().zip(&windows) {
+    for (seg, w) in by_hand.recordings[0]
+        .segmentation
+        .segments
+        .iter()
+        .zip(&windows)
+    {
         assert!((seg.start_s - w[0]).abs() < 0.02 && (seg.end_s - w[1]).abs() < 0.02);
     }
     assert_within_3_se("gyro", &by_hand.gyro, &run.truth_model.gyro);
