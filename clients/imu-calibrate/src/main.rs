@@ -278,6 +278,8 @@ struct JsonRecording {
     reference_description: String,
     static_segments: usize,
     rate_plateaus: usize,
+    /// Detected segments a plan's skip step left out.
+    skipped_segments: usize,
     accel_points: usize,
     gyro_points: usize,
 }
@@ -832,6 +834,7 @@ fn run_reference(
                 reference_description: r.reference.clone(),
                 static_segments: r.segmentation.count(SegmentKind::Static),
                 rate_plateaus: r.segmentation.count(SegmentKind::Plateau),
+                skipped_segments: r.segmentation.skipped.len(),
                 accel_points: r.accel_points.len(),
                 gyro_points: r.gyro_points.len(),
             })

@@ -1308,6 +1308,12 @@ pub fn calibrate_recordings(
             String::new()
         };
         notes.extend(caveats.notes.iter().map(|n| format!("{prefix}{n}")));
+        notes.extend(
+            o.segmentation
+                .skipped
+                .iter()
+                .map(|k| format!("{prefix}{} skipped by {}: not fitted", k.describe(), k.by)),
+        );
         // Each reference's unknown is common to its own segments; the largest bounds what it
         // can do to the bias fitted from all of them.
         if let Some(sd) = caveats.gyro_bias_std_rad_s {

@@ -195,6 +195,62 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
 }
 
 #[test]
+fn a_skip_step_drops_its_segment_and_the_rest_fits_the_truth() {
+    let run = index_table();
+    use EffectKind::*;
+    let opts = options(
+        run,
+        &[Bias, Scale, Misalignment, ScaleNonlinearity],
+        &[Bias],
+    );
+    // The first turn's fifth position (120 deg) said to be disturbed: positions 1-4, a skip,
+    // then positions 6-12 from 150 deg.
+    let text = std::fs::read_to_string(repo().join("config/plans/index-table-12pos.toml")).unwrap();
+    let second = text.match_indices("[[step]]").nth(1).unwrap().0;
+    let mut edited = text[..second].replacen("positions = 12\n", "positions = 4\n", 1);
+    edited.push_str(
+        "[[step]]\nkind = \"skip\"\nlabel = \"position 5 bumped\"\n\n[[step]]\n\
+         kind = \"index-table\"\naxis = \"x\"\nstep-deg = 30.0\nstart-deg = 150.0\n\
+         positions = 7\nup = \"z\"\n\n",
+    );
+    edited.push_str(&text[second..]);
+    let skip_line = edited[..edited.find("[[step]]\nkind = \"skip\"").unwrap()]
+        .lines()
+        .count()
+        + 1;
+    let p = Plan::from_toml_str(&edited, "skip.toml").unwrap();
+    assert_eq!((p.entries.len(), p.count_skips()), (24, 1));
+    let by_skip = fit(run, &Reference::Plan(p), &opts);
+    let full = fit(run, &Reference::Plan(plan("index-table-12pos.toml")), &opts);
+    let rec = &by_skip.recordings[0];
+    let all = &full.recordings[0].segmentation.segments;
+    // The fifth detected segment is gone from the fit, listed with the step that dropped it.
+    assert_eq!(rec.segmentation.count(SegmentKind::Static), 23);
+    assert_eq!(rec.accel_points.len(), 23);
+    assert_eq!(by_skip.accel.residuals.len(), 23);
+    let skipped = &rec.segmentation.skipped;
+    assert_eq!(skipped.len(), 1);
+    assert_eq!(skipped[0].number, 5);
+    assert_eq!(skipped[0].segment, all[4]);
+    let kept: Vec<_> = all[..4].iter().chain(&all[5..]).cloned().collect();
+    assert_eq!(rec.segmentation.segments, kept);
+    let want = format!(
+        "segment 5 at {:.1}-{:.1} s (static) skipped by step 2 (line {skip_line}) [position 5 \
+         bumped: skip]: not fitted",
+        all[4].start_s, all[4].end_s
+    );
+    assert!(by_skip.notes.contains(&want), "{want}\n{:?}", by_skip.notes);
+    // The other 23 segments still fit the truth; the segment truth is the full plan's without
+    // the fifth.
+    let n = assert_within_3_se("accel", &by_skip.accel, &run.truth_model.accel);
+    assert!(n >= 15, "{:?}", by_skip.accel.unobservable);
+    assert_within_3_se("gyro", &by_skip.gyro, &run.truth_model.gyro);
+    let full_truth = &full.recordings[0].segment_truth;
+    let kept_truth: Vec<_> = full_truth[..4].iter().chain(&full_truth[5..]).collect();
+    assert_eq!(rec.segment_truth.iter().collect::<Vec<_>>(), kept_truth);
+}
+
+#[test]
 fn earth_rate_plan_gives_table_1_inputs_and_the_g_dependent_bias() {
     let run = earth_rate();
     use EffectKind::*;
