@@ -287,6 +287,25 @@ impl<'de> Deserialize<'de> for SensorDirection {
     }
 }
 
+/// A sensor direction written as in plans, `+z`, `-x`, `y` or `[x, y, z]` (normalised), from
+/// text (a reference log's `# table-axis = ...` line).
+pub(crate) fn parse_direction(s: &str) -> Option<Vec3> {
+    let s = s.trim();
+    if let Some(inner) = s.strip_prefix('[').and_then(|t| t.strip_suffix(']')) {
+        let v: Vec<f64> = inner
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .ok()?;
+        let [x, y, z] = v.as_slice() else {
+            return None;
+        };
+        let d = Vec3::new(*x, *y, *z);
+        return (d.iter().all(|c| c.is_finite()) && d.norm() > 1e-9).then(|| d.normalize());
+    }
+    parse_axis(s)
+}
+
 fn parse_axis(s: &str) -> Option<Vec3> {
     let (sign, name) = match s.as_bytes().first() {
         Some(b'-') => (-1.0, &s[1..]),

@@ -438,6 +438,116 @@ fn rate_table_log_is_aligned_in_time_and_fits_like_the_truth() {
     );
 }
 
+/// The truth as a rate table's own log: one column, the table's rate relative to the ground
+/// (no Earth rate), every 20 ms on a clock `offset_s` ahead, with a `# table-axis` line
+/// wherever the unit was re-mounted (the sensor axis pointing up on the table) and the site's
+/// latitude and gravity as settings.
+fn table_log_csv(truth: &Truth, offset_s: f64) -> String {
+    let mut csv = String::from(
+        "# simulated rate table, one rate column\n# latitude-deg = 40.0\n# gravity-m-s2 = 9.80665\n",
+    );
+    let mut header = false;
+    let mut axis = String::new();
+    for s in truth
+        .samples
+        .iter()
+        .filter(|s| s.command == 0x01)
+        .step_by(2)
+    {
+        // (A move between mountings keeps the axis before it: the table stands still.)
+        let seg = &truth.segments[s.segment as usize];
+        let up = seg
+            .axis_sensor
+            .map_or(-Vec3::from(seg.gravity_dir_sensor), Vec3::from);
+        let a = imu_analysis::plan::format_direction(&up);
+        if (seg.kind == "static" || seg.kind == "rate") && a != axis {
+            csv.push_str(&format!("# table-axis = {a}\n"));
+            axis = a;
+        }
+        if !header {
+            csv.push_str("t_s,rate_deg_s\n");
+            header = true;
+        }
+        csv.push_str(&format!(
+            "{:.4},{:.9}\n",
+            s.t_s + offset_s,
+            s.table_rate_rad_s.to_degrees()
+        ));
+    }
+    csv
+}
+
+#[test]
+fn a_rate_tables_one_column_log_gives_the_gyro_gains_of_the_truth() {
+    let run = rate_table();
+    let opts = rate_table_options(run);
+    let csv = table_log_csv(&run.truth, 2.5);
+    let lines: Vec<&str> = csv
+        .lines()
+        .filter(|l| l.starts_with("# table-axis"))
+        .collect();
+    assert_eq!(lines.len(), 3, "z, x, y mountings: {lines:?}");
+    let log = ReferenceLog::from_csv_str(&csv, "table.csv").unwrap();
+    let table = log.table.as_ref().unwrap();
+    let axes: Vec<String> = table
+        .axis_lines
+        .iter()
+        .map(|(_, _, a)| imu_analysis::plan::format_direction(&Vec3::from(*a)))
+        .collect();
+    assert_eq!(axes, ["+z", "+x", "+y"]);
+    let aligned = log.align(&run.series).unwrap();
+    eprintln!(
+        "offset {:.4} s, correlation {:.4}",
+        aligned.offset_s,
+        aligned.correlation.unwrap()
+    );
+    let by_table = fit(run, &Reference::Log(aligned), &opts);
+    let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
+    let s = &by_table.recordings[0].segmentation;
+    assert_eq!(
+        (s.count(SegmentKind::Static), s.count(SegmentKind::Plateau)),
+        (9, 42)
+    );
+    // Gravity along the (vertical) table axis and Earth's vertical rate are the truth's; the
+    // horizontal part of Earth's rate is what the log cannot know.
+    let h = EARTH_RATE_RAD_S * 40f64.to_radians().cos();
+    for (a, b) in by_table.recordings[0]
+        .segment_truth
+        .iter()
+        .zip(&by_truth.recordings[0].segment_truth)
+    {
+        let df = Vec3::from(a.specific_force_m_s2) - Vec3::from(b.specific_force_m_s2);
+        assert!(df.norm() < 1e-6, "{a:?} vs {b:?}");
+        let dw = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
+        assert!(dw.norm() <= h * 1.01, "{dw:?}");
+    }
+    let notes = by_table.notes.join("\n");
+    assert!(
+        notes.contains("a rate table's rate about its axis (+z from line 4, +x from line")
+            && notes.contains("the table axis is taken as vertical: specific force 9.80665")
+            && notes.contains("vertical part at latitude 40 deg is added"),
+        "{notes}"
+    );
+    // The gyro scale, misalignment, bias and g-sensitivity within 3 SE of the truth, and the
+    // same fit as against the truth file.
+    let n = assert_within_3_se("gyro", &by_table.gyro, &run.truth_model.gyro);
+    assert!(n >= 12, "{:?}", by_table.gyro.unobservable);
+    for a in ["x", "y", "z"] {
+        let i = by_table
+            .gyro
+            .names
+            .iter()
+            .position(|n| *n == format!("scale.{a}"))
+            .unwrap();
+        assert!(
+            by_table.gyro.std_errors[i].is_some(),
+            "scale.{a} not fitted"
+        );
+    }
+    assert_agree("gyro", &by_table.gyro, &by_truth.gyro, 0.3);
+    assert_agree("accel", &by_table.accel, &by_truth.accel, 1e-3);
+}
+
 /// Earth-rate plan text with `edit` applied to it.
 fn edited_plan(from: &str, to: &str) -> Plan {
     let text = std::fs::read_to_string(repo().join("config/plans/earth-rate-8pos.toml")).unwrap();
