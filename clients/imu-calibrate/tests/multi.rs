@@ -224,6 +224,36 @@ fn an_index_table_and_a_rate_table_session_fit_jointly_within_their_standard_err
         cal.description
     );
 
+    // The table output names each recording, its reference and what it gave.
+    let (ok, table, err) = run_cli(&args(&[
+        &index.recording,
+        &rate.recording,
+        &"--reference",
+        &index.truth,
+        &"--reference",
+        &rate.truth,
+        &"--model",
+        &model,
+    ]));
+    assert!(ok, "{err}");
+    eprintln!("{table}");
+    for (k, rec, plateaus, points) in [
+        (1, &index.recording, 0, "24 accel, 24 gyro"),
+        (2, &rate.recording, 42, "9 accel, 51 gyro"),
+    ] {
+        let head = format!("recording {k}: {}", rec.display());
+        let at = table
+            .find(&head)
+            .unwrap_or_else(|| panic!("{head}\n{table}"));
+        let block: String = table[at..].lines().take(4).collect::<Vec<_>>().join("\n");
+        assert!(block.contains("  reference: simulator truth"), "{block}");
+        assert!(
+            block.contains(&format!("static, {plateaus} rate plateaus")),
+            "{block}"
+        );
+        assert!(block.contains(&format!("  points: {points}")), "{block}");
+    }
+
     // Neither file alone gives all of it: the index table no gyro gains ...
     let alone = |rec: &Path, reference: &Path| {
         run_json(&[
