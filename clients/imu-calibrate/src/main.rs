@@ -1,19 +1,18 @@
 //! `imu-calibrate`: fit accel and gyro error models (bias, scale, misalignment, optionally
-//! g-sensitivity and more) from the static positions and rate plateaus of a recording, against
-//! a reference giving the true input (a test plan, a time-stamped reference log, or the
-//! simulator's truth), or from many hand-held still poses and
-//! the moves between them without any reference (`--reference-free`), and write an imud
-//! calibration file.
+//! g-sensitivity and more) from the static positions and rate plateaus of one or more
+//! recordings, each against a reference giving its true input (a test plan, a time-stamped
+//! reference log, or the simulator's truth), or from many hand-held still poses and the moves
+//! between them without any reference (`--reference-free`), and write an imud calibration file.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::{ArgGroup, Parser};
+use clap::{ArgGroup, ArgMatches, CommandFactory, FromArgMatches, Parser};
 use imu_analysis::Source;
 use imu_analysis::fit::{
-    CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
+    CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate_recordings,
 };
 use imu_analysis::input::CsvOptions;
 use imu_analysis::progress::read_any;
@@ -25,38 +24,41 @@ use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
-/// Command line. Exactly one procedure (the `procedure` group) says where the true input
-/// comes from.
+/// Command line. A procedure (the `procedure` group) says where the true input comes from: one
+/// `--plan` or `--reference` per recording, or `--reference-free`.
 #[derive(Debug, Parser)]
 #[command(version, about)]
-#[command(group(ArgGroup::new("procedure").required(true).multiple(false)))]
+#[command(group(ArgGroup::new("procedure").required(true).multiple(true)))]
 struct Cli {
-    /// Recording: imud MCAP log (the raw stream is fitted), rosbag2 MCAP or CSV.
-    recording: PathBuf,
+    /// Recordings: imud MCAP logs (the raw stream is fitted), rosbag2 MCAP or CSV. Several
+    /// recordings of one unit (e.g. an index-table run and a rate-table run, each in its own
+    /// file) are fitted together into one calibration, each against its own reference.
+    #[arg(required = true, value_name = "RECORDING")]
+    recordings: Vec<PathBuf>,
     /// Test plan: the procedure and its nominal inputs, in order (format imud-plan/1; see
-    /// config/plans/). Its steps are matched to the recording's segments and checked.
+    /// config/plans/). Its steps are matched to the recording's segments and checked. With
+    /// several recordings give one --plan or --reference per recording: they go to the
+    /// recordings in the order given on the command line.
     #[arg(long, value_name = "PLAN.toml", group = "procedure")]
-    plan: Option<PathBuf>,
+    plan: Vec<PathBuf>,
     /// Reference for the true input: the simulator's truth MCAP of this recording, or a
     /// time-stamped reference log (CSV with a header such as
-    /// `t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_m_s2,fy_m_s2,fz_m_s2`), aligned in time with the
-    /// recording by cross-correlation. Told apart by content (MCAP magic bytes).
+    /// `t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_m_s2,fy_m_s2,fz_m_s2`, or a rate table's
+    /// `t_s,rate_deg_s` with a `# table-axis = +z` line), aligned in time with the recording by
+    /// cross-correlation. Told apart by content (MCAP magic bytes). One per recording, in order,
+    /// like --plan.
     #[arg(long, value_name = "TRUTH.mcap|LOG.csv", group = "procedure")]
-    reference: Option<PathBuf>,
+    reference: Vec<PathBuf>,
     /// Clock offset of a reference log (log clock minus recording clock, seconds from the
-    /// recording's first sample) instead of finding it by cross-correlation.
-    #[arg(
-        long,
-        value_name = "S",
-        requires = "reference",
-        conflicts_with = "plan",
-        allow_negative_numbers = true
-    )]
-    reference_offset_s: Option<f64>,
+    /// recording's first sample) instead of finding it by cross-correlation. It applies to the
+    /// --reference given just before it (with one recording and one --reference, anywhere).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    reference_offset_s: Vec<f64>,
     /// No reference: the unit was held still in many (30 or more) orientations and turned
     /// between them. The accelerometer is fitted to the gravity magnitude (its axes define the
     /// body frame), the gyro bias to the still poses, the gyro gains to the integrated moves.
-    #[arg(long, group = "procedure")]
+    /// One recording only: the poses and the moves between them must come from one power-on.
+    #[arg(long, group = "procedure", conflicts_with_all = ["plan", "reference"])]
     reference_free: bool,
     /// Local gravity for --reference-free, m/s^2 (default: WGS-84 normal gravity at
     /// --latitude-deg, else 9.80665).
@@ -66,6 +68,25 @@ struct Cli {
     /// vertical part of Earth's rate, removed from the gyro bias.
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     latitude_deg: Option<f64>,
+    /// Accel turn-on to turn-on bias repeatability, m/s^2 (1 sigma; one value for all axes or
+    /// X,Y,Z): each recording's bias may differ from the fitted one (then the mean over the
+    /// power-ons) by this much. Without it the bias is taken as common to all recordings.
+    #[arg(
+        long,
+        value_name = "S|X,Y,Z",
+        value_delimiter = ',',
+        conflicts_with = "reference_free"
+    )]
+    accel_turn_on_bias_m_s2: Vec<f64>,
+    /// Gyro turn-on to turn-on bias repeatability, rad/s (1 sigma; one value or X,Y,Z), like
+    /// --accel-turn-on-bias-m-s2.
+    #[arg(
+        long,
+        value_name = "S|X,Y,Z",
+        value_delimiter = ',',
+        conflicts_with = "reference_free"
+    )]
+    gyro_turn_on_bias_rad_s: Vec<f64>,
     /// Calibration-format file whose accel and gyro effects say what to fit (values are the
     /// starting point; default: bias + scale + misalignment for both). Its `[accel.noise]` and
     /// `[gyro.noise]` (e.g. from imu-noise) widen the bias standard errors by the bias wander.
@@ -80,6 +101,151 @@ struct Cli {
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
+}
+
+/// Where one recording's true input comes from, as given on the command line.
+#[derive(Clone, Debug, PartialEq)]
+enum ReferenceArg {
+    /// `--plan FILE`.
+    Plan(PathBuf),
+    /// `--reference FILE`, with the `--reference-offset-s` that applies to it.
+    Reference {
+        path: PathBuf,
+        offset_s: Option<f64>,
+    },
+}
+
+impl ReferenceArg {
+    fn path(&self) -> &Path {
+        match self {
+            ReferenceArg::Plan(p) | ReferenceArg::Reference { path: p, .. } => p,
+        }
+    }
+
+    /// `--plan FILE` or `--reference FILE`, for messages.
+    fn flag(&self) -> String {
+        match self {
+            ReferenceArg::Plan(p) => format!("--plan {}", p.display()),
+            ReferenceArg::Reference { path, .. } => format!("--reference {}", path.display()),
+        }
+    }
+}
+
+/// The reference of each recording: the `--plan` and `--reference` arguments in command-line
+/// order, the k-th for the k-th recording; each `--reference-offset-s` goes with the
+/// `--reference` just before it (or with the only one).
+fn reference_args(cli: &Cli, matches: &ArgMatches) -> Result<Vec<ReferenceArg>> {
+    let indices = |id: &str| -> Vec<usize> {
+        matches
+            .indices_of(id)
+            .map(Iterator::collect)
+            .unwrap_or_default()
+    };
+    let mut given: Vec<(usize, ReferenceArg)> = indices("plan")
+        .into_iter()
+        .zip(&cli.plan)
+        .map(|(i, p)| (i, ReferenceArg::Plan(p.clone())))
+        .chain(
+            indices("reference")
+                .into_iter()
+                .zip(&cli.reference)
+                .map(|(i, p)| {
+                    (
+                        i,
+                        ReferenceArg::Reference {
+                            path: p.clone(),
+                            offset_s: None,
+                        },
+                    )
+                }),
+        )
+        .collect();
+    given.sort_by_key(|(i, _)| *i);
+    let offsets: Vec<(usize, f64)> = indices("reference_offset_s")
+        .into_iter()
+        .zip(cli.reference_offset_s.iter().copied())
+        .collect();
+    // One recording, one reference log, one offset: the order does not matter (as before
+    // several recordings could be given).
+    let only_reference = given.len() == 1 && offsets.len() == 1;
+    for (at, offset_s) in offsets {
+        let target = if only_reference {
+            given
+                .iter()
+                .position(|(_, r)| matches!(r, ReferenceArg::Reference { .. }))
+        } else {
+            given.iter().rposition(|(i, _)| *i < at)
+        };
+        match target.map(|k| &mut given[k].1) {
+            Some(ReferenceArg::Reference { offset_s: o, path }) => {
+                if o.is_some() {
+                    bail!(
+                        "--reference-offset-s {offset_s} is the second offset for --reference {}: \
+                         give one per reference log, right after it",
+                        path.display()
+                    );
+                }
+                *o = Some(offset_s);
+            }
+            Some(ReferenceArg::Plan(p)) => bail!(
+                "--reference-offset-s {offset_s} follows --plan {}: a clock offset applies to the \
+                 reference log (--reference LOG.csv) given just before it",
+                p.display()
+            ),
+            None if cli.reference.is_empty() => {
+                bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)")
+            }
+            None => bail!(
+                "--reference-offset-s {offset_s} comes before any --reference: with several \
+                 references give each offset right after the reference log it applies to"
+            ),
+        }
+    }
+    let refs: Vec<ReferenceArg> = given.into_iter().map(|(_, r)| r).collect();
+    let (n_rec, n_ref) = (cli.recordings.len(), refs.len());
+    let listed = || {
+        refs.iter()
+            .map(ReferenceArg::flag)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    const HOW: &str = "give one --plan or --reference per recording; they go to the recordings \
+                       in the order given";
+    if n_ref < n_rec {
+        bail!(
+            "recording {} ({}) has no reference: {n_rec} recordings but {n_ref} reference{} ({}); \
+             {HOW}",
+            n_ref + 1,
+            cli.recordings[n_ref].display(),
+            if n_ref == 1 { "" } else { "s" },
+            listed()
+        );
+    }
+    if n_ref > n_rec {
+        bail!(
+            "{n_ref} references ({}) for {n_rec} recording{}: {HOW}",
+            listed(),
+            if n_rec == 1 { "" } else { "s" }
+        );
+    }
+    Ok(refs)
+}
+
+/// A per-axis value given as one number for all axes or as X,Y,Z; None when not given.
+fn per_axis(values: &[f64], flag: &str) -> Result<Option<[f64; 3]>> {
+    let v = match values {
+        [] => return Ok(None),
+        [s] => [*s; 3],
+        [x, y, z] => [*x, *y, *z],
+        _ => bail!(
+            "{flag} takes one value or three (X,Y,Z), got {}",
+            values.len()
+        ),
+    };
+    if v.iter().any(|x| !x.is_finite() || *x < 0.0) {
+        bail!("{flag}: {v:?} must be standard deviations (0 or more)");
+    }
+    Ok(Some(v))
 }
 
 /// One row of the fitted-vs-true comparison.
@@ -104,11 +270,31 @@ struct JsonOutReferenceFree<'a> {
     truth_comparison: Option<Vec<TruthRow>>,
 }
 
+/// One recording of a fit and what it contributed.
 #[derive(Debug, Serialize)]
-struct JsonOut<'a> {
+struct JsonRecording {
     recording: String,
     reference: String,
     reference_description: String,
+    static_segments: usize,
+    rate_plateaus: usize,
+    /// Detected segments a plan's skip step left out.
+    skipped_segments: usize,
+    accel_points: usize,
+    gyro_points: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct JsonOut<'a> {
+    /// The recording, reference and its description when there is one recording (as before
+    /// several could be given); `recordings` lists them all.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    recording: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reference: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reference_description: Option<String>,
+    recordings: Vec<JsonRecording>,
     output: Option<String>,
     fit: &'a CalibrationFit,
     truth_comparison: Option<Vec<TruthRow>>,
@@ -248,16 +434,34 @@ fn print_tables(
     fit: &CalibrationFit,
     truth: Option<&[TruthRow]>,
 ) -> std::io::Result<()> {
-    let s = &fit.segmentation;
-    writeln!(
-        out,
-        "segments: {} static, {} rate plateaus (window {} samples; thresholds: accel std {:.3e} m/s^2, gyro std {:.3e} rad/s)",
-        s.count(SegmentKind::Static),
-        s.count(SegmentKind::Plateau),
-        s.window_samples,
-        s.accel_std_threshold_m_s2,
-        s.gyro_std_threshold_rad_s
-    )?;
+    let several = fit.recordings.len() > 1;
+    for (k, r) in fit.recordings.iter().enumerate() {
+        let s = &r.segmentation;
+        let indent = if several {
+            writeln!(out, "recording {}: {}", k + 1, r.origin)?;
+            writeln!(out, "  reference: {}", r.reference)?;
+            "  "
+        } else {
+            ""
+        };
+        writeln!(
+            out,
+            "{indent}segments: {} static, {} rate plateaus (window {} samples; thresholds: accel std {:.3e} m/s^2, gyro std {:.3e} rad/s)",
+            s.count(SegmentKind::Static),
+            s.count(SegmentKind::Plateau),
+            s.window_samples,
+            s.accel_std_threshold_m_s2,
+            s.gyro_std_threshold_rad_s
+        )?;
+        if several {
+            writeln!(
+                out,
+                "{indent}points: {} accel, {} gyro",
+                r.accel_points.len(),
+                r.gyro_points.len()
+            )?;
+        }
+    }
     for n in &fit.notes {
         writeln!(out, "note: {n}")?;
     }
@@ -396,43 +600,74 @@ fn stamp(
     Ok(())
 }
 
-/// The reference named on the command line (a plan or a --reference file), and its file.
-fn load_reference(
-    cli: &Cli,
-    series: &imu_analysis::ImuSeries,
-) -> Result<Option<(Reference, PathBuf)>> {
-    let r = Reference::open(
-        cli.plan.as_deref(),
-        cli.reference.as_deref(),
-        cli.reference_offset_s,
-        series,
-    )?;
-    let path = cli.plan.clone().or_else(|| cli.reference.clone());
-    Ok(r.zip(path))
+/// Reads a recording (raw stream) and checks it has samples.
+fn read_recording(path: &Path) -> Result<imu_analysis::ImuSeries> {
+    let series = read_any(path, Source::Raw, &CsvOptions::default())
+        .with_context(|| format!("reading {}", path.display()))?;
+    if series.is_empty() {
+        bail!("{}: no samples", path.display());
+    }
+    Ok(series)
 }
 
-fn run(cli: &Cli) -> Result<()> {
+/// The reference one recording was given, opened against its series.
+fn open_reference(r: &ReferenceArg, series: &imu_analysis::ImuSeries) -> Result<Reference> {
+    let opened = match r {
+        ReferenceArg::Plan(p) => Reference::open(Some(p), None, None, series)?,
+        ReferenceArg::Reference { path, offset_s } => {
+            Reference::open(None, Some(path), *offset_s, series)?
+        }
+    };
+    opened.with_context(|| format!("{}: no reference", r.flag()))
+}
+
+fn run(cli: &Cli, matches: &ArgMatches) -> Result<()> {
     // (clap's `requires` counts a flag's implicit `false` as present, so this is checked here.)
     if !cli.reference_free && (cli.gravity_m_s2.is_some() || cli.latitude_deg.is_some()) {
         bail!("--gravity-m-s2 and --latitude-deg apply to --reference-free only");
     }
-    let inputs = std::iter::once(&cli.recording)
-        .chain(cli.plan.as_ref().or(cli.reference.as_ref()))
-        .cloned()
+    if cli.reference_free {
+        let [recording] = cli.recordings.as_slice() else {
+            bail!(
+                "--reference-free takes one recording, got {}: the still poses and the moves \
+                 between them must come from one power-on; record every pose in one file",
+                cli.recordings.len()
+            );
+        };
+        if !cli.reference_offset_s.is_empty() {
+            bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)");
+        }
+        let hashing = hash_in_background(vec![recording.clone()]);
+        let series = read_recording(recording)?;
+        return run_reference_free(cli, recording, &series, hashing);
+    }
+    let refs = reference_args(cli, matches)?;
+    let turn_on = (
+        per_axis(&cli.accel_turn_on_bias_m_s2, "--accel-turn-on-bias-m-s2")?,
+        per_axis(&cli.gyro_turn_on_bias_rad_s, "--gyro-turn-on-bias-rad-s")?,
+    );
+    let inputs = cli
+        .recordings
+        .iter()
+        .zip(&refs)
+        .flat_map(|(rec, r)| [rec.clone(), r.path().to_path_buf()])
         .collect();
     let hashing = hash_in_background(inputs);
-    let series = read_any(&cli.recording, Source::Raw, &CsvOptions::default())
-        .with_context(|| format!("reading {}", cli.recording.display()))?;
-    if series.is_empty() {
-        bail!("{}: no samples", cli.recording.display());
+    let mut loaded = Vec::with_capacity(refs.len());
+    for (rec, r) in cli.recordings.iter().zip(&refs) {
+        let series = read_recording(rec)?;
+        let reference = open_reference(r, &series)?;
+        loaded.push((series, reference));
     }
-    match load_reference(cli, &series)? {
-        Some((reference, path)) => run_reference(cli, &series, &reference, &path, hashing),
-        None => run_reference_free(cli, &series, hashing),
-    }
+    run_reference(cli, &loaded, &refs, turn_on, hashing)
 }
 
-fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries, hashing: Hashing) -> Result<()> {
+fn run_reference_free(
+    cli: &Cli,
+    recording: &Path,
+    series: &imu_analysis::ImuSeries,
+    hashing: Hashing,
+) -> Result<()> {
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let base = options(cli.model.as_deref(), duration_s)?;
     let opts = ReferenceFreeOptions {
@@ -445,7 +680,7 @@ fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries, hashing: Hash
         ..ReferenceFreeOptions::default()
     };
     let mut fit = calibrate_reference_free(series, &opts)
-        .with_context(|| format!("calibrating {} (reference-free)", cli.recording.display()))?;
+        .with_context(|| format!("calibrating {} (reference-free)", recording.display()))?;
     // The gauge is a convention, not a limit of the data: listed in the notes, not as held.
     let held: Vec<String> = [&fit.accel, &fit.gyro]
         .iter()
@@ -486,7 +721,7 @@ fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries, hashing: Hash
     let mut out = stdout.lock();
     if cli.json {
         let j = JsonOutReferenceFree {
-            recording: cli.recording.display().to_string(),
+            recording: recording.display().to_string(),
             procedure: "reference-free",
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
@@ -506,26 +741,55 @@ fn run_reference_free(cli: &Cli, series: &imu_analysis::ImuSeries, hashing: Hash
 
 fn run_reference(
     cli: &Cli,
-    series: &imu_analysis::ImuSeries,
-    truth: &Reference,
-    reference: &Path,
+    loaded: &[(imu_analysis::ImuSeries, Reference)],
+    refs: &[ReferenceArg],
+    (accel_turn_on_bias_m_s2, gyro_turn_on_bias_rad_s): (Option<[f64; 3]>, Option<[f64; 3]>),
     hashing: Hashing,
 ) -> Result<()> {
-    let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
-    let opts = options(cli.model.as_deref(), duration_s)?;
-    let mut fit = calibrate(series, truth, &opts)
-        .with_context(|| format!("calibrating {}", cli.recording.display()))?;
+    let duration_s = loaded
+        .iter()
+        .map(|(s, _)| s.t_s[s.len() - 1] - s.t_s[0])
+        .fold(0.0, f64::max);
+    let mut opts = options(cli.model.as_deref(), duration_s)?;
+    opts.accel_turn_on_bias_m_s2 = accel_turn_on_bias_m_s2;
+    opts.gyro_turn_on_bias_rad_s = gyro_turn_on_bias_rad_s;
+    let pairs: Vec<_> = loaded.iter().map(|(s, r)| (s, r)).collect();
+    let names = cli
+        .recordings
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let mut fit =
+        calibrate_recordings(&pairs, &opts).with_context(|| format!("calibrating {names}"))?;
 
+    let several = loaded.len() > 1;
+    let (n_static, n_plateau) = (
+        fit.count(SegmentKind::Static),
+        fit.count(SegmentKind::Plateau),
+    );
     let cal = &mut fit.calibration;
     cal.description = Some(format!(
-        "accel and gyro fitted from {} static segments and {} rate plateaus",
-        fit.segmentation.count(SegmentKind::Static),
-        fit.segmentation.count(SegmentKind::Plateau)
+        "accel and gyro fitted from {n_static} static segments and {n_plateau} rate plateaus{}",
+        if several {
+            format!(" of {} recordings", loaded.len())
+        } else {
+            String::new()
+        }
     ));
+    let described = if several {
+        loaded
+            .iter()
+            .enumerate()
+            .map(|(k, (_, r))| format!("recording {}: {}", k + 1, r.describe()))
+            .collect::<Vec<_>>()
+            .join("; ")
+    } else {
+        loaded[0].1.describe()
+    };
     cal.provenance.procedure = Some(format!(
         "static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means to the \
-         true input from the {} (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)",
-        truth.describe()
+         true input from the {described} (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)"
     ));
     let held: Vec<String> = fit
         .accel
@@ -559,10 +823,35 @@ fn run_reference(
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if cli.json {
+        let recordings: Vec<JsonRecording> = fit
+            .recordings
+            .iter()
+            .zip(&cli.recordings)
+            .zip(refs)
+            .map(|((r, path), arg)| JsonRecording {
+                recording: path.display().to_string(),
+                reference: arg.path().display().to_string(),
+                reference_description: r.reference.clone(),
+                static_segments: r.segmentation.count(SegmentKind::Static),
+                rate_plateaus: r.segmentation.count(SegmentKind::Plateau),
+                skipped_segments: r.segmentation.skipped.len(),
+                accel_points: r.accel_points.len(),
+                gyro_points: r.gyro_points.len(),
+            })
+            .collect();
+        let (recording, reference, reference_description) = match recordings.as_slice() {
+            [r] => (
+                Some(r.recording.clone()),
+                Some(r.reference.clone()),
+                Some(r.reference_description.clone()),
+            ),
+            _ => (None, None, None),
+        };
         let j = JsonOut {
-            recording: cli.recording.display().to_string(),
-            reference: reference.display().to_string(),
-            reference_description: truth.describe(),
+            recording,
+            reference,
+            reference_description,
+            recordings,
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
             truth_comparison: truth_rows,
@@ -570,7 +859,9 @@ fn run_reference(
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
-        writeln!(out, "reference: {}", truth.describe())?;
+        if !several {
+            writeln!(out, "reference: {}", loaded[0].1.describe())?;
+        }
         print_tables(&mut out, &fit, truth_rows.as_deref())?;
         if let Some(p) = &cli.output {
             writeln!(out, "\nwrote {}", p.display())?;
@@ -581,8 +872,9 @@ fn run_reference(
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(&cli) {
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    match run(&cli, &matches) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if imu_analysis::cli::is_broken_pipe(e.chain()) {

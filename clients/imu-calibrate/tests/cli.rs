@@ -174,11 +174,16 @@ fn calibrates_a_simulated_recording_within_its_standard_errors() {
     // accel 3+3+6+6 (minus <= 2 cubic), gyro 3+3+6+9.
     assert!(fitted >= 16 + 21, "{fitted} of {}", rows.len());
     assert!(
-        j["fit"]["segmentation"]["segments"]
+        j["fit"]["recordings"][0]["segmentation"]["segments"]
             .as_array()
             .unwrap()
             .len()
             >= 12 + 12
+    );
+    // The one-recording field scripts read is still there.
+    assert_eq!(
+        j["fit"]["segmentation"],
+        j["fit"]["recordings"][0]["segmentation"]
     );
 
     let cal = imu_model::Calibration::load(&cal_path).unwrap();
@@ -414,14 +419,18 @@ fn calibrates_real_hardware_style_with_a_plan_or_a_reference_log() {
     assert!(err.contains("step 1 (line 17) position 2 of 12"), "{err}");
     assert!(err.contains("from the planned"), "{err}");
 
-    // --plan and --reference exclude each other; one of them is required.
+    // One reference per recording: a plan and a log for one recording are refused; one of
+    // them is required.
     let (ok, _, err) = run_cli(&with(&[
         "--plan".as_ref(),
         plan.as_os_str(),
         "--reference".as_ref(),
         log.as_os_str(),
     ]));
-    assert!(!ok && err.contains("cannot be used with"), "{err}");
+    assert!(
+        !ok && err.contains("2 references (--plan ") && err.contains("for 1 recording"),
+        "{err}"
+    );
     let (ok, _, err) = run_cli(&base);
     assert!(!ok && err.contains("required"), "{err}");
 }

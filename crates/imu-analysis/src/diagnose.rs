@@ -1804,7 +1804,8 @@ impl<'a> Workbench<'a> {
                     continue;
                 }
                 let (points, _, _) = self.points(t);
-                match crate::fit::fit_loadable(&d.fit.model, t, points, &self.fit_opts(t)) {
+                let one = crate::fit::Sessions::default();
+                match crate::fit::fit_loadable(&d.fit.model, t, points, &one, &self.fit_opts(t)) {
                     Ok(r) => {
                         notes.extend(
                             r.unobservable

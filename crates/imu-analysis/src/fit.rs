@@ -265,23 +265,74 @@ fn gauss_markov_mean_cov(mid_k: f64, len_k: f64, mid_l: f64, len_l: f64, t_s: f6
 /// matter for segment means, and the bank is scaled to the same Allan floor whatever the period.
 const FLICKER_BANK_DT_S: f64 = 0.01;
 
+/// Which recording (power-on) each fit point comes from, for the covariance of the segment
+/// means. The bias's wander (random walk, flicker) of two recordings are independent
+/// realisations that started at different power-ons, so segment means of different sessions
+/// share none of it: their covariance is zero, and within each session the random walk and the
+/// flicker's reference segment start afresh (times are on each session's own clock).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Sessions {
+    /// Session of each point (parallel to the points); empty: every point in session 0.
+    pub of_point: Vec<usize>,
+    /// Turn-on to turn-on bias repeatability per axis, 1 sigma (triad unit): each session's bias
+    /// differs from the fitted bias (then the mean over power-ons) by an independent offset of
+    /// this size, shared by all segments of the session. None: one bias common to every session.
+    pub turn_on_bias: Option<[f64; 3]>,
+}
+
+impl Sessions {
+    /// The session of point `k`.
+    pub fn of(&self, k: usize) -> usize {
+        self.of_point.get(k).copied().unwrap_or(0)
+    }
+
+    /// Number of sessions among `n` points.
+    pub fn count(&self, n: usize) -> usize {
+        (0..n).map(|k| self.of(k) + 1).max().unwrap_or(0)
+    }
+}
+
 /// Covariance of the segment means of axis `a`: `white_scale se_k^2 delta_kl` plus the shared
 /// random walk and flicker. The flicker term is the covariance of the increments from the
 /// first segment (a common offset is the bias's business), `(D_k0 + D_l0 - D_kl) / 2`, with `D`
-/// the flicker structure function of two means at the mean of their durations.
+/// the flicker structure function of two means at the mean of their durations. All points are
+/// one session (one recording); see [`session_covariance`] for several.
 pub fn segment_covariance(
     points: &[FitPoint],
     a: usize,
     shared: &SharedNoise,
     white_scale: f64,
 ) -> DMatrix<f64> {
+    session_covariance(points, &Sessions::default(), a, shared, white_scale)
+}
+
+/// [`segment_covariance`] of points from several sessions: the shared noise within each
+/// session (its random walk from `shared.random_walk_origin_s` on the session's clock, else
+/// from its first segment; its flicker increments from its first segment), the turn-on bias
+/// variance within each session, zero between sessions.
+pub fn session_covariance(
+    points: &[FitPoint],
+    sessions: &Sessions,
+    a: usize,
+    shared: &SharedNoise,
+    white_scale: f64,
+) -> DMatrix<f64> {
     let n = points.len();
-    let k0 = (0..n)
-        .min_by(|&i, &j| points[i].t_s.total_cmp(&points[j].t_s))
-        .unwrap_or(0);
-    let t0 = shared
-        .random_walk_origin_s
-        .unwrap_or_else(|| points.get(k0).map_or(0.0, |p| p.t_s));
+    // The first segment of each session and the start of its random walk.
+    let mut first: Vec<Option<usize>> = vec![None; sessions.count(n)];
+    for k in 0..n {
+        let f = &mut first[sessions.of(k)];
+        if f.is_none_or(|j| points[k].t_s < points[j].t_s) {
+            *f = Some(k);
+        }
+    }
+    let k0 = |k: usize| first[sessions.of(k)].unwrap_or(k);
+    let t0 = |k: usize| {
+        shared
+            .random_walk_origin_s
+            .unwrap_or_else(|| points[k0(k)].t_s)
+    };
+    let turn_on_var = sessions.turn_on_bias.map_or(0.0, |b| b[a] * b[a]);
     let unit = shared.flicker_var / (2.0 * std::f64::consts::LN_2);
     let tau = |k: usize| {
         if points[k].duration_s > 0.0 {
@@ -323,6 +374,7 @@ pub fn segment_covariance(
                 })
                 .sum()
         } else {
+            let k0 = k0(k);
             0.5 * (d(k, k0) + d(l, k0) - d(k, l))
         }
     };
@@ -332,8 +384,12 @@ pub fn segment_covariance(
         } else {
             0.0
         };
+        if sessions.of(k) != sessions.of(l) {
+            return white;
+        }
+        let t0 = t0(k);
         let rw = shared.random_walk_q * (points[k].t_s - t0).min(points[l].t_s - t0).max(0.0);
-        white + rw + flicker(k, l)
+        white + rw + flicker(k, l) + turn_on_var
     })
 }
 
@@ -357,16 +413,16 @@ fn shared_noise(opts: &FitOptions, points: &[FitPoint]) -> [SharedNoise; 3] {
     })
 }
 
-/// Per-axis whitening of the residuals: `L_a^-1` of [`segment_covariance`] on axis `a`.
+/// Per-axis whitening of the residuals: `L_a^-1` of [`session_covariance`] on axis `a`.
 #[derive(Clone, Debug)]
 struct Whitener {
     l_inv: [DMatrix<f64>; 3],
 }
 
 impl Whitener {
-    fn new(points: &[FitPoint], shared: &[SharedNoise; 3]) -> Whitener {
+    fn new(points: &[FitPoint], sessions: &Sessions, shared: &[SharedNoise; 3]) -> Whitener {
         let l_inv = std::array::from_fn(|a| {
-            let c = segment_covariance(points, a, &shared[a], 1.0);
+            let c = session_covariance(points, sessions, a, &shared[a], 1.0);
             let l = match c.clone().cholesky() {
                 Some(ch) => ch.l(),
                 // A shared part that is not quite positive definite (unequal segment lengths
@@ -506,6 +562,7 @@ fn solve(
 /// (0 if the white errors already explain the scatter), by bisection in log q.
 fn drift_q(
     points: &[FitPoint],
+    sessions: &Sessions,
     raw: &DVector<f64>,
     mut q: [SharedNoise; 3],
     a: usize,
@@ -513,7 +570,7 @@ fn drift_q(
 ) -> f64 {
     let mut chi2 = |qa: f64| {
         q[a].random_walk_q = qa;
-        Whitener::new(points, &q).axis_chi2(raw, a)
+        Whitener::new(points, sessions, &q).axis_chi2(raw, a)
     };
     if chi2(0.0) <= dof {
         return 0.0;
@@ -556,7 +613,7 @@ fn find_unobservable(
     min_eig: f64,
 ) -> Vec<Unobservable> {
     let mut out = Vec::new();
-    let w = Whitener::new(points, &[SharedNoise::default(); 3]);
+    let w = Whitener::new(points, &Sessions::default(), &[SharedNoise::default(); 3]);
     loop {
         if free.is_empty() {
             return out;
@@ -615,11 +672,24 @@ fn find_unobservable(
 }
 
 /// Fit the parameters of `model` (its current values are the starting point; the effects
-/// present define what is fitted) to `points`.
+/// present define what is fitted) to `points`, all from one recording.
 pub fn fit_triad(
     model: &TriadModel,
     triad: Triad,
     points: &[FitPoint],
+    opts: &FitOptions,
+) -> Result<FitResult, FitError> {
+    fit_triad_sessions(model, triad, points, &Sessions::default(), opts)
+}
+
+/// [`fit_triad`] to points from several recordings (`sessions` says which point comes from
+/// which, and whether their biases may differ): one parameter set for all of them, the segment
+/// means weighted with [`session_covariance`].
+pub fn fit_triad_sessions(
+    model: &TriadModel,
+    triad: Triad,
+    points: &[FitPoint],
+    sessions: &Sessions,
     opts: &FitOptions,
 ) -> Result<FitResult, FitError> {
     for (index, pt) in points.iter().enumerate() {
@@ -666,19 +736,20 @@ pub fn fit_triad(
     // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
     // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
     let mut q = shared_noise(opts, points);
-    let mut w = Whitener::new(points, &q);
+    let mut w = Whitener::new(points, sessions, &q);
     let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
     if opts.drift_model {
         let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
         for _ in 0..8 {
             let raw = raw_residuals(&mut m, &p, points);
-            let next: [f64; 3] = std::array::from_fn(|a| drift_q(points, &raw, q, a, dof_axis));
+            let next: [f64; 3] =
+                std::array::from_fn(|a| drift_q(points, sessions, &raw, q, a, dof_axis));
             let settled =
                 (0..3).all(|a| (next[a] - q[a].random_walk_q).abs() <= 1e-3 * next[a].max(1e-300));
             for (s, v) in q.iter_mut().zip(next) {
                 s.random_walk_q = v;
             }
-            w = Whitener::new(points, &q);
+            w = Whitener::new(points, sessions, &q);
             let (c, it, conv) = solve(&mut m, &mut p, &free, points, &w, opts);
             cost = c;
             iterations += it;
@@ -806,6 +877,11 @@ pub struct CalibrateOptions {
     pub accel_noise: Option<imu_model::NoiseModel>,
     /// Gyro noise for the weights of the segment means, see [`FitOptions::noise`].
     pub gyro_noise: Option<imu_model::NoiseModel>,
+    /// Accel turn-on to turn-on bias repeatability (m/s^2, 1 sigma per axis), see
+    /// [`Sessions::turn_on_bias`]; None: the bias is common to all recordings.
+    pub accel_turn_on_bias_m_s2: Option<[f64; 3]>,
+    /// Gyro turn-on to turn-on bias repeatability (rad/s, 1 sigma per axis).
+    pub gyro_turn_on_bias_rad_s: Option<[f64; 3]>,
 }
 
 impl Default for CalibrateOptions {
@@ -828,17 +904,39 @@ impl Default for CalibrateOptions {
             gyro_bias_drift_rad_s: None,
             accel_noise: None,
             gyro_noise: None,
+            accel_turn_on_bias_m_s2: None,
+            gyro_turn_on_bias_rad_s: None,
         }
     }
 }
 
-/// Result of [`calibrate`].
+/// One recording's part in a [`calibrate_recordings`] fit.
 #[derive(Clone, Debug, serde::Serialize)]
-pub struct CalibrationFit {
-    /// The detected segments and thresholds.
+pub struct RecordingFit {
+    /// Where the data came from ([`crate::ImuSeries::origin`]).
+    pub origin: String,
+    /// The reference it was fitted against (one line).
+    pub reference: String,
+    /// The segments fitted and the detection thresholds.
     pub segmentation: crate::segment::Segmentation,
     /// Truth per segment (parallel to `segmentation.segments`).
     pub segment_truth: Vec<SegmentTruth>,
+    /// This recording's accel points: their rows in the accel fit's `residuals`.
+    pub accel_points: std::ops::Range<usize>,
+    /// This recording's gyro points: their rows in the gyro fit's `residuals`.
+    pub gyro_points: std::ops::Range<usize>,
+}
+
+/// Result of [`calibrate`] and [`calibrate_recordings`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CalibrationFit {
+    /// The first recording's segments and thresholds (as in `recordings[0]`: the field of
+    /// one-recording fits, kept for the scripts that read it).
+    pub segmentation: crate::segment::Segmentation,
+    /// The first recording's truth per segment (as in `recordings[0]`).
+    pub segment_truth: Vec<SegmentTruth>,
+    /// Each recording fitted, in the order given.
+    pub recordings: Vec<RecordingFit>,
     /// The accel fit (static segments).
     pub accel: FitResult,
     /// The gyro fit (static segments and rate plateaus).
@@ -848,6 +946,16 @@ pub struct CalibrationFit {
     pub calibration: imu_model::Calibration,
     /// Decisions taken (held parameters, ...).
     pub notes: Vec<String>,
+}
+
+impl CalibrationFit {
+    /// Number of fitted segments of one kind over all recordings.
+    pub fn count(&self, kind: crate::segment::SegmentKind) -> usize {
+        self.recordings
+            .iter()
+            .map(|r| r.segmentation.count(kind))
+            .sum()
+    }
 }
 
 /// Failures of [`calibrate`].
@@ -865,6 +973,20 @@ pub enum CalibrateError {
     /// A fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
+    /// No recording was given.
+    #[error("no recording to calibrate")]
+    NoRecording,
+    /// One of several recordings could not be used.
+    #[error("recording {number} ({origin})")]
+    Recording {
+        /// 1-based position among the recordings.
+        number: usize,
+        /// Where its data came from.
+        origin: String,
+        /// Why.
+        #[source]
+        source: Box<CalibrateError>,
+    },
     /// The fitted model cannot be inverted over the validation range, so imud would reject it.
     #[error("the fitted {triad} model is not valid at `{key}`: {message}; fit fewer effects")]
     InvalidModel {
@@ -898,6 +1020,7 @@ pub(crate) fn fit_loadable(
     model: &TriadModel,
     triad: Triad,
     points: &[FitPoint],
+    sessions: &Sessions,
     opts: &FitOptions,
 ) -> Result<FitResult, CalibrateError> {
     let mut start = model.clone();
@@ -908,7 +1031,7 @@ pub(crate) fn fit_loadable(
             fixed: fixed.clone(),
             ..opts.clone()
         };
-        let mut r = fit_triad(&start, triad, points, &o)?;
+        let mut r = fit_triad_sessions(&start, triad, points, sessions, &o)?;
         let Err(e) = r.model.validate(triad) else {
             for u in &held {
                 r.warnings
@@ -1069,24 +1192,76 @@ impl Observations {
     /// rate is too small to excite them), and the note saying so (None if nothing was held).
     pub fn gyro_model_for(&self, model: &TriadModel) -> (TriadModel, Option<String>) {
         use crate::segment::SegmentKind;
-        if self.segmentation.count(SegmentKind::Plateau) > 0 {
-            return (model.clone(), None);
-        }
-        let held: Vec<EffectKind> = GAIN_KINDS.into_iter().filter(|k| model.has(*k)).collect();
-        if held.is_empty() {
-            return (model.clone(), None);
-        }
-        let mut m = model.clone();
-        for k in &held {
-            m.remove(*k);
-        }
-        let note = format!(
-            "no rate plateaus found: gyro {} not fitted (Earth rate cannot excite them; record \
-             a rate-table run)",
-            held.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
-        );
-        (m, Some(note))
+        gyro_model_with_plateaus(model, self.segmentation.count(SegmentKind::Plateau) > 0)
     }
+}
+
+/// `model` without the gyro gain effects unless some recording has rate plateaus, and the note
+/// saying what was held.
+fn gyro_model_with_plateaus(model: &TriadModel, plateaus: bool) -> (TriadModel, Option<String>) {
+    if plateaus {
+        return (model.clone(), None);
+    }
+    let held: Vec<EffectKind> = GAIN_KINDS.into_iter().filter(|k| model.has(*k)).collect();
+    if held.is_empty() {
+        return (model.clone(), None);
+    }
+    let mut m = model.clone();
+    for k in &held {
+        m.remove(*k);
+    }
+    let note = format!(
+        "no rate plateaus found: gyro {} not fitted (Earth rate cannot excite them; record a \
+         rate-table run)",
+        held.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
+    );
+    (m, Some(note))
+}
+
+/// Error unless the recordings together hold `needed` segments of `kind` (the first
+/// recording's thresholds and hint say what is short).
+fn require_segments(
+    obs: &[Observations],
+    kind: crate::segment::SegmentKind,
+    needed: usize,
+    what: &str,
+) -> Result<(), crate::segment::TooFewSegments> {
+    let found: usize = obs.iter().map(|o| o.segmentation.count(kind)).sum();
+    if found >= needed {
+        return Ok(());
+    }
+    for o in obs {
+        if let Err(mut e) = o.segmentation.require(kind, needed, what) {
+            if obs.len() > 1 {
+                e.found = found;
+                e.what = format!("{what} (the {} recordings together)", obs.len());
+            }
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
+/// The points of one triad from every recording, in order, with the session of each.
+fn joint_points(
+    obs: &[Observations],
+    triad: Triad,
+    turn_on: Option<[f64; 3]>,
+) -> (Vec<FitPoint>, Sessions) {
+    let mut points = Vec::new();
+    let mut of_point = Vec::new();
+    for (i, o) in obs.iter().enumerate() {
+        let p = o.points(triad);
+        of_point.extend(std::iter::repeat_n(i, p.len()));
+        points.extend(p);
+    }
+    (
+        points,
+        Sessions {
+            of_point,
+            turn_on_bias: turn_on,
+        },
+    )
 }
 
 /// Detect segments in `series` (or take them from `reference`: a plan's time ranges), take the
@@ -1100,10 +1275,75 @@ pub fn calibrate(
     reference: &Reference,
     opts: &CalibrateOptions,
 ) -> Result<CalibrationFit, CalibrateError> {
+    calibrate_recordings(&[(series, reference)], opts)
+}
+
+/// [`calibrate`] over several recordings of one unit, each with its own reference (e.g. an
+/// index-table run and a rate-table run): one accel and one gyro model fitted to the segments
+/// of all of them. Each recording keeps its own conditions (temperature, time since power-on);
+/// the bias wander of different recordings is independent (zero covariance between them, see
+/// [`session_covariance`]); the gyro gains are held only when no recording has rate plateaus.
+/// The biases are common to the recordings unless a turn-on repeatability is given
+/// ([`CalibrateOptions::accel_turn_on_bias_m_s2`]); a note says which. Errors name the
+/// recording when there are several.
+pub fn calibrate_recordings(
+    recordings: &[(&crate::ImuSeries, &Reference)],
+    opts: &CalibrateOptions,
+) -> Result<CalibrationFit, CalibrateError> {
     use crate::segment::SegmentKind;
-    let obs = Observations::from_recording(series, reference, &opts.segment, false)?;
-    let caveats = reference.caveats(series, &obs.segmentation.segments)?;
-    let mut notes = caveats.notes.clone();
+    let several = recordings.len() > 1;
+    let in_recording = |i: usize, e: CalibrateError| {
+        if several {
+            CalibrateError::Recording {
+                number: i + 1,
+                origin: recordings[i].0.origin.clone(),
+                source: Box::new(e),
+            }
+        } else {
+            e
+        }
+    };
+    if recordings.is_empty() {
+        return Err(CalibrateError::NoRecording);
+    }
+    let mut notes = Vec::new();
+    let mut obs = Vec::with_capacity(recordings.len());
+    let mut gyro_bias_std_rad_s: Option<[f64; 3]> = None;
+    for (i, (series, reference)) in recordings.iter().enumerate() {
+        let o = Observations::from_recording(series, reference, &opts.segment, false)
+            .map_err(|e| in_recording(i, e))?;
+        let caveats = reference
+            .caveats(series, &o.segmentation.segments)
+            .map_err(|e| in_recording(i, e.into()))?;
+        let prefix = if several {
+            format!("recording {} ({}): ", i + 1, series.origin)
+        } else {
+            String::new()
+        };
+        notes.extend(caveats.notes.iter().map(|n| format!("{prefix}{n}")));
+        notes.extend(
+            o.segmentation
+                .skipped
+                .iter()
+                .map(|k| format!("{prefix}{} skipped by {}: not fitted", k.describe(), k.by)),
+        );
+        // Each reference's unknown is common to its own segments; the largest bounds what it
+        // can do to the bias fitted from all of them.
+        if let Some(sd) = caveats.gyro_bias_std_rad_s {
+            let m = gyro_bias_std_rad_s.get_or_insert([0.0; 3]);
+            for (m, x) in m.iter_mut().zip(sd) {
+                *m = m.max(x);
+            }
+        }
+        obs.push(o);
+    }
+    if several {
+        notes.push(bias_note(recordings.len(), opts));
+    }
+    let caveats = crate::reference::ReferenceCaveats {
+        gyro_bias_std_rad_s,
+        notes: Vec::new(),
+    };
     let gyro_bias_drift_rad_s = caveats.widen_gyro_bias_drift(opts.gyro_bias_drift_rad_s);
     let fit_opts = |drift, noise: &Option<imu_model::NoiseModel>| FitOptions {
         fixed: Vec::new(),
@@ -1113,37 +1353,96 @@ pub fn calibrate(
     };
 
     let needed = |m: &TriadModel| m.n_params() / 3 + 1;
-    obs.segmentation
-        .require(SegmentKind::Static, needed(&opts.accel).max(2), "accel fit")?;
+    require_segments(
+        &obs,
+        SegmentKind::Static,
+        needed(&opts.accel).max(2),
+        "accel fit",
+    )?;
+    let (points, sessions) = joint_points(&obs, Triad::Accel, opts.accel_turn_on_bias_m_s2);
     let accel = fit_loadable(
         &opts.accel,
         Triad::Accel,
-        &obs.points(Triad::Accel),
+        &points,
+        &sessions,
         &fit_opts(opts.accel_bias_drift_m_s2, &opts.accel_noise),
     )?;
 
-    let (gyro_model, note) = obs.gyro_model_for(&opts.gyro);
+    let plateaus = obs
+        .iter()
+        .any(|o| o.segmentation.count(SegmentKind::Plateau) > 0);
+    let (gyro_model, note) = gyro_model_with_plateaus(&opts.gyro, plateaus);
     notes.extend(note);
-    obs.segmentation
-        .require(SegmentKind::Static, 1, "gyro fit")?;
+    require_segments(&obs, SegmentKind::Static, 1, "gyro fit")?;
+    let (points, sessions) = joint_points(&obs, Triad::Gyro, opts.gyro_turn_on_bias_rad_s);
     let gyro = fit_loadable(
         &gyro_model,
         Triad::Gyro,
-        &obs.points(Triad::Gyro),
+        &points,
+        &sessions,
         &fit_opts(gyro_bias_drift_rad_s, &opts.gyro_noise),
     )?;
 
     let mut calibration = imu_model::Calibration::identity();
     calibration.accel = accel.model.clone();
     calibration.gyro = gyro.model.clone();
+    let (mut a0, mut g0) = (0, 0);
+    let recordings: Vec<RecordingFit> = obs
+        .into_iter()
+        .zip(recordings)
+        .map(|(o, (series, reference))| {
+            let (na, ng) = (o.accel.len(), o.gyro.len());
+            let r = RecordingFit {
+                origin: series.origin.clone(),
+                reference: reference.describe(),
+                segmentation: o.segmentation,
+                segment_truth: o.segment_truth,
+                accel_points: a0..a0 + na,
+                gyro_points: g0..g0 + ng,
+            };
+            (a0, g0) = (a0 + na, g0 + ng);
+            r
+        })
+        .collect();
     Ok(CalibrationFit {
-        segmentation: obs.segmentation,
-        segment_truth: obs.segment_truth,
+        segmentation: recordings[0].segmentation.clone(),
+        segment_truth: recordings[0].segment_truth.clone(),
+        recordings,
         accel,
         gyro,
         calibration,
         notes,
     })
+}
+
+/// What a joint fit assumes of the biases of its `n` recordings.
+fn bias_note(n: usize, opts: &CalibrateOptions) -> String {
+    let fmt = |v: [f64; 3]| format!("[{:.1e}, {:.1e}, {:.1e}]", v[0], v[1], v[2]);
+    let triad = |name: &str, unit: &str, turn_on: Option<[f64; 3]>| match turn_on {
+        None => format!(
+            "the {name} bias is taken as the same in all {n} recordings (no change between \
+             power-ons)"
+        ),
+        Some(b) => format!(
+            "the {name} bias is the mean over the {n} power-ons, each recording's own bias \
+             allowed to differ from it by {} {unit} (1 sigma, turn-on repeatability)",
+            fmt(b)
+        ),
+    };
+    let mut note = format!(
+        "{} recordings fitted together: {}; {}; bias wander is independent between recordings",
+        n,
+        triad("accel", "m/s^2", opts.accel_turn_on_bias_m_s2),
+        triad("gyro", "rad/s", opts.gyro_turn_on_bias_rad_s)
+    );
+    if opts.accel_turn_on_bias_m_s2.is_none() || opts.gyro_turn_on_bias_rad_s.is_none() {
+        note.push_str(
+            "; a MEMS bias usually changes from one power-on to the next: give its turn-on \
+             repeatability (imu-calibrate --accel-turn-on-bias-m-s2, \
+             --gyro-turn-on-bias-rad-s) to fit the mean bias with that spread",
+        );
+    }
+    note
 }
 
 #[cfg(test)]
@@ -1180,7 +1479,14 @@ mod tests {
             })
             .collect();
         let m = model(&[Bias, Scale, ScaleNonlinearity]);
-        let r = fit_loadable(&m, Triad::Accel, &points, &FitOptions::default()).unwrap();
+        let r = fit_loadable(
+            &m,
+            Triad::Accel,
+            &points,
+            &Sessions::default(),
+            &FitOptions::default(),
+        )
+        .unwrap();
         assert!(!r.unobservable.is_empty(), "{:?}", r.warnings);
         for u in &r.unobservable {
             assert!(u.name.starts_with("scale-nonlinearity.cubic"), "{u:?}");
@@ -1191,6 +1497,135 @@ mod tests {
             "{:?}",
             r.unobservable
         );
+    }
+
+    /// Points `k` seconds apart, 20 s long, with distinct white errors.
+    fn timed_points(times_s: &[f64]) -> Vec<FitPoint> {
+        times_s
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| FitPoint {
+                true_input: Vec3::zeros(),
+                measured: Vec3::zeros(),
+                std_error: Vec3::repeat(1e-3 * (1.0 + k as f64)),
+                conditions: Conditions::default(),
+                t_s: t,
+                duration_s: 20.0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn sessions_share_no_noise_and_each_starts_its_own_random_walk() {
+        // Session 0 at 10, 50, 90 s; session 1 (its own clock) at 15, 70 s.
+        let times = [10.0, 50.0, 90.0, 15.0, 70.0];
+        let points = timed_points(&times);
+        let sessions = Sessions {
+            of_point: vec![0, 0, 0, 1, 1],
+            turn_on_bias: None,
+        };
+        for shared in [
+            SharedNoise {
+                random_walk_q: 1e-8,
+                random_walk_origin_s: Some(0.0),
+                flicker_var: 4e-8,
+                flicker_tau_s: 1.0,
+                flicker_tau_max_s: Some(1000.0),
+            },
+            SharedNoise {
+                random_walk_q: 1e-8,
+                random_walk_origin_s: None,
+                flicker_var: 4e-8,
+                flicker_tau_s: 1.0,
+                flicker_tau_max_s: None,
+            },
+        ] {
+            let c = session_covariance(&points, &sessions, 0, &shared, 1.0);
+            // Nothing shared across sessions.
+            for k in 0..3 {
+                for l in 3..5 {
+                    assert_eq!(c[(k, l)], 0.0);
+                    assert_eq!(c[(l, k)], 0.0);
+                }
+            }
+            // Within each session, exactly the one-recording covariance of its points alone.
+            for range in [0..3, 3..5] {
+                let alone = segment_covariance(&points[range.clone()], 0, &shared, 1.0);
+                let block = c.view((range.start, range.start), (range.len(), range.len()));
+                assert!((block - &alone).abs().max() <= 1e-18, "{c}\n{alone}");
+            }
+        }
+        // With the random walk from t = 0 on each session's clock, session 1's first segment
+        // (15 s) carries 15 q, not the 5 s since session 0's first one.
+        let rw = SharedNoise {
+            random_walk_q: 1e-8,
+            random_walk_origin_s: Some(0.0),
+            ..SharedNoise::default()
+        };
+        let c = session_covariance(&points, &sessions, 0, &rw, 0.0);
+        assert!((c[(3, 3)] - 15.0 * 1e-8).abs() < 1e-20);
+        assert!((c[(3, 4)] - 15.0 * 1e-8).abs() < 1e-20);
+        // A turn-on bias spread is shared within a session only.
+        let spread = Sessions {
+            turn_on_bias: Some([2e-3, 0.0, 0.0]),
+            ..sessions.clone()
+        };
+        let c = session_covariance(&points, &spread, 0, &SharedNoise::default(), 1.0);
+        assert!((c[(0, 2)] - 4e-6).abs() < 1e-18 && (c[(3, 4)] - 4e-6).abs() < 1e-18);
+        assert_eq!(c[(0, 3)], 0.0);
+        assert!((c[(1, 1)] - (4e-6 + 4e-6)).abs() < 1e-18);
+    }
+
+    #[test]
+    fn a_turn_on_spread_widens_only_the_bias_of_a_joint_fit() {
+        use EffectKind::*;
+        // Two sessions see the same scale error but biases 1e-3 apart (turn-on to turn-on).
+        let scale = 2e-3;
+        let mut points = Vec::new();
+        let mut of_point = Vec::new();
+        for (session, bias) in [(0usize, 0.010), (1, 0.011)] {
+            for (k, u) in [-1.0, -0.5, 0.5, 1.0].iter().enumerate() {
+                let x = Vec3::new(u * 9.8, -u * 4.0, u * 6.0);
+                points.push(FitPoint {
+                    true_input: x,
+                    measured: x * (1.0 + scale) + Vec3::repeat(bias),
+                    std_error: Vec3::repeat(1e-4),
+                    conditions: Conditions::default(),
+                    t_s: 30.0 * k as f64,
+                    duration_s: 20.0,
+                });
+                of_point.push(session);
+            }
+        }
+        let m = model(&[Bias, Scale]);
+        let common = Sessions {
+            of_point: of_point.clone(),
+            turn_on_bias: None,
+        };
+        let spread = Sessions {
+            of_point,
+            turn_on_bias: Some([1e-3; 3]),
+        };
+        let opts = FitOptions::default();
+        let a = fit_triad_sessions(&m, Triad::Accel, &points, &common, &opts).unwrap();
+        let b = fit_triad_sessions(&m, Triad::Accel, &points, &spread, &opts).unwrap();
+        // Common bias: the 1e-3 difference is excess scatter (reduced chi-square >> 1).
+        assert!(a.reduced_chi2 > 10.0, "{}", a.reduced_chi2);
+        // With the spread: the offsets (0.5 sigma each) are expected, the bias is their mean
+        // with a standard error of about 1e-3 / sqrt(2), the scale exact and its error from
+        // the white errors alone.
+        assert!(b.reduced_chi2 < 0.2, "{}", b.reduced_chi2);
+        // (Canonical order: scale.x..z, then bias.x..z.)
+        for axis in 0..3 {
+            assert!((b.params[axis] - scale).abs() < 1e-9, "{:?}", b.params);
+            // The inputs are symmetric about 0 in each session: the white-error value.
+            let sxx: f64 = points.iter().map(|p| p.true_input[axis].powi(2)).sum();
+            let se_s = b.std_errors[axis].unwrap();
+            assert!((se_s / (1e-4 / sxx.sqrt()) - 1.0).abs() < 0.01, "{se_s}");
+            assert!((b.params[3 + axis] - 0.0105).abs() < 1e-9, "{:?}", b.params);
+            let se_b = b.std_errors[3 + axis].unwrap();
+            assert!((se_b - 1e-3 / 2f64.sqrt()).abs() < 0.02e-3, "{se_b}");
+        }
     }
 
     #[test]

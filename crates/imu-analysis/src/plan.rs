@@ -18,6 +18,12 @@
 //! g-sensitivity matters (Table 1). Temperature and time since power-on come from the
 //! recording.
 //!
+//! A `skip` step stands for one segment the recording holds but the fit must not use (a
+//! position known to have been disturbed, a pause in a transition): it is matched like any
+//! step, so the order of the others is kept, and its segment is dropped from the segmentation
+//! (listed in [`Segmentation::skipped`] with the step that skipped it). It applies to detected
+//! segments only: with time ranges given by hand, leave the segment's range out instead.
+//!
 //! ```toml
 //! format = "imud-plan/1"
 //! latitude-deg = 40.0
@@ -38,6 +44,10 @@
 //! axis = "z"
 //! rates-deg-s = [20, 40, 0, -20, -40, 0]
 //! up = "z"
+//!
+//! [[step]]                       # a segment to leave out of the fit
+//! kind = "skip"
+//! label = "table bumped during this stop"
 //! ```
 
 use std::path::Path;
@@ -147,6 +157,7 @@ enum StepKind {
     Static,
     IndexTable,
     RateSteps,
+    Skip,
 }
 
 impl StepKind {
@@ -155,6 +166,7 @@ impl StepKind {
             StepKind::Static => "static",
             StepKind::IndexTable => "index-table",
             StepKind::RateSteps => "rate-steps",
+            StepKind::Skip => "skip",
         }
     }
 }
@@ -275,6 +287,25 @@ impl<'de> Deserialize<'de> for SensorDirection {
     }
 }
 
+/// A sensor direction written as in plans, `+z`, `-x`, `y` or `[x, y, z]` (normalised), from
+/// text (a reference log's `# table-axis = ...` line).
+pub(crate) fn parse_direction(s: &str) -> Option<Vec3> {
+    let s = s.trim();
+    if let Some(inner) = s.strip_prefix('[').and_then(|t| t.strip_suffix(']')) {
+        let v: Vec<f64> = inner
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .ok()?;
+        let [x, y, z] = v.as_slice() else {
+            return None;
+        };
+        let d = Vec3::new(*x, *y, *z);
+        return (d.iter().all(|c| c.is_finite()) && d.norm() > 1e-9).then(|| d.normalize());
+    }
+    parse_axis(s)
+}
+
 fn parse_axis(s: &str) -> Option<Vec3> {
     let (sign, name) = match s.as_bytes().first() {
         Some(b'-') => (-1.0, &s[1..]),
@@ -314,8 +345,11 @@ pub struct PlanEntry {
     pub of: usize,
     /// 1-based line of the step in the plan file, when found.
     pub line: Option<usize>,
-    /// Static or plateau.
+    /// Static or plateau (for a skip entry: either; `Static` is stored).
     pub kind: SegmentKind,
+    /// A `skip` step: matches any one segment, which is then left out of the fit; the
+    /// orientation and rate fields are not used (up is stored as zero).
+    pub skip: bool,
     /// What is expected, for messages (`index-table, 30 deg about +x`).
     pub description: String,
     /// Unit vector of the sensor direction pointing up (for a plateau: at the run's start; the
@@ -497,6 +531,7 @@ fn keys_of(kind: StepKind) -> &'static [&'static str] {
             "orientation",
             "windows-s",
         ],
+        StepKind::Skip => &[],
     }
 }
 
@@ -612,12 +647,30 @@ fn expand_step(
             return Err(bad(
                 k,
                 format!(
-                    "`{k}` does not apply to a {} step (its keys: kind, label, {})",
+                    "`{k}` does not apply to a {} step (its keys: {})",
                     s.kind.name(),
-                    allowed.join(", ")
+                    ["kind", "label"]
+                        .iter()
+                        .chain(allowed)
+                        .copied()
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 ),
             ));
         }
+    }
+    let line = imu_model::line_of_key(text, &format!("step[{i}]"));
+    if s.kind == StepKind::Skip
+        && let Some(first) = any_explicit
+    {
+        return Err(bad(
+            "kind",
+            format!(
+                "a skip step matches a detected segment, but step {} gives its time range by \
+                 hand (so no segment is detected); leave the segment's range out instead",
+                first + 1
+            ),
+        ));
     }
     if let Some(first) = any_explicit
         && !s.has_windows()
@@ -632,7 +685,12 @@ fn expand_step(
             ),
         ));
     }
-    let (up, north) = step_frame(s).map_err(|m| bad("up", m))?;
+    // A skip step has no orientation: its entry matches any segment and is never checked.
+    let (up, north) = if s.kind == StepKind::Skip {
+        (Vec3::zeros(), None)
+    } else {
+        step_frame(s).map_err(|m| bad("up", m))?
+    };
     let label = s
         .label
         .as_deref()
@@ -679,8 +737,9 @@ fn expand_step(
         step: n,
         position: None,
         of: 1,
-        line: imu_model::line_of_key(text, &format!("step[{i}]")),
+        line,
         kind: SegmentKind::Static,
+        skip: false,
         description: String::new(),
         up_sensor: up.into(),
         north_sensor: north.map(Into::into),
@@ -689,6 +748,11 @@ fn expand_step(
         window_s: None,
     };
     match s.kind {
+        StepKind::Skip => entries.push(PlanEntry {
+            skip: true,
+            description: format!("{label}skip"),
+            ..base
+        }),
         StepKind::Static => {
             let window_s = match (s.start_s, s.end_s) {
                 (None, None) => None,
@@ -931,6 +995,13 @@ impl Plan {
                 "a plan needs at least one [[step]]".into(),
             ));
         }
+        if raw.steps.iter().all(|s| s.kind == StepKind::Skip) {
+            return Err(invalid(
+                "format",
+                "step",
+                "every step is a skip: a plan needs at least one segment to fit".into(),
+            ));
+        }
         let any_explicit = raw.steps.iter().position(StepFile::has_windows);
         let mut entries = Vec::new();
         for (i, step) in raw.steps.iter().enumerate() {
@@ -956,13 +1027,22 @@ impl Plan {
         self.entries.iter().all(|e| e.window_s.is_some())
     }
 
-    /// Number of entries of one kind.
+    /// Number of entries of one kind (skip entries not counted).
     pub fn count(&self, kind: SegmentKind) -> usize {
-        self.entries.iter().filter(|e| e.kind == kind).count()
+        self.entries
+            .iter()
+            .filter(|e| e.kind == kind && !e.skip)
+            .count()
+    }
+
+    /// Number of skip entries.
+    pub fn count_skips(&self) -> usize {
+        self.entries.iter().filter(|e| e.skip).count()
     }
 
     /// The segments of `series`: detected, or, when the plan gives time ranges, exactly those
-    /// (detection still runs for its thresholds, which the report shows).
+    /// (detection still runs for its thresholds, which the report shows). Detected segments
+    /// matched to a skip step are moved to [`Segmentation::skipped`].
     pub fn segmentation(
         &self,
         series: &ImuSeries,
@@ -970,6 +1050,24 @@ impl Plan {
     ) -> Result<Segmentation, crate::reference::ReferenceError> {
         let mut seg = crate::segment::detect(series, opts)?;
         if !self.explicit_windows() {
+            if self.count_skips() > 0 {
+                let pairs = self.check(&seg.segments, true)?;
+                let skipped: Vec<(usize, usize)> = pairs
+                    .into_iter()
+                    .filter(|(e, _)| self.entries[*e].skip)
+                    .collect();
+                for &(e, s) in skipped.iter().rev() {
+                    let segment = seg.segments.remove(s);
+                    seg.skipped.insert(
+                        0,
+                        crate::segment::SkippedSegment {
+                            number: s + 1,
+                            by: self.entries[e].name(),
+                            segment,
+                        },
+                    );
+                }
+            }
             return Ok(seg);
         }
         let mut segments = Vec::with_capacity(self.entries.len());
@@ -1070,7 +1168,8 @@ impl Plan {
         series: &ImuSeries,
         segments: &[Segment],
     ) -> Result<Vec<Resolved>, PlanMismatch> {
-        let pairs = self.check(segments)?;
+        // The segments skip steps matched are gone (see `segmentation`): match the rest.
+        let pairs = self.check(segments, false)?;
         Ok(pairs
             .into_iter()
             .map(|(e, s)| self.truth_of(&self.entries[e], &segments[s], series))
@@ -1079,6 +1178,9 @@ impl Plan {
 
     /// Problems of matching entry `e` with segment `s` (empty if compatible).
     fn problems(&self, e: &PlanEntry, s: &Segment, index: usize) -> Vec<String> {
+        if e.skip {
+            return Vec::new();
+        }
         let head = format!(
             "{}: segment {} at {:.1}-{:.1} s",
             e.name(),
@@ -1157,14 +1259,24 @@ impl Plan {
         }
     }
 
-    /// Align entries with segments (a Needleman-Wunsch alignment: a position too many or too
-    /// few shows as a gap where it happens instead of shifting every later match), then check
-    /// every matched pair. Returns `(entry, segment)` index pairs covering both lists.
-    fn check(&self, segments: &[Segment]) -> Result<Vec<(usize, usize)>, PlanMismatch> {
-        let (ne, ns) = (self.entries.len(), segments.len());
+    /// Align entries (with or without the skip entries) with segments (a Needleman-Wunsch
+    /// alignment: a position too many or too few shows as a gap where it happens instead of
+    /// shifting every later match), then check every matched pair. Returns `(entry, segment)`
+    /// index pairs covering both lists (entry indices into `self.entries`).
+    fn check(
+        &self,
+        segments: &[Segment],
+        with_skips: bool,
+    ) -> Result<Vec<(usize, usize)>, PlanMismatch> {
+        let used: Vec<usize> = (0..self.entries.len())
+            .filter(|&e| with_skips || !self.entries[e].skip)
+            .collect();
+        let (ne, ns) = (used.len(), segments.len());
         let cost = |e: usize, s: usize| -> f64 {
-            let (pe, sg) = (&self.entries[e], &segments[s]);
-            if pe.kind != sg.kind {
+            let (pe, sg) = (&self.entries[used[e]], &segments[s]);
+            if pe.skip {
+                0.0
+            } else if pe.kind != sg.kind {
                 1.8
             } else if self.problems(pe, sg, s).is_empty() {
                 0.0
@@ -1197,11 +1309,11 @@ impl Plan {
         let (mut i, mut j) = (ne, ns);
         while i > 0 || j > 0 {
             if i > 0 && j > 0 && (d[i][j] - (d[i - 1][j - 1] + cost(i - 1, j - 1))).abs() < 1e-9 {
-                path.push(Step::Pair(i - 1, j - 1));
+                path.push(Step::Pair(used[i - 1], j - 1));
                 i -= 1;
                 j -= 1;
             } else if i > 0 && (j == 0 || (d[i][j] - (d[i - 1][j] + GAP)).abs() < 1e-9) {
-                path.push(Step::NoSegment(i - 1));
+                path.push(Step::NoSegment(used[i - 1]));
                 i -= 1;
             } else {
                 path.push(Step::NoEntry(j - 1));
@@ -1276,9 +1388,14 @@ impl Plan {
         }
         let count = |k: SegmentKind| segments.iter().filter(|s| s.kind == k).count();
         let summary = if ne != ns {
+            let skips = if with_skips && self.count_skips() > 0 {
+                format!(", {} skip", self.count_skips())
+            } else {
+                String::new()
+            };
             format!(
-                "the plan expects {ne} segments ({} static, {} plateau), the recording has {ns} \
-                 ({} static, {} plateau); fix the plan, or give the time ranges by hand \
+                "the plan expects {ne} segments ({} static, {} plateau{skips}), the recording has \
+                 {ns} ({} static, {} plateau); fix the plan, or give the time ranges by hand \
                  (start-s/end-s, windows-s)",
                 self.count(SegmentKind::Static),
                 self.count(SegmentKind::Plateau),
@@ -1375,7 +1492,7 @@ impl Plan {
     /// One-line description for reports and provenance.
     pub fn describe(&self) -> String {
         format!(
-            "test plan {}{} ({} segments: {} static, {} rate plateaus{})",
+            "test plan {}{} ({} segments: {} static, {} rate plateaus{}{})",
             self.file,
             self.name
                 .as_deref()
@@ -1384,6 +1501,10 @@ impl Plan {
             self.entries.len(),
             self.count(SegmentKind::Static),
             self.count(SegmentKind::Plateau),
+            match self.count_skips() {
+                0 => String::new(),
+                k => format!(", {k} skipped"),
+            },
             if self.explicit_windows() {
                 ", time ranges given by hand"
             } else {
@@ -1553,6 +1674,45 @@ up = "z"
         assert!(e.contains("every step must"), "{e}");
     }
 
+    #[test]
+    fn a_skip_step_takes_no_keys_and_no_time_ranges() {
+        let skip = PLAN.replace(
+            "kind = \"static\"\norientation = { z = \"up\", x = \"north\" }",
+            "kind = \"skip\"\nlabel = \"bumped\"",
+        );
+        let p = Plan::from_toml_str(&skip, "s.toml").unwrap();
+        assert!(p.entries[4].skip);
+        assert_eq!(p.entries[4].name(), "step 2 (line 11) [bumped: skip]");
+        assert_eq!((p.count(SegmentKind::Static), p.count_skips()), (5, 1));
+        assert_eq!(
+            p.describe(),
+            "test plan s.toml (8 segments: 5 static, 2 rate plateaus, 1 skipped)"
+        );
+        let e = Plan::from_toml_str(
+            &skip.replace("label = \"bumped\"", "axis = \"x\""),
+            "s.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("`axis` does not apply to a skip step (its keys: kind, label)"),
+            "{e}"
+        );
+        let e = Plan::from_toml_str(
+            &skip.replace(
+                "positions = 4\n",
+                "positions = 4\nwindows-s = [[0, 1], [2, 3], [4, 5], [6, 7]]\n",
+            ),
+            "s.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("a skip step matches a detected segment, but step 1 gives its time range"),
+            "{e}"
+        );
+    }
+
     fn segment(kind: SegmentKind, t: f64, accel: [f64; 3], gyro: [f64; 3]) -> Segment {
         Segment {
             kind,
@@ -1583,11 +1743,11 @@ up = "z"
             segment(Static, 120.0, [0.0, 0.0, g], [0.0; 3]),
             segment(Plateau, 140.0, [0.0, 0.0, g], [0.0, 0.0, -w]),
         ];
-        assert_eq!(p.check(&segs).unwrap().len(), 8);
+        assert_eq!(p.check(&segs, true).unwrap().len(), 8);
         // One index position missing from the recording: named where it happened.
         let mut missing = segs.clone();
         missing.remove(2);
-        let e = p.check(&missing).unwrap_err().to_string();
+        let e = p.check(&missing, true).unwrap_err().to_string();
         assert!(
             e.contains("expects 8 segments (6 static, 2 plateau), the recording has 7"),
             "{e}"
@@ -1600,7 +1760,7 @@ up = "z"
         assert_eq!(e.matches("\n  - ").count(), 1, "{e}");
         // Wrong direction of rotation of the table: the 90 deg position is measured at -y.
         segs[1].mean_accel_m_s2 = [0.0, -g, 0.0];
-        let e = p.check(&segs).unwrap_err().to_string();
+        let e = p.check(&segs, true).unwrap_err().to_string();
         assert!(e.contains("step 1 (line 4) position 2 of 4"), "{e}");
         assert!(
             e.contains("measured up -y is 180.0 deg from the planned +y"),
@@ -1609,16 +1769,32 @@ up = "z"
         // A plateau at the wrong rate.
         segs[1].mean_accel_m_s2 = [0.0, g, 0.0];
         segs[5].mean_gyro_rad_s = [0.0, 0.0, 1.5 * w];
-        let e = p.check(&segs).unwrap_err().to_string();
+        let e = p.check(&segs, true).unwrap_err().to_string();
         assert!(e.contains("step 3 (line 15) position 1 of 3"), "{e}");
         assert!(
             e.contains("measured 30.00 deg/s about +z, planned 20 deg/s"),
             "{e}"
         );
+        // A skip step matches any one segment, even one the plan could not describe, and the
+        // rest is matched as before: with the skip, all 8; without, the 7 others.
+        let skip = PLAN.replace(
+            "kind = \"static\"\norientation = { z = \"up\", x = \"north\" }",
+            "kind = \"skip\"",
+        );
+        let ps = Plan::from_toml_str(&skip, "s.toml").unwrap();
+        let mut odd = segs.clone();
+        odd[5].mean_gyro_rad_s = [0.0, 0.0, w];
+        odd[4].mean_accel_m_s2 = [g, 0.0, 0.0];
+        let pairs = ps.check(&odd, true).unwrap();
+        assert!(pairs.contains(&(4, 4)), "{pairs:?}");
+        odd.remove(4);
+        let rest = ps.check(&odd, false).unwrap();
+        assert_eq!(rest.len(), 7);
+        assert!(rest.iter().all(|(e, _)| !ps.entries[*e].skip));
         // A static where a plateau was planned.
         segs[5].mean_gyro_rad_s = [0.0; 3];
         segs[5].kind = Static;
-        let e = p.check(&segs).unwrap_err().to_string();
+        let e = p.check(&segs, true).unwrap_err().to_string();
         assert!(
             e.contains("expects a rate plateau but the segment is static"),
             "{e}"

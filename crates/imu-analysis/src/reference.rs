@@ -165,7 +165,7 @@ impl Reference {
                 })
             }
             Reference::Log(l) => Ok(ReferenceCaveats {
-                gyro_bias_std_rad_s: None,
+                gyro_bias_std_rad_s: l.gyro_bias_std_rad_s(segments),
                 notes: l.notes(series),
             }),
         }

@@ -131,6 +131,37 @@ pub struct Segmentation {
     pub window_samples: usize,
     /// The options used.
     pub options: SegmentOptions,
+    /// Detected segments left out of the fit (by a plan's skip step), in time order.
+    #[serde(default)]
+    pub skipped: Vec<SkippedSegment>,
+}
+
+/// A detected segment that is not fitted.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SkippedSegment {
+    /// 1-based position among the detected segments.
+    pub number: usize,
+    /// What skipped it (the plan step).
+    pub by: String,
+    /// The segment.
+    pub segment: Segment,
+}
+
+impl SkippedSegment {
+    /// `segment 5 at 120.0-180.0 s (static)`, for notes.
+    pub fn describe(&self) -> String {
+        let s = &self.segment;
+        format!(
+            "segment {} at {:.1}-{:.1} s ({})",
+            self.number,
+            s.start_s,
+            s.end_s,
+            match s.kind {
+                SegmentKind::Static => "static",
+                SegmentKind::Plateau => "rate plateau",
+            }
+        )
+    }
 }
 
 impl Segmentation {
@@ -372,6 +403,7 @@ pub fn detect(series: &ImuSeries, opts: &SegmentOptions) -> Result<Segmentation,
         gyro_std_threshold_rad_s: thr_g,
         window_samples: w,
         options: opts.clone(),
+        skipped: Vec::new(),
     })
 }
 

@@ -242,12 +242,15 @@ fn index_table_recovers_accel_bias_scale_misalignment() {
     opts.accel.add(EffectKind::ScaleNonlinearity);
     let fit = calibrate(&run.series, &run.truth, &opts).unwrap();
     assert_eq!(
-        fit.segmentation.count(SegmentKind::Static),
+        fit.recordings[0].segmentation.count(SegmentKind::Static),
         12,
         "{:#?}",
-        fit.segmentation
+        fit.recordings[0].segmentation
     );
-    assert_eq!(fit.segmentation.count(SegmentKind::Plateau), 0);
+    assert_eq!(
+        fit.recordings[0].segmentation.count(SegmentKind::Plateau),
+        0
+    );
     // 60-degree steps from a horizontal start give an axis only 0 and +/-sin 60: x^3 is then
     // exactly proportional to x, and the fit must say so instead of fitting it.
     for u in &fit.accel.unobservable {
@@ -292,7 +295,12 @@ fn check_correction(fit: &CalibrationFit, run: &Run, cal: &Calibration) {
     let mut raw_sq = 0.0;
     let mut cor_sq = 0.0;
     let mut k = 0.0;
-    for (seg, t) in fit.segmentation.segments.iter().zip(&fit.segment_truth) {
+    for (seg, t) in fit.recordings[0]
+        .segmentation
+        .segments
+        .iter()
+        .zip(&fit.recordings[0].segment_truth)
+    {
         if seg.kind != SegmentKind::Static {
             continue;
         }
@@ -331,10 +339,10 @@ fn earth_rate_recovers_gyro_bias_and_g_sensitivity() {
     opts.gyro.add(EffectKind::GSensitivity);
     let fit = calibrate(&run.series, &run.truth, &opts).unwrap();
     assert_eq!(
-        fit.segmentation.count(SegmentKind::Static),
+        fit.recordings[0].segmentation.count(SegmentKind::Static),
         8,
         "{:#?}",
-        fit.segmentation
+        fit.recordings[0].segmentation
     );
     let z = z_scores(&fit.gyro, &run.truth_model.gyro, Triad::Gyro);
     report("gyro", &z);
@@ -390,17 +398,17 @@ fn rate_table_recovers_gyro_scale_misalignment_and_g_sensitivity() {
     let fit = calibrate(&run.series, &run.truth, &opts).unwrap();
     // The streamed truth file gives the same segment means as the truth in memory.
     let streamed = Reference::TruthFile(run.truth_path.clone())
-        .segment_truth(&run.series, &fit.segmentation.segments)
+        .segment_truth(&run.series, &fit.recordings[0].segmentation.segments)
         .unwrap();
-    assert_eq!(streamed, fit.segment_truth);
+    assert_eq!(streamed, fit.recordings[0].segment_truth);
     // 6 still positions plus the 0 deg/s dwell that ends each axis's steps; 4 plateaus per axis.
     assert_eq!(
-        fit.segmentation.count(SegmentKind::Plateau),
+        fit.recordings[0].segmentation.count(SegmentKind::Plateau),
         12,
         "{:#?}",
-        fit.segmentation
+        fit.recordings[0].segmentation
     );
-    assert_eq!(fit.segmentation.count(SegmentKind::Static), 9);
+    assert_eq!(fit.recordings[0].segmentation.count(SegmentKind::Static), 9);
     let z = z_scores(&fit.gyro, &run.truth_model.gyro, Triad::Gyro);
     report("gyro", &z);
     assert_eq!(z.len(), 21, "{:?}", fit.gyro.warnings);

@@ -149,12 +149,21 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
     assert_eq!(p.entries.len(), 24);
     let by_plan = fit(run, &Reference::Plan(p), &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
-    assert_eq!(by_plan.segmentation.count(SegmentKind::Static), 24);
+    assert_eq!(
+        by_plan.recordings[0]
+            .segmentation
+            .count(SegmentKind::Static),
+        24
+    );
     let n = assert_within_3_se("accel", &by_plan.accel, &run.truth_model.accel);
     assert!(n >= 16, "{:?}", by_plan.accel.unobservable);
     // Same specific force in every segment: the fits are the same.
     assert_agree("accel", &by_plan.accel, &by_truth.accel, 1e-3);
-    for (a, b) in by_plan.segment_truth.iter().zip(&by_truth.segment_truth) {
+    for (a, b) in by_plan.recordings[0]
+        .segment_truth
+        .iter()
+        .zip(&by_truth.recordings[0].segment_truth)
+    {
         let d = Vec3::from(a.specific_force_m_s2) - Vec3::from(b.specific_force_m_s2);
         assert!(d.norm() < 1e-9, "{a:?} vs {b:?}");
     }
@@ -167,7 +176,11 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
         .unwrap_or_else(|| panic!("{:?}", by_plan.notes));
     eprintln!("{note}");
     let h = EARTH_RATE_RAD_S * 40f64.to_radians().cos();
-    for (a, b) in by_plan.segment_truth.iter().zip(&by_truth.segment_truth) {
+    for (a, b) in by_plan.recordings[0]
+        .segment_truth
+        .iter()
+        .zip(&by_truth.recordings[0].segment_truth)
+    {
         let d = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
         assert!(d.norm() <= h * (1.0 + 1e-6), "{d:?}");
     }
@@ -182,19 +195,80 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
 }
 
 #[test]
+fn a_skip_step_drops_its_segment_and_the_rest_fits_the_truth() {
+    let run = index_table();
+    use EffectKind::*;
+    let opts = options(
+        run,
+        &[Bias, Scale, Misalignment, ScaleNonlinearity],
+        &[Bias],
+    );
+    // The first turn's fifth position (120 deg) said to be disturbed: positions 1-4, a skip,
+    // then positions 6-12 from 150 deg.
+    let text = std::fs::read_to_string(repo().join("config/plans/index-table-12pos.toml")).unwrap();
+    let second = text.match_indices("[[step]]").nth(1).unwrap().0;
+    let mut edited = text[..second].replacen("positions = 12\n", "positions = 4\n", 1);
+    edited.push_str(
+        "[[step]]\nkind = \"skip\"\nlabel = \"position 5 bumped\"\n\n[[step]]\n\
+         kind = \"index-table\"\naxis = \"x\"\nstep-deg = 30.0\nstart-deg = 150.0\n\
+         positions = 7\nup = \"z\"\n\n",
+    );
+    edited.push_str(&text[second..]);
+    let skip_line = edited[..edited.find("[[step]]\nkind = \"skip\"").unwrap()]
+        .lines()
+        .count()
+        + 1;
+    let p = Plan::from_toml_str(&edited, "skip.toml").unwrap();
+    assert_eq!((p.entries.len(), p.count_skips()), (24, 1));
+    let by_skip = fit(run, &Reference::Plan(p), &opts);
+    let full = fit(run, &Reference::Plan(plan("index-table-12pos.toml")), &opts);
+    let rec = &by_skip.recordings[0];
+    let all = &full.recordings[0].segmentation.segments;
+    // The fifth detected segment is gone from the fit, listed with the step that dropped it.
+    assert_eq!(rec.segmentation.count(SegmentKind::Static), 23);
+    assert_eq!(rec.accel_points.len(), 23);
+    assert_eq!(by_skip.accel.residuals.len(), 23);
+    let skipped = &rec.segmentation.skipped;
+    assert_eq!(skipped.len(), 1);
+    assert_eq!(skipped[0].number, 5);
+    assert_eq!(skipped[0].segment, all[4]);
+    let kept: Vec<_> = all[..4].iter().chain(&all[5..]).cloned().collect();
+    assert_eq!(rec.segmentation.segments, kept);
+    let want = format!(
+        "segment 5 at {:.1}-{:.1} s (static) skipped by step 2 (line {skip_line}) [position 5 \
+         bumped: skip]: not fitted",
+        all[4].start_s, all[4].end_s
+    );
+    assert!(by_skip.notes.contains(&want), "{want}\n{:?}", by_skip.notes);
+    // The other 23 segments still fit the truth; the segment truth is the full plan's without
+    // the fifth.
+    let n = assert_within_3_se("accel", &by_skip.accel, &run.truth_model.accel);
+    assert!(n >= 15, "{:?}", by_skip.accel.unobservable);
+    assert_within_3_se("gyro", &by_skip.gyro, &run.truth_model.gyro);
+    let full_truth = &full.recordings[0].segment_truth;
+    let kept_truth: Vec<_> = full_truth[..4].iter().chain(&full_truth[5..]).collect();
+    assert_eq!(rec.segment_truth.iter().collect::<Vec<_>>(), kept_truth);
+}
+
+#[test]
 fn earth_rate_plan_gives_table_1_inputs_and_the_g_dependent_bias() {
     let run = earth_rate();
     use EffectKind::*;
     let opts = options(run, &[Bias], &[Bias, GSensitivity]);
     let by_plan = fit(run, &Reference::Plan(plan("earth-rate-8pos.toml")), &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
-    assert_eq!(by_plan.segmentation.count(SegmentKind::Static), 8);
+    assert_eq!(
+        by_plan.recordings[0]
+            .segmentation
+            .count(SegmentKind::Static),
+        8
+    );
     // Full orientation at latitude 40 deg: Earth's rate in the sensor frame is the truth's,
     // to rounding, and nothing is carried as unknown.
-    for (k, (a, b)) in by_plan
+    for (k, (a, b)) in by_plan.recordings[0]
         .segment_truth
         .iter()
-        .zip(&by_truth.segment_truth)
+        .zip(&by_truth.recordings[0].segment_truth)
         .enumerate()
     {
         let dw = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
@@ -209,7 +283,7 @@ fn earth_rate_plan_gives_table_1_inputs_and_the_g_dependent_bias() {
     );
     // Table 1, position 5: spin (z) north, input1 (x) east, input2 (y) down.
     let l = 40f64.to_radians();
-    let w5 = Vec3::from(by_plan.segment_truth[4].angular_rate_rad_s);
+    let w5 = Vec3::from(by_plan.recordings[0].segment_truth[4].angular_rate_rad_s);
     let want = Vec3::new(0.0, -l.sin(), l.cos()) * EARTH_RATE_RAD_S;
     assert!((w5 - want).norm() < 1e-15, "{w5:?}");
     // Bias and g-dependent bias (Eq. 3-4): 12 parameters, each within 3 SE of the truth, and
@@ -244,7 +318,7 @@ fn rate_table_plan_recovers_gyro_scale_and_misalignment() {
     let opts = rate_table_options(run);
     let by_plan = fit(run, &Reference::Plan(plan("rate-table.toml")), &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
-    let s = &by_plan.segmentation;
+    let s = &by_plan.recordings[0].segmentation;
     assert_eq!(
         (s.count(SegmentKind::Static), s.count(SegmentKind::Plateau)),
         (9, 42)
@@ -364,6 +438,116 @@ fn rate_table_log_is_aligned_in_time_and_fits_like_the_truth() {
     );
 }
 
+/// The truth as a rate table's own log: one column, the table's rate relative to the ground
+/// (no Earth rate), every 20 ms on a clock `offset_s` ahead, with a `# table-axis` line
+/// wherever the unit was re-mounted (the sensor axis pointing up on the table) and the site's
+/// latitude and gravity as settings.
+fn table_log_csv(truth: &Truth, offset_s: f64) -> String {
+    let mut csv = String::from(
+        "# simulated rate table, one rate column\n# latitude-deg = 40.0\n# gravity-m-s2 = 9.80665\n",
+    );
+    let mut header = false;
+    let mut axis = String::new();
+    for s in truth
+        .samples
+        .iter()
+        .filter(|s| s.command == 0x01)
+        .step_by(2)
+    {
+        // (A move between mountings keeps the axis before it: the table stands still.)
+        let seg = &truth.segments[s.segment as usize];
+        let up = seg
+            .axis_sensor
+            .map_or(-Vec3::from(seg.gravity_dir_sensor), Vec3::from);
+        let a = imu_analysis::plan::format_direction(&up);
+        if (seg.kind == "static" || seg.kind == "rate") && a != axis {
+            csv.push_str(&format!("# table-axis = {a}\n"));
+            axis = a;
+        }
+        if !header {
+            csv.push_str("t_s,rate_deg_s\n");
+            header = true;
+        }
+        csv.push_str(&format!(
+            "{:.4},{:.9}\n",
+            s.t_s + offset_s,
+            s.table_rate_rad_s.to_degrees()
+        ));
+    }
+    csv
+}
+
+#[test]
+fn a_rate_tables_one_column_log_gives_the_gyro_gains_of_the_truth() {
+    let run = rate_table();
+    let opts = rate_table_options(run);
+    let csv = table_log_csv(&run.truth, 2.5);
+    let lines: Vec<&str> = csv
+        .lines()
+        .filter(|l| l.starts_with("# table-axis"))
+        .collect();
+    assert_eq!(lines.len(), 3, "z, x, y mountings: {lines:?}");
+    let log = ReferenceLog::from_csv_str(&csv, "table.csv").unwrap();
+    let table = log.table.as_ref().unwrap();
+    let axes: Vec<String> = table
+        .axis_lines
+        .iter()
+        .map(|(_, _, a)| imu_analysis::plan::format_direction(&Vec3::from(*a)))
+        .collect();
+    assert_eq!(axes, ["+z", "+x", "+y"]);
+    let aligned = log.align(&run.series).unwrap();
+    eprintln!(
+        "offset {:.4} s, correlation {:.4}",
+        aligned.offset_s,
+        aligned.correlation.unwrap()
+    );
+    let by_table = fit(run, &Reference::Log(aligned), &opts);
+    let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
+    let s = &by_table.recordings[0].segmentation;
+    assert_eq!(
+        (s.count(SegmentKind::Static), s.count(SegmentKind::Plateau)),
+        (9, 42)
+    );
+    // Gravity along the (vertical) table axis and Earth's vertical rate are the truth's; the
+    // horizontal part of Earth's rate is what the log cannot know.
+    let h = EARTH_RATE_RAD_S * 40f64.to_radians().cos();
+    for (a, b) in by_table.recordings[0]
+        .segment_truth
+        .iter()
+        .zip(&by_truth.recordings[0].segment_truth)
+    {
+        let df = Vec3::from(a.specific_force_m_s2) - Vec3::from(b.specific_force_m_s2);
+        assert!(df.norm() < 1e-6, "{a:?} vs {b:?}");
+        let dw = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
+        assert!(dw.norm() <= h * 1.01, "{dw:?}");
+    }
+    let notes = by_table.notes.join("\n");
+    assert!(
+        notes.contains("a rate table's rate about its axis (+z from line 4, +x from line")
+            && notes.contains("the table axis is taken as vertical: specific force 9.80665")
+            && notes.contains("vertical part at latitude 40 deg is added"),
+        "{notes}"
+    );
+    // The gyro scale, misalignment, bias and g-sensitivity within 3 SE of the truth, and the
+    // same fit as against the truth file.
+    let n = assert_within_3_se("gyro", &by_table.gyro, &run.truth_model.gyro);
+    assert!(n >= 12, "{:?}", by_table.gyro.unobservable);
+    for a in ["x", "y", "z"] {
+        let i = by_table
+            .gyro
+            .names
+            .iter()
+            .position(|n| *n == format!("scale.{a}"))
+            .unwrap();
+        assert!(
+            by_table.gyro.std_errors[i].is_some(),
+            "scale.{a} not fitted"
+        );
+    }
+    assert_agree("gyro", &by_table.gyro, &by_truth.gyro, 0.3);
+    assert_agree("accel", &by_table.accel, &by_truth.accel, 1e-3);
+}
+
 /// Earth-rate plan text with `edit` applied to it.
 fn edited_plan(from: &str, to: &str) -> Plan {
     let text = std::fs::read_to_string(repo().join("config/plans/earth-rate-8pos.toml")).unwrap();
@@ -448,7 +632,12 @@ fn time_ranges_given_by_hand_bypass_detection() {
     use EffectKind::*;
     let opts = options(run, &[Bias], &[Bias, GSensitivity]);
     let by_hand = fit(run, &Reference::Plan(p), &opts);
-    for (seg, w) in by_hand.segmentation.segments.iter().zip(&windows) {
+    for (seg, w) in by_hand.recordings[0]
+        .segmentation
+        .segments
+        .iter()
+        .zip(&windows)
+    {
         assert!((seg.start_s - w[0]).abs() < 0.02 && (seg.end_s - w[1]).abs() < 0.02);
     }
     assert_within_3_se("gyro", &by_hand.gyro, &run.truth_model.gyro);

@@ -317,7 +317,7 @@ fn reference_free_is_about_as_precise_as_an_index_table() {
         },
     )
     .unwrap();
-    assert_eq!(it.segmentation.count(SegmentKind::Static), 24);
+    assert_eq!(it.count(SegmentKind::Static), 24);
     let rf = calibrate_reference_free(
         &run.series,
         &ReferenceFreeOptions {
