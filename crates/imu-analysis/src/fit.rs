@@ -52,6 +52,11 @@ pub struct FitOptions {
     /// exactly like bias, so no residual shows it: it must come from a noise characterisation
     /// (see [`bias_drift_from_noise`]).
     pub bias_drift: Option<[f64; 3]>,
+    /// Uncertainty of the true input common to every segment per axis (triad unit; e.g.
+    /// Earth's rate where the reference does not fix north), added in quadrature to the
+    /// standard errors of `bias.*` always, with or without a noise model: it is not noise of the
+    /// sensor, so no covariance of the segment means carries it.
+    pub bias_input_uncertainty: Option<[f64; 3]>,
     /// The triad's noise (from a noise characterisation such as imu-noise's), for the
     /// covariance of the segment means: besides each mean's white standard error, the bias
     /// wanders under bias instability `B` (flicker: correlated between nearby segments and more
@@ -94,6 +99,7 @@ impl Default for FitOptions {
             min_eigenvalue: 1e-8,
             fixed: Vec::new(),
             bias_drift: None,
+            bias_input_uncertainty: None,
             noise: None,
             drift_model: false,
             shared_noise: None,
@@ -773,13 +779,14 @@ pub fn fit_triad_sessions(
             DMatrix::from_element(free.len(), free.len(), f64::NAN)
         }
     };
-    if let Some(drift) = opts.bias_drift.filter(|_| opts.noise.is_none()) {
+    let drift = opts.bias_drift.filter(|_| opts.noise.is_none());
+    for extra in [drift, opts.bias_input_uncertainty].into_iter().flatten() {
         for (c, &i) in free.iter().enumerate() {
             let axis = ["bias.x", "bias.y", "bias.z"]
                 .iter()
                 .position(|n| *n == names[i]);
             if let Some(axis) = axis {
-                cov[(c, c)] += drift[axis].powi(2);
+                cov[(c, c)] += extra[axis].powi(2);
             }
         }
     }
@@ -1344,10 +1351,10 @@ pub fn calibrate_recordings(
         gyro_bias_std_rad_s,
         notes: Vec::new(),
     };
-    let gyro_bias_drift_rad_s = caveats.widen_gyro_bias_drift(opts.gyro_bias_drift_rad_s);
-    let fit_opts = |drift, noise: &Option<imu_model::NoiseModel>| FitOptions {
+    let fit_opts = |drift, input, noise: &Option<imu_model::NoiseModel>| FitOptions {
         fixed: Vec::new(),
         bias_drift: drift,
+        bias_input_uncertainty: input,
         noise: noise.clone(),
         ..opts.fit.clone()
     };
@@ -1365,7 +1372,7 @@ pub fn calibrate_recordings(
         Triad::Accel,
         &points,
         &sessions,
-        &fit_opts(opts.accel_bias_drift_m_s2, &opts.accel_noise),
+        &fit_opts(opts.accel_bias_drift_m_s2, None, &opts.accel_noise),
     )?;
 
     let plateaus = obs
@@ -1380,7 +1387,11 @@ pub fn calibrate_recordings(
         Triad::Gyro,
         &points,
         &sessions,
-        &fit_opts(gyro_bias_drift_rad_s, &opts.gyro_noise),
+        &fit_opts(
+            opts.gyro_bias_drift_rad_s,
+            caveats.gyro_bias_std_rad_s,
+            &opts.gyro_noise,
+        ),
     )?;
 
     let mut calibration = imu_model::Calibration::identity();
@@ -1625,6 +1636,38 @@ mod tests {
             assert!((b.params[3 + axis] - 0.0105).abs() < 1e-9, "{:?}", b.params);
             let se_b = b.std_errors[3 + axis].unwrap();
             assert!((se_b - 1e-3 / 2f64.sqrt()).abs() < 0.02e-3, "{se_b}");
+        }
+    }
+
+    /// The reference's unknown input (Earth's rate without a heading) widens the bias standard
+    /// error with a noise model as well as without: a noise model replaces only the drift.
+    #[test]
+    fn the_unknown_input_widens_the_bias_with_or_without_a_noise_model() {
+        let points = timed_points(&[0.0, 40.0, 80.0, 120.0]);
+        let m = model(&[EffectKind::Bias]);
+        let noise = imu_model::NoiseModel {
+            white_density: [1e-3; 3],
+            ..Default::default()
+        };
+        let input = 7.3e-5;
+        for with_noise in [false, true] {
+            let base = FitOptions {
+                noise: with_noise.then(|| noise.clone()),
+                ..FitOptions::default()
+            };
+            let widened = FitOptions {
+                bias_input_uncertainty: Some([input; 3]),
+                ..base.clone()
+            };
+            let a = fit_triad(&m, Triad::Gyro, &points, &base).unwrap();
+            let b = fit_triad(&m, Triad::Gyro, &points, &widened).unwrap();
+            for axis in 0..3 {
+                let (sa, sb) = (a.std_errors[axis].unwrap(), b.std_errors[axis].unwrap());
+                assert!(
+                    (sb * sb - sa * sa - input * input).abs() < 1e-6 * input * input,
+                    "noise model {with_noise}: {sa:e} -> {sb:e}"
+                );
+            }
         }
     }
 

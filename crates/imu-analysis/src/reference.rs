@@ -102,21 +102,10 @@ impl Reference {
 pub struct ReferenceCaveats {
     /// Systematic uncertainty of the gyro's true input common to the segments, per axis,
     /// rad/s (e.g. Earth's rate where a plan does not fix north); the fit adds it in
-    /// quadrature to the gyro bias standard errors, like a bias drift.
+    /// quadrature to the gyro bias standard errors ([`crate::fit::FitOptions::bias_input_uncertainty`]).
     pub gyro_bias_std_rad_s: Option<[f64; 3]>,
     /// Remarks (gravity used, time offset found, assumptions).
     pub notes: Vec<String>,
-}
-
-impl ReferenceCaveats {
-    /// `drift` widened by the reference's own systematic uncertainty (in quadrature).
-    pub fn widen_gyro_bias_drift(&self, drift: Option<[f64; 3]>) -> Option<[f64; 3]> {
-        match (drift, self.gyro_bias_std_rad_s) {
-            (d, None) => d,
-            (None, r) => r,
-            (Some(d), Some(r)) => Some(std::array::from_fn(|a| d[a].hypot(r[a]))),
-        }
-    }
 }
 
 impl Reference {

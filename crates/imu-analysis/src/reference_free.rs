@@ -840,13 +840,13 @@ fn fit_gyro_static(
             duration_s: s.end_s - s.start_s,
         })
         .collect();
-    let drift = opts.gyro_bias_drift_rad_s.unwrap_or([0.0; 3]);
     let fit_opts = FitOptions {
         max_iterations: opts.lsq.max_iterations,
         tolerance: opts.lsq.tolerance,
         min_eigenvalue: opts.lsq.min_eigenvalue,
         fixed: held(Triad::Gyro, &model.param_names(Triad::Gyro), &opts.hold),
-        bias_drift: Some(drift.map(|d| (d * d + horizontal_rad_s * horizontal_rad_s).sqrt())),
+        bias_drift: opts.gyro_bias_drift_rad_s,
+        bias_input_uncertainty: Some([horizontal_rad_s; 3]),
         drift_model: false,
         noise: None,
         shared_noise: None,
