@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 
-use imu_analysis::input::{CsvOptions, ImuSeries, InputError, Source};
+use imu_analysis::input::{ImuSeries, InputError, Source};
 use imu_analysis::plot::{Chart, write_svg};
 use imu_analysis::progress::read_any;
 use imu_analysis::report::{self, Section};
@@ -22,9 +22,11 @@ struct Args {
     command: Command,
 }
 
-/// Output options shared by every analysis.
+/// Input and output options shared by every analysis.
 #[derive(Debug, clap::Args)]
 struct Output {
+    #[command(flatten)]
+    csv: imu_analysis::cli::CsvArgs,
     /// Print the full result as JSON on stdout instead of a text summary.
     #[arg(long)]
     json: bool,
@@ -178,9 +180,12 @@ impl Progress {
     }
 }
 
-fn read(path: &Path, source: Source) -> Result<ImuSeries> {
+fn read(path: &Path, source: Source, csv: &imu_analysis::cli::CsvArgs) -> Result<ImuSeries> {
     let p = Progress::start("reading", path);
-    let s = read_any(path, source, &CsvOptions::default())
+    let options = csv
+        .options_for(&[path.to_path_buf()], 0)
+        .map_err(anyhow::Error::msg)?;
+    let s = read_any(path, source, &options)
         .with_context(|| format!("reading {} ({source:?} stream)", path.display()))?;
     p.done(&format!(
         "{} samples, {} temperature readings",
@@ -238,7 +243,7 @@ fn run(args: &Args) -> Result<()> {
             if !(bin_s.is_finite() && *bin_s > 0.0) {
                 bail!("--bin-s must be a positive number of seconds, got {bin_s}");
             }
-            let series = read(recording, (*source).into())?;
+            let series = read(recording, (*source).into(), &output.csv)?;
             // The thermal analysis reads output drift as temperature dependence: motion would
             // masquerade as a thermal effect.
             if let Some(w) = series.motion_warning() {
@@ -292,7 +297,7 @@ fn run(args: &Args) -> Result<()> {
             threshold_sigmas,
             output,
         } => {
-            let series = read(recording, (*source).into())?;
+            let series = read(recording, (*source).into(), &output.csv)?;
             let r = impact::analyze(
                 &series,
                 &impact::ImpactOptions {
@@ -351,7 +356,7 @@ fn run(args: &Args) -> Result<()> {
                 if !want(flag) {
                     continue;
                 }
-                match read(recording, src) {
+                match read(recording, src, &output.csv) {
                     Ok(series) => {
                         runs[k] = Some(
                             dynamic::analyze(&series, &reference, &options).with_context(|| {

@@ -14,7 +14,6 @@ use imu_analysis::Source;
 use imu_analysis::fit::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate_recordings,
 };
-use imu_analysis::input::CsvOptions;
 use imu_analysis::progress::read_any;
 use imu_analysis::reference::Reference;
 use imu_analysis::reference_free::{
@@ -101,6 +100,8 @@ struct Cli {
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    csv: imu_analysis::cli::CsvArgs,
 }
 
 /// Where one recording's true input comes from, as given on the command line.
@@ -600,9 +601,14 @@ fn stamp(
     Ok(())
 }
 
-/// Reads a recording (raw stream) and checks it has samples.
-fn read_recording(path: &Path) -> Result<imu_analysis::ImuSeries> {
-    let series = read_any(path, Source::Raw, &CsvOptions::default())
+/// Reads recording `k` (raw stream) and checks it has samples.
+fn read_recording(cli: &Cli, k: usize) -> Result<imu_analysis::ImuSeries> {
+    let path = &cli.recordings[k];
+    let options = cli
+        .csv
+        .options_for(&cli.recordings, k)
+        .map_err(anyhow::Error::msg)?;
+    let series = read_any(path, Source::Raw, &options)
         .with_context(|| format!("reading {}", path.display()))?;
     if series.is_empty() {
         bail!("{}: no samples", path.display());
@@ -637,8 +643,12 @@ fn run(cli: &Cli, matches: &ArgMatches) -> Result<()> {
         if !cli.reference_offset_s.is_empty() {
             bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)");
         }
-        let hashing = hash_in_background(vec![recording.clone()]);
-        let series = read_recording(recording)?;
+        let hashing = hash_in_background(
+            std::iter::once(recording.clone())
+                .chain(cli.csv.gyro_csv.iter().cloned())
+                .collect(),
+        );
+        let series = read_recording(cli, 0)?;
         return run_reference_free(cli, recording, &series, hashing);
     }
     let refs = reference_args(cli, matches)?;
@@ -651,11 +661,12 @@ fn run(cli: &Cli, matches: &ArgMatches) -> Result<()> {
         .iter()
         .zip(&refs)
         .flat_map(|(rec, r)| [rec.clone(), r.path().to_path_buf()])
+        .chain(cli.csv.gyro_csv.iter().cloned())
         .collect();
     let hashing = hash_in_background(inputs);
     let mut loaded = Vec::with_capacity(refs.len());
-    for (rec, r) in cli.recordings.iter().zip(&refs) {
-        let series = read_recording(rec)?;
+    for (k, r) in refs.iter().enumerate() {
+        let series = read_recording(cli, k)?;
         let reference = open_reference(r, &series)?;
         loaded.push((series, reference));
     }

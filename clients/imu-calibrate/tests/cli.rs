@@ -434,3 +434,75 @@ fn calibrates_real_hardware_style_with_a_plan_or_a_reference_log() {
     let (ok, _, err) = run_cli(&base);
     assert!(!ok && err.contains("required"), "{err}");
 }
+
+/// The same session as CSV: the accelerometer in raw counts in one file, the gyro in deg/s in
+/// another (its own sample times, 3 ms later); the calibration against the plan equals the one
+/// from the MCAP recording to well within its standard errors.
+#[test]
+fn calibrates_csv_counts_with_accel_and_gyro_in_two_files() {
+    use imu_analysis::input::{Source, read_mcap};
+    let (dir, rec, _truth) = record_shipped("index-table-12pos.toml", 12);
+    let plan = repo().join("config/plans/index-table-12pos.toml");
+    let series = read_mcap(&rec, Source::Raw, None).unwrap();
+    let scale_m_s2 = 1e-3;
+    let (acc, gyr) = (dir.path().join("acc.csv"), dir.path().join("gyr.csv"));
+    let mut a = String::from("time_ns,ax_counts,ay_counts,az_counts\n");
+    let mut g = String::from("time_ns,gx_deg_s,gy_deg_s,gz_deg_s\n");
+    for (k, t) in series.t_s.iter().enumerate() {
+        let ns = 5_000_000_000 + (t * 1e9).round() as i64;
+        let c = series.accel_m_s2[k].map(|v| v / scale_m_s2);
+        a += &format!("{ns},{:.4},{:.4},{:.4}\n", c[0], c[1], c[2]);
+        // The gyro's own log, stamped 3 ms after each accel sample: read back at the accel's
+        // times it is interpolated between neighbours, exact in still segments and plateaus.
+        let w = series.gyro_rad_s[k].map(f64::to_degrees);
+        g += &format!("{},{:.6},{:.6},{:.6}\n", ns + 3_000_000, w[0], w[1], w[2]);
+    }
+    std::fs::write(&acc, a).unwrap();
+    std::fs::write(&gyr, g).unwrap();
+    let fit = |args: &[&OsStr]| -> serde_json::Value {
+        let (ok, out, err) = run_cli(&args.iter().map(|s| s.to_os_string()).collect::<Vec<_>>());
+        assert!(ok, "{err}");
+        serde_json::from_str(&out).unwrap()
+    };
+    let mcap = fit(&[
+        rec.as_os_str(),
+        "--plan".as_ref(),
+        plan.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    let csv = fit(&[
+        acc.as_os_str(),
+        "--gyro-csv".as_ref(),
+        gyr.as_os_str(),
+        "--csv-time-scale-s".as_ref(),
+        "1e-9".as_ref(),
+        "--csv-accel".as_ref(),
+        "counts:0.001".as_ref(),
+        "--csv-gyro".as_ref(),
+        "deg/s".as_ref(),
+        "--plan".as_ref(),
+        plan.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    for triad in ["accel", "gyro"] {
+        let (m, c) = (&mcap["fit"][triad], &csv["fit"][triad]);
+        let params = m["params"].as_array().unwrap();
+        assert_eq!(params.len(), c["params"].as_array().unwrap().len());
+        for (i, p) in params.iter().enumerate() {
+            let (pm, pc) = (p.as_f64().unwrap(), c["params"][i].as_f64().unwrap());
+            let Some(se) = m["std_errors"][i].as_f64() else {
+                continue;
+            };
+            assert!(
+                (pm - pc).abs() < 0.1 * se,
+                "{triad} {}: MCAP {pm:e}, CSV {pc:e}, SE {se:e}",
+                m["names"][i]
+            );
+        }
+    }
+    assert!(
+        csv["recording"].as_str().unwrap().contains("acc.csv"),
+        "{}",
+        csv["recording"]
+    );
+}

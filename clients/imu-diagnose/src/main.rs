@@ -12,7 +12,7 @@ use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
 use imu_analysis::diagnose::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
-use imu_analysis::input::{CsvOptions, read_any};
+use imu_analysis::input::read_any;
 use imu_analysis::reference::Reference;
 use imu_analysis::report::{Section, diagnose_section, ladder_section, page, verdict_section};
 use imu_analysis::{ImuSeries, segment::SegmentKind};
@@ -66,6 +66,8 @@ struct DiagnoseArgs {
     /// Print one JSON document instead of tables.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    csv: imu_analysis::cli::CsvArgs,
 }
 
 /// Where the true input comes from, as for imu-calibrate: exactly one of a test plan or a
@@ -169,6 +171,8 @@ struct LadderArgs {
     /// Print one JSON document instead of tables.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    csv: imu_analysis::cli::CsvArgs,
 }
 
 /// One ranked candidate, flattened for JSON consumers.
@@ -309,8 +313,15 @@ fn input_file(path: &Path) -> Result<InputFile> {
 }
 
 /// Reads the recording and the reference.
-fn read_inputs(recording: &Path, r: &RefArgs) -> Result<(ImuSeries, Option<Reference>)> {
-    let series = read_any(recording, Source::Raw, &CsvOptions::default())
+fn read_inputs(
+    recording: &Path,
+    r: &RefArgs,
+    csv: &imu_analysis::cli::CsvArgs,
+) -> Result<(ImuSeries, Option<Reference>)> {
+    let options = csv
+        .options_for(&[recording.to_path_buf()], 0)
+        .map_err(anyhow::Error::msg)?;
+    let series = read_any(recording, Source::Raw, &options)
         .with_context(|| format!("reading {}", recording.display()))?;
     if series.is_empty() {
         bail!("{}: no samples", recording.display());
@@ -508,7 +519,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
             }
         }
     }
-    let (series, truth) = read_inputs(recording, reference)?;
+    let (series, truth) = read_inputs(recording, reference, &a.csv)?;
     let wb = reference
         .workbench(&series, truth.as_ref(), options(a.model.as_deref())?)
         .with_context(|| format!("segmenting {}", recording.display()))?;
@@ -576,7 +587,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
 
 fn run_ladder(a: &LadderArgs) -> Result<()> {
     let base = load_model(a.base.as_deref())?;
-    let (series, truth) = read_inputs(&a.recording, &a.reference)?;
+    let (series, truth) = read_inputs(&a.recording, &a.reference, &a.csv)?;
     let wb = a
         .reference
         .workbench(&series, truth.as_ref(), options(a.base.as_deref())?)

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use imu_analysis::allan::{self, Kind, Options, TauSet};
-use imu_analysis::input::{AccelUnit, CsvOptions, GyroUnit};
+use imu_analysis::input::{AccelUnit, GyroUnit};
 use imu_analysis::noise::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
 use imu_analysis::plot::{Chart, Series, Style, write_svg};
 use imu_analysis::progress::read_any;
@@ -42,14 +42,13 @@ struct Cli {
     /// ROS topic written into the Kalibr file.
     #[arg(long, default_value = "/imu/data")]
     rostopic: String,
-    /// CSV: seconds per unit of the time column (1 for s, 1e-9 for ns).
-    #[arg(long, default_value_t = 1.0)]
-    csv_time_scale_s: f64,
-    /// CSV: accelerometer columns are in g instead of m/s^2.
-    #[arg(long)]
+    #[command(flatten)]
+    csv: imu_analysis::cli::CsvArgs,
+    /// CSV: accelerometer columns are in g (the same as `--csv-accel g`).
+    #[arg(long, hide = true)]
     csv_accel_g: bool,
-    /// CSV: gyro columns are in deg/s instead of rad/s.
-    #[arg(long)]
+    /// CSV: gyro columns are in deg/s (the same as `--csv-gyro deg/s`).
+    #[arg(long, hide = true)]
     csv_gyro_deg_s: bool,
 }
 
@@ -309,19 +308,16 @@ fn kalibr_yaml(reports: &[AxisReport], rostopic: &str) -> String {
 }
 
 fn run(cli: &Cli) -> Result<()> {
-    let csv = CsvOptions {
-        time_scale_s: cli.csv_time_scale_s,
-        accel: if cli.csv_accel_g {
-            AccelUnit::G
-        } else {
-            AccelUnit::MetersPerSecond2
-        },
-        gyro: if cli.csv_gyro_deg_s {
-            GyroUnit::DegPerSecond
-        } else {
-            GyroUnit::RadPerSecond
-        },
-    };
+    let mut csv = cli
+        .csv
+        .options_for(std::slice::from_ref(&cli.recording), 0)
+        .map_err(anyhow::Error::msg)?;
+    if cli.csv_accel_g {
+        csv.accel = AccelUnit::G;
+    }
+    if cli.csv_gyro_deg_s {
+        csv.gyro = GyroUnit::DegPerSecond;
+    }
     let source = match cli.source {
         SourceArg::Corrected => Source::Corrected,
         SourceArg::Raw => Source::Raw,

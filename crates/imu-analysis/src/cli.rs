@@ -1,5 +1,74 @@
 //! What the command-line clients share beyond the analyses: telling a closed output pipe
-//! (`imu-noise rec.mcap --json | head`) from a real failure.
+//! (`imu-noise rec.mcap --json | head`) from a real failure, and (feature `cli`) the arguments
+//! that say how to read CSV recordings.
+
+#[cfg(feature = "cli")]
+pub use csv_args::CsvArgs;
+
+#[cfg(feature = "cli")]
+mod csv_args {
+    use std::path::{Path, PathBuf};
+
+    use crate::input::{AccelUnit, CsvOptions, GyroUnit};
+
+    /// How to read CSV recordings (MCAP recordings carry their own units).
+    #[derive(Clone, Debug, clap::Args)]
+    pub struct CsvArgs {
+        /// CSV recordings: seconds per unit of the time column (1 for s, 1e-9 for ns).
+        #[arg(long, default_value_t = 1.0, value_name = "S")]
+        pub csv_time_scale_s: f64,
+        /// CSV recordings: unit of the accelerometer columns: m/s2, g, or counts:SCALE (raw
+        /// counts times SCALE m/s^2 per count).
+        #[arg(long, default_value = "m/s2", value_name = "UNIT")]
+        pub csv_accel: AccelUnit,
+        /// CSV recordings: unit of the gyro columns: rad/s, deg/s, or counts:SCALE (rad/s per
+        /// count).
+        #[arg(long, default_value = "rad/s", value_name = "UNIT")]
+        pub csv_gyro: GyroUnit,
+        /// The gyro's own CSV file (`time, gx, gy, gz`, on the accelerometer's clock) for a CSV
+        /// recording that holds only the accelerometer (`time, ax, ay, az`); with several CSV
+        /// recordings, one per recording, in order.
+        #[arg(long = "gyro-csv", value_name = "GYRO.csv")]
+        pub gyro_csv: Vec<PathBuf>,
+    }
+
+    fn is_csv(p: &Path) -> bool {
+        matches!(
+            p.extension().and_then(|e| e.to_str()),
+            Some("csv") | Some("txt")
+        )
+    }
+
+    impl CsvArgs {
+        /// The reading options of `recordings[k]`: the units, and its gyro file when
+        /// `--gyro-csv` was given (the k-th CSV recording takes the k-th file).
+        pub fn options_for(&self, recordings: &[PathBuf], k: usize) -> Result<CsvOptions, String> {
+            let csv: Vec<usize> = (0..recordings.len())
+                .filter(|&i| is_csv(&recordings[i]))
+                .collect();
+            let gyro_file = if self.gyro_csv.is_empty() {
+                None
+            } else if self.gyro_csv.len() != csv.len() {
+                return Err(format!(
+                    "{} --gyro-csv file(s) for {} CSV recording(s): give one gyro file per \
+                     accelerometer-only CSV recording, in order",
+                    self.gyro_csv.len(),
+                    csv.len()
+                ));
+            } else {
+                csv.iter()
+                    .position(|&i| i == k)
+                    .map(|n| self.gyro_csv[n].clone())
+            };
+            Ok(CsvOptions {
+                time_scale_s: self.csv_time_scale_s,
+                accel: self.csv_accel,
+                gyro: self.csv_gyro,
+                gyro_file,
+            })
+        }
+    }
+}
 
 /// True if any error in `chain` (an error and its sources) is an I/O error of kind
 /// `BrokenPipe`, directly or inside a JSON writer's error: the reader went away, which is not

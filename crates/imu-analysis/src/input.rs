@@ -306,8 +306,75 @@ pub enum GyroUnit {
     Counts(f64),
 }
 
-/// How to read a CSV file: `time, ax, ay, az, gx, gy, gz` (a header line is skipped).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// `counts:SCALE` -> SCALE (finite, non-zero).
+fn counts_scale(s: &str, unit: &str) -> Option<Result<f64, String>> {
+    let v = s.strip_prefix("counts:")?;
+    Some(match v.trim().parse::<f64>() {
+        Ok(k) if k.is_finite() && k != 0.0 => Ok(k),
+        _ => Err(format!(
+            "`{s}`: write counts:SCALE with SCALE the {unit} per count, e.g. counts:0.00119"
+        )),
+    })
+}
+
+impl std::str::FromStr for AccelUnit {
+    type Err = String;
+    /// `m/s2` (or `m_s2`), `g`, or `counts:SCALE` (SCALE in m/s^2 per count).
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "m/s2" | "m/s^2" | "m_s2" => Ok(AccelUnit::MetersPerSecond2),
+            "g" => Ok(AccelUnit::G),
+            t => match counts_scale(t, "m/s^2") {
+                Some(k) => k.map(AccelUnit::Counts),
+                None => Err(format!(
+                    "unknown accel unit `{t}`: use m/s2, g or counts:SCALE (m/s^2 per count)"
+                )),
+            },
+        }
+    }
+}
+
+impl std::str::FromStr for GyroUnit {
+    type Err = String;
+    /// `rad/s` (or `rad_s`), `deg/s` (or `deg_s`), or `counts:SCALE` (SCALE in rad/s per
+    /// count).
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "rad/s" | "rad_s" => Ok(GyroUnit::RadPerSecond),
+            "deg/s" | "deg_s" => Ok(GyroUnit::DegPerSecond),
+            t => match counts_scale(t, "rad/s") {
+                Some(k) => k.map(GyroUnit::Counts),
+                None => Err(format!(
+                    "unknown gyro unit `{t}`: use rad/s, deg/s or counts:SCALE (rad/s per count)"
+                )),
+            },
+        }
+    }
+}
+
+impl AccelUnit {
+    fn to_m_s2(self, x: f64) -> f64 {
+        match self {
+            AccelUnit::MetersPerSecond2 => x,
+            AccelUnit::G => x * G0,
+            AccelUnit::Counts(k) => x * k,
+        }
+    }
+}
+
+impl GyroUnit {
+    fn to_rad_s(self, x: f64) -> f64 {
+        match self {
+            GyroUnit::RadPerSecond => x,
+            GyroUnit::DegPerSecond => x.to_radians(),
+            GyroUnit::Counts(k) => x * k,
+        }
+    }
+}
+
+/// How to read a CSV file: `time, ax, ay, az, gx, gy, gz` (a header line is skipped), or the
+/// accelerometer's `time, ax, ay, az` with the gyro's `time, gx, gy, gz` in a second file.
+#[derive(Debug, Clone, PartialEq)]
 pub struct CsvOptions {
     /// Seconds per unit of the time column (1 for s, 1e-9 for ns).
     pub time_scale_s: f64,
@@ -315,6 +382,10 @@ pub struct CsvOptions {
     pub accel: AccelUnit,
     /// Gyro unit.
     pub gyro: GyroUnit,
+    /// The gyro's own file (`time, gx, gy, gz`, same clock) when the recording's CSV holds
+    /// only the accelerometer (`time, ax, ay, az`): the gyro is interpolated linearly to the
+    /// accelerometer's times.
+    pub gyro_file: Option<PathBuf>,
 }
 
 impl Default for CsvOptions {
@@ -323,70 +394,165 @@ impl Default for CsvOptions {
             time_scale_s: 1.0,
             accel: AccelUnit::MetersPerSecond2,
             gyro: GyroUnit::RadPerSecond,
+            gyro_file: None,
         }
     }
 }
 
-/// Reads a CSV file of time plus accelerometer and gyro axes.
-pub fn read_csv(path: &Path, options: &CsvOptions) -> Result<ImuSeries, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|source| InputError::Io {
+/// The rows of a CSV file of time plus `N` value columns, streamed line by line: (time in
+/// s as written times `time_scale_s`, values as written). A first line that is not numbers
+/// is the header; `#` lines and blank lines are skipped; further columns are ignored.
+fn csv_rows<const N: usize>(
+    path: &Path,
+    time_scale_s: f64,
+    columns: &str,
+) -> Result<(Vec<f64>, Vec<[f64; N]>), InputError> {
+    use std::io::BufRead;
+    let io = |source| InputError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
-    let mut series = ImuSeries {
-        origin: path.display().to_string(),
-        ..ImuSeries::default()
     };
-    let mut t_first = None;
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
+    let file = std::fs::File::open(path).map_err(io)?;
+    let (mut t, mut rows) = (Vec::new(), Vec::new());
+    let mut header_allowed = true;
+    let mut line = String::new();
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    let mut number = 0;
+    loop {
+        line.clear();
+        if reader.read_line(&mut line).map_err(io)? == 0 {
+            break;
+        }
+        number += 1;
+        let text = line.trim();
+        if text.is_empty() || text.starts_with('#') {
             continue;
         }
-        let fields: Vec<&str> = line.split([',', ';', '\t']).map(str::trim).collect();
-        let parsed: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
-        let Ok(v) = parsed else {
-            if series.t_s.is_empty() && t_first.is_none() {
+        let err = |message: String| InputError::Csv {
+            path: path.to_path_buf(),
+            line: number,
+            message,
+        };
+        let mut fields = text.split([',', ';', '\t']).map(str::trim);
+        let mut v = [0.0; 8];
+        let mut n = 0;
+        let mut bad = None;
+        for f in fields.by_ref().take(N + 1) {
+            match f.parse::<f64>() {
+                Ok(x) => v[n] = x,
+                Err(_) => bad = bad.or(Some(n)),
+            }
+            n += 1;
+        }
+        if let Some(i) = bad {
+            if header_allowed {
+                header_allowed = false;
                 continue; // the header line
             }
-            return Err(InputError::Csv {
-                path: path.to_path_buf(),
-                line: i + 1,
-                message: format!("expected 7 numbers (time, ax, ay, az, gx, gy, gz), got `{line}`"),
-            });
-        };
-        if v.len() < 7 {
-            return Err(InputError::Csv {
-                path: path.to_path_buf(),
-                line: i + 1,
-                message: format!(
-                    "expected 7 columns (time, ax, ay, az, gx, gy, gz), got {}",
-                    v.len()
-                ),
-            });
+            return Err(err(format!(
+                "column {} is not a number in `{text}` (expected {columns})",
+                i + 1
+            )));
         }
-        let t = v[0] * options.time_scale_s;
-        let t0 = *t_first.get_or_insert(t);
-        series.t_s.push(t - t0);
-        let a = |x: f64| match options.accel {
-            AccelUnit::MetersPerSecond2 => x,
-            AccelUnit::G => x * G0,
-            AccelUnit::Counts(k) => x * k,
-        };
-        let g = |x: f64| match options.gyro {
-            GyroUnit::RadPerSecond => x,
-            GyroUnit::DegPerSecond => x.to_radians(),
-            GyroUnit::Counts(k) => x * k,
-        };
-        series.accel_m_s2.push([a(v[1]), a(v[2]), a(v[3])]);
-        series.gyro_rad_s.push([g(v[4]), g(v[5]), g(v[6])]);
+        if n < N + 1 {
+            return Err(err(format!(
+                "expected {} columns ({columns}), got {n}",
+                N + 1
+            )));
+        }
+        header_allowed = false;
+        if !v[..=N].iter().all(|x| x.is_finite()) {
+            return Err(err(format!("a value is not finite in `{text}`")));
+        }
+        if let Some(&last) = t.last()
+            && v[0] * time_scale_s <= last
+        {
+            return Err(err(format!(
+                "time {} does not increase (the line before: {last} s)",
+                v[0]
+            )));
+        }
+        t.push(v[0] * time_scale_s);
+        rows.push(std::array::from_fn(|i| v[i + 1]));
     }
-    if series.is_empty() {
+    if t.is_empty() {
         return Err(InputError::NoData {
             path: path.to_path_buf(),
             message: "no data lines".into(),
         });
     }
+    Ok((t, rows))
+}
+
+/// Reads a CSV file of time plus accelerometer and gyro axes (streamed line by line), or,
+/// with `options.gyro_file`, the accelerometer's file and the gyro's file.
+pub fn read_csv(path: &Path, options: &CsvOptions) -> Result<ImuSeries, InputError> {
+    let mut series = ImuSeries {
+        origin: path.display().to_string(),
+        ..ImuSeries::default()
+    };
+    let (t, accel, gyro): (Vec<f64>, Vec<[f64; 3]>, Vec<[f64; 3]>) = match &options.gyro_file {
+        None => {
+            let (t, rows) =
+                csv_rows::<6>(path, options.time_scale_s, "time, ax, ay, az, gx, gy, gz")?;
+            let (a, g) = rows
+                .iter()
+                .map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]]))
+                .unzip();
+            (t, a, g)
+        }
+        Some(gyro_path) => {
+            let (t, a) = csv_rows::<3>(path, options.time_scale_s, "time, ax, ay, az")?;
+            let (tg, g) = csv_rows::<3>(gyro_path, options.time_scale_s, "time, gx, gy, gz")?;
+            series.origin = format!("{} + {}", path.display(), gyro_path.display());
+            // The gyro at the accelerometer's times (same clock), linear between its samples;
+            // accelerometer samples outside the gyro's span are dropped.
+            let (mut t_out, mut a_out, mut g_out) = (Vec::new(), Vec::new(), Vec::new());
+            let mut j = 0;
+            for (ti, ai) in t.iter().zip(&a) {
+                while j + 1 < tg.len() && tg[j + 1] < *ti {
+                    j += 1;
+                }
+                if *ti < tg[0] || *ti > tg[tg.len() - 1] {
+                    continue;
+                }
+                let gi = if j + 1 < tg.len() {
+                    let w = ((ti - tg[j]) / (tg[j + 1] - tg[j])).clamp(0.0, 1.0);
+                    std::array::from_fn(|k| g[j][k] + w * (g[j + 1][k] - g[j][k]))
+                } else {
+                    g[j]
+                };
+                t_out.push(*ti);
+                a_out.push(*ai);
+                g_out.push(gi);
+            }
+            if t_out.is_empty() {
+                return Err(InputError::NoData {
+                    path: gyro_path.clone(),
+                    message: format!(
+                        "the gyro's times ({:.3}-{:.3} s) do not overlap the accelerometer's \
+                         ({:.3}-{:.3} s) in {}: both files must be on one clock",
+                        tg[0],
+                        tg[tg.len() - 1],
+                        t[0],
+                        t[t.len() - 1],
+                        path.display()
+                    ),
+                });
+            }
+            (t_out, a_out, g_out)
+        }
+    };
+    let t0 = t[0];
+    series.t_s = t.iter().map(|x| x - t0).collect();
+    series.accel_m_s2 = accel
+        .iter()
+        .map(|r| r.map(|x| options.accel.to_m_s2(x)))
+        .collect();
+    series.gyro_rad_s = gyro
+        .iter()
+        .map(|r| r.map(|x| options.gyro.to_rad_s(x)))
+        .collect();
     Ok(series)
 }
 
@@ -435,6 +601,7 @@ mod tests {
                 time_scale_s: 1.0,
                 accel: AccelUnit::G,
                 gyro: GyroUnit::DegPerSecond,
+                gyro_file: None,
             },
         )
         .unwrap();
@@ -448,6 +615,86 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("a.csv:3:"), "{e}");
+        assert!(e.contains("column 3 is not a number"), "{e}");
+        std::fs::write(&p, "1,2,3,4,5,6,7\n0.5,2,3,4,5,6,7\n").unwrap();
+        let e = read_csv(&p, &CsvOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("a.csv:2:") && e.contains("does not increase"),
+            "{e}"
+        );
+        std::fs::write(&p, "t,ax,ay,az\n1,2,3,4\n").unwrap();
+        let e = read_csv(&p, &CsvOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("a.csv:2:") && e.contains("expected 7 columns"),
+            "{e}"
+        );
+    }
+
+    /// Raw counts with a scale, and the accelerometer and gyro in two files on one clock (the
+    /// gyro at its own, offset times, interpolated to the accelerometer's; accelerometer
+    /// samples outside the gyro's span dropped).
+    #[test]
+    fn csv_counts_and_two_files() {
+        assert_eq!("g".parse::<AccelUnit>(), Ok(AccelUnit::G));
+        assert_eq!("counts:0.5".parse::<GyroUnit>(), Ok(GyroUnit::Counts(0.5)));
+        assert!(
+            "counts:x"
+                .parse::<AccelUnit>()
+                .unwrap_err()
+                .contains("counts:SCALE")
+        );
+        assert!("furlongs".parse::<GyroUnit>().is_err());
+        let dir = tempfile::tempdir().unwrap();
+        let (a, g) = (dir.path().join("acc.csv"), dir.path().join("gyr.csv"));
+        let mut at = String::from("time_ns,ax,ay,az\n");
+        for k in 0..10 {
+            at += &format!("{},{},0,100\n", 1_000_000_000 + k * 10_000_000, k);
+        }
+        std::fs::write(&a, at).unwrap();
+        // Gyro at 5 ms after each accel sample, starting one accel sample later: z = 2 t.
+        let mut gt = String::from("time_ns,gx,gy,gz\n");
+        for k in 1..12 {
+            let t = 1_000_000_000 + k * 10_000_000 + 5_000_000;
+            gt += &format!("{t},0,0,{}\n", 2 * (t - 1_000_000_000) / 1_000_000);
+        }
+        std::fs::write(&g, gt).unwrap();
+        let s = read_csv(
+            &a,
+            &CsvOptions {
+                time_scale_s: 1e-9,
+                accel: AccelUnit::Counts(0.01),
+                gyro: GyroUnit::Counts(1e-3),
+                gyro_file: Some(g.clone()),
+            },
+        )
+        .unwrap();
+        // Accel samples 0 and 1 precede the gyro's first (15 ms): dropped.
+        assert_eq!(s.len(), 8, "{:?}", s.t_s);
+        assert!((s.accel_m_s2[0][0] - 0.02).abs() < 1e-12);
+        assert!((s.accel_m_s2[0][2] - 1.0).abs() < 1e-12);
+        for (k, w) in s.gyro_rad_s.iter().enumerate() {
+            // Accel sample k + 2 at (k + 2) x 10 ms: gyro z = 2 x ms x 1e-3.
+            let want = 2.0 * (10.0 * (k + 2) as f64) * 1e-3;
+            assert!((w[2] - want).abs() < 1e-9, "{k}: {} vs {want}", w[2]);
+        }
+        assert!(s.origin.contains("acc.csv + "), "{}", s.origin);
+        // Files on different clocks do not overlap: a clear error naming the gyro file.
+        std::fs::write(&g, "0,0,0,0\n0.5,0,0,0\n").unwrap();
+        let e = read_csv(
+            &a,
+            &CsvOptions {
+                time_scale_s: 1e-9,
+                gyro_file: Some(g.clone()),
+                ..CsvOptions::default()
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("gyr.csv") && e.contains("one clock"), "{e}");
     }
 
     #[test]
