@@ -16,10 +16,12 @@
 //! - **Goodness of fit.** The generalised chi-square of the residuals against that covariance,
 //!   with the degrees of freedom the fit left, gives a p-value per triad and axis.
 //! - **Candidates.** Every library effect not in the model is added in turn and the model
-//!   refitted. Segments are often too short to resolve a slow random walk of the bias, and a
-//!   wander between segments must not pass for an effect, so every fit profiles out, per axis,
-//!   the residuals' white scale and random-walk drift (maximum likelihood, alternated with the
-//!   parameter fit); nested models are compared by the likelihood ratio, expressed as an F
+//!   refitted. Segments are often too short to resolve a slow wander of the bias (random walk,
+//!   or bias instability whose flicker shows only beyond the segment length), and a wander
+//!   between segments must not pass for an effect, so every fit profiles out, per axis, the
+//!   residuals' white scale and a bias wander (maximum likelihood, alternated with the
+//!   parameter fit): a random walk or extra flicker, the likelier for the model under test, the
+//!   same family for all its candidates; nested models are compared by the likelihood ratio, expressed as an F
 //!   statistic (exact for a linear model with one profiled scale), by AIC, and by the share of
 //!   the excess chi-square (against the floor) the effect explains. Parameters the recording cannot determine are named and not
 //!   counted. An effect is *claimed* only when it is significant, explains a substantial share
@@ -513,8 +515,12 @@ pub struct TriadDiagnosis {
     /// the drift below).
     pub noise_scale: [f64; 3],
     /// Random walk of the bias between segments that the residuals show, per axis, U sqrt(Hz)
-    /// (maximum likelihood).
+    /// (maximum likelihood; 0 where extra bias instability explains the wander better).
     pub drift_random_walk: [f64; 3],
+    /// Bias instability beyond the floor's that the residuals show, per axis, U (maximum
+    /// likelihood: flicker the segments are too short to show; 0 where a random walk explains
+    /// the wander better).
+    pub drift_bias_instability: [f64; 3],
     /// Generalised chi-square against the noise floor.
     pub chi2: f64,
     /// Degrees of freedom.
@@ -523,8 +529,9 @@ pub struct TriadDiagnosis {
     pub p_value: f64,
     /// The model is consistent with the noise floor (p >= alpha, no spectral line).
     pub consistent: bool,
-    /// The residuals are consistent with the noise floor once a slow random-walk wander of the
-    /// bias between segments (`drift_random_walk`, maximum likelihood) is allowed: what is left
+    /// The residuals are consistent with the noise floor once a slow wander of the bias between
+    /// segments (`drift_random_walk` or `drift_bias_instability`, maximum likelihood) is
+    /// allowed: what is left
     /// is drift of the sensor, not a missing effect (p of that test >= alpha).
     pub consistent_with_drift: bool,
     /// p-value of that test.
@@ -829,7 +836,7 @@ impl<'a> Workbench<'a> {
             first.add(k);
         }
         let mag = wb.magnitude.clone().expect("set above");
-        let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first) {
+        let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first, None) {
             Ok(f) => wb
                 .accel_points
                 .iter()
@@ -1000,17 +1007,25 @@ impl<'a> Workbench<'a> {
         }
     }
 
-    /// Fit with the residuals' white scale and random-walk drift per axis profiled out (their
+    /// Fit with the residuals' white scale and bias wander per axis profiled out (their
     /// maximum-likelihood values alternated with the parameter fit): a slow wander of the
     /// bias, whatever its size, is then part of the noise model of every candidate alike.
-    fn fit(&self, triad: Triad, model: &TriadModel) -> Result<Profiled, FitError> {
+    /// `family` fixes the wander's kind per axis (extra flicker when true, else a random walk);
+    /// None lets the first pass choose.
+    fn fit(
+        &self,
+        triad: Triad,
+        model: &TriadModel,
+        family: Option<[bool; 3]>,
+    ) -> Result<Profiled, FitError> {
         if let Some(mag) = self.magnitude(triad) {
-            return self.fit_magnitude(mag, model);
+            return self.fit_magnitude(mag, model, family.map(|f| f[0]));
         }
+        let mut family = family;
         let (points, _, _) = self.points(triad);
         let shared = self.shared(triad);
         let mut scale = [1.0_f64; 3];
-        let mut rho = [0.0; 3];
+        let mut wander = [Wander::default(); 3];
         let mut m = model.clone();
         let mut last: Option<Profiled> = None;
         for _ in 0..5 {
@@ -1025,10 +1040,8 @@ impl<'a> Workbench<'a> {
                 })
                 .collect();
             let opts = FitOptions {
-                shared_noise: Some(std::array::from_fn(|a| SharedNoise {
-                    random_walk_q: scale[a] * rho[a],
-                    flicker_var: scale[a] * shared[a].flicker_var,
-                    ..shared[a]
+                shared_noise: Some(std::array::from_fn(|a| {
+                    wander[a].scaled(&shared[a], scale[a])
                 })),
                 ..self.fit_opts(triad)
             };
@@ -1036,26 +1049,27 @@ impl<'a> Workbench<'a> {
             m = fit.model.clone();
             let mut loglik = 0.0;
             let mut next_scale = scale;
-            let mut next_rho = rho;
+            let mut next_wander = wander;
             for a in 0..3 {
                 let r: Vec<f64> = fit.residuals.iter().map(|v| v[a]).collect();
-                let (sa, ra, ll) = profile_axis(&r, points, a, &shared[a]);
+                let (sa, wa, ll) = profile_axis(&r, points, a, &shared[a], family.map(|f| f[a]));
                 next_scale[a] = sa;
-                next_rho[a] = ra;
+                next_wander[a] = wa;
                 loglik += ll;
             }
             let settled = (0..3).all(|a| {
-                (next_scale[a] / scale[a] - 1.0).abs() < 1e-3
-                    && (next_rho[a] - rho[a]).abs() <= 1e-3 * rho[a].max(1e-300)
+                (next_scale[a] / scale[a] - 1.0).abs() < 1e-3 && next_wander[a].near(&wander[a])
             });
             scale = next_scale;
-            rho = next_rho;
+            wander = next_wander;
+            // The family chosen on the first pass is kept while the fit settles.
+            family = Some(family.unwrap_or(wander.map(|w| w.flicker)));
             let done = settled;
             last = Some(Profiled {
                 fit,
                 loglik,
                 scale,
-                rho,
+                wander,
             });
             if done {
                 break;
@@ -1068,7 +1082,13 @@ impl<'a> Workbench<'a> {
     /// squares under the magnitude covariance, with one white scale and one random walk
     /// profiled out (alternated with the fit, as in [`Self::fit`]). The rotation gauge (accel
     /// misalignment `xy`, `xz`, `yz`) is held at 0: the accelerometer axes define the frame.
-    fn fit_magnitude(&self, mag: &Magnitude, model: &TriadModel) -> Result<Profiled, FitError> {
+    fn fit_magnitude(
+        &self,
+        mag: &Magnitude,
+        model: &TriadModel,
+        family: Option<bool>,
+    ) -> Result<Profiled, FitError> {
+        let mut family = family;
         use crate::lsq::{LsqError, LsqOptions, jacobian, least_squares};
         use crate::reference_free::{GAUGE, conditioning_warnings, store_std_errors};
         let triad = Triad::Accel;
@@ -1092,12 +1112,10 @@ impl<'a> Workbench<'a> {
             tolerance: self.opts.fit.tolerance,
             min_eigenvalue: self.opts.fit.min_eigenvalue,
         };
-        let cov = |rho: f64| mag.covariance(points, &with_random_walk(&shared, rho));
-        let unit = {
-            let c = cov(0.0);
-            c.diagonal().mean() / span_s(points).max(1e-9)
-        };
-        let (mut scale, mut rho) = (1.0_f64, 0.0_f64);
+        let cov = |w: Wander| mag.covariance(points, &shared.map(|s| w.scaled(&s, 1.0)));
+        let white = cov(Wander::default()).diagonal().mean();
+        let wander_units = (white / span_s(points).max(1e-9), white);
+        let (mut scale, mut rho) = (1.0_f64, Wander::default());
         let mut last: Option<Profiled> = None;
         for _ in 0..5 {
             let ch = (cov(rho) * scale)
@@ -1131,7 +1149,9 @@ impl<'a> Workbench<'a> {
             };
             let x = jacobian(&mut raw, &sol.params, &sol.free, n);
             let e = mag.residuals(&m, points);
-            let (next_scale, next_rho, loglik) = profile_rho(e.as_slice(), cov, unit);
+            let (next_scale, next_rho, loglik) =
+                profile_wander(e.as_slice(), cov, wander_units, family);
+            family = Some(next_rho.flicker);
             let residuals: Vec<[f64; 3]> = e
                 .iter()
                 .zip(&mag.dirs)
@@ -1181,8 +1201,7 @@ impl<'a> Workbench<'a> {
                     "poses",
                 ),
             };
-            let settled = (next_scale / scale - 1.0).abs() < 1e-3
-                && (next_rho - rho).abs() <= 1e-3 * rho.max(1e-300);
+            let settled = (next_scale / scale - 1.0).abs() < 1e-3 && next_rho.near(&rho);
             scale = next_scale;
             rho = next_rho;
             p = sol.params;
@@ -1190,7 +1209,7 @@ impl<'a> Workbench<'a> {
                 fit,
                 loglik,
                 scale: [scale; 3],
-                rho: [rho; 3],
+                wander: [rho; 3],
             });
             if settled {
                 break;
@@ -1205,6 +1224,7 @@ impl<'a> Workbench<'a> {
         triad: Triad,
         model: &TriadModel,
         added: EffectKind,
+        family: [bool; 3],
     ) -> Option<Profiled> {
         let (points, _, _) = self.points(triad);
         let span = points
@@ -1219,14 +1239,14 @@ impl<'a> Workbench<'a> {
         };
         let starts = start_values(added, span);
         if starts.is_empty() {
-            if let Ok(r) = self.fit(triad, model) {
+            if let Ok(r) = self.fit(triad, model, Some(family)) {
                 // A nonlinear parameter whose neutral start gives a zero column is refitted
                 // from the first solution.
                 if r.fit
                     .unobservable
                     .iter()
                     .any(|u| u.reason.contains("zero Jacobian"))
-                    && let Ok(r2) = self.fit(triad, &r.fit.model)
+                    && let Ok(r2) = self.fit(triad, &r.fit.model, Some(family))
                 {
                     consider(r2);
                 }
@@ -1246,7 +1266,7 @@ impl<'a> Workbench<'a> {
                     }
                 }
                 m.set_params(&p);
-                if let Ok(r) = self.fit(triad, &m) {
+                if let Ok(r) = self.fit(triad, &m, Some(family)) {
                     consider(r);
                 }
             }
@@ -1263,7 +1283,8 @@ impl<'a> Workbench<'a> {
     ) -> Result<TriadDiagnosis, DiagnoseError> {
         let full_model = model.clone();
         let (model, _) = self.fittable(triad, model);
-        let profiled = self.fit(triad, &model)?;
+        let profiled = self.fit(triad, &model, None)?;
+        let family = profiled.wander.map(|w| w.flicker);
         let base = profiled.fit.clone();
         let (points, index, floor) = self.points(triad);
         let n = points.len();
@@ -1350,7 +1371,7 @@ impl<'a> Workbench<'a> {
                         held.unwrap_or_else(|| "not fittable on this recording".into()),
                     ));
                 }
-                let prof = self.fit_candidate(triad, &m, k)?;
+                let prof = self.fit_candidate(triad, &m, k, family)?;
                 let r = prof.fit.clone();
                 let new_params = r.free.len().saturating_sub(base.free.len());
                 let not_obs: Vec<String> = r
@@ -1411,18 +1432,16 @@ impl<'a> Workbench<'a> {
             .collect();
         let consistent_before = p_value >= self.opts.alpha;
         let mut ambiguities = rank_and_claim(&mut candidates, consistent_before, triad, &self.opts);
-        let q_ml: [f64; 3] = std::array::from_fn(|a| profiled.scale[a] * profiled.rho[a]);
-        let with_drift: [SharedNoise; 3] = std::array::from_fn(|a| SharedNoise {
-            random_walk_q: q_ml[a],
-            ..shared[a]
-        });
+        let wander: [Wander; 3] =
+            std::array::from_fn(|a| profiled.wander[a].absolute(profiled.scale[a]));
+        let with_drift: [SharedNoise; 3] = std::array::from_fn(|a| wander[a].added(&shared[a]));
         let chi2_drift: f64 = self
             .chi2_axes(triad, &base.residuals, &with_drift)
             .iter()
             .sum();
-        let mut drift_params = q_ml.iter().filter(|q| **q > 0.0).count();
+        let mut drift_params = wander.iter().filter(|w| !w.is_none()).count();
         if self.magnitude(triad).is_some() {
-            // One random walk, common to the axes.
+            // One wander, common to the axes.
             drift_params = drift_params.min(1);
         }
         let p_value_with_drift =
@@ -1440,8 +1459,7 @@ impl<'a> Workbench<'a> {
             triad,
             &model,
             consistent_before,
-            (p_value_with_drift >= self.opts.alpha)
-                .then_some((p_value_with_drift, std::array::from_fn(|a| q_ml[a].sqrt()))),
+            (p_value_with_drift >= self.opts.alpha).then_some((p_value_with_drift, wander)),
             p_value,
             &axes,
             &candidates,
@@ -1476,9 +1494,8 @@ impl<'a> Workbench<'a> {
             triad,
             effects: model.kinds(),
             noise_scale: profiled.scale,
-            drift_random_walk: std::array::from_fn(|a| {
-                (profiled.scale[a] * profiled.rho[a]).sqrt()
-            }),
+            drift_random_walk: wander.map(|w| w.random_walk_q.sqrt()),
+            drift_bias_instability: wander.map(|w| w.bias_instability()),
             chi2,
             dof,
             p_value,
@@ -1928,8 +1945,95 @@ struct Profiled {
     loglik: f64,
     /// Residual variance over the floor's, per axis.
     scale: [f64; 3],
-    /// Random-walk rate variance in units of the scale, per axis.
-    rho: [f64; 3],
+    /// Bias wander beyond the floor, in units of the scale, per axis.
+    wander: [Wander; 3],
+}
+
+/// The bias wander between segments beyond the noise floor: a random walk (rate variance `q`)
+/// or extra flicker (bias instability the segments are too short to measure), whichever the
+/// residuals make likelier.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Wander {
+    /// Random-walk rate variance, U^2/s.
+    random_walk_q: f64,
+    /// Extra flicker Allan variance floor, U^2.
+    flicker_var: f64,
+    /// The family: extra flicker (else a random walk).
+    flicker: bool,
+}
+
+impl Wander {
+    /// The floor's `shared` noise with this wander, all of it times the white `scale` (the
+    /// profiled covariance).
+    fn scaled(&self, shared: &SharedNoise, scale: f64) -> SharedNoise {
+        SharedNoise {
+            random_walk_q: scale * self.random_walk_q,
+            flicker_var: scale * (shared.flicker_var + self.flicker_var),
+            ..*shared
+        }
+    }
+
+    /// The floor's `shared` noise (as measured) plus this wander (absolute).
+    fn added(&self, shared: &SharedNoise) -> SharedNoise {
+        SharedNoise {
+            random_walk_q: shared.random_walk_q + self.random_walk_q,
+            flicker_var: shared.flicker_var + self.flicker_var,
+            ..*shared
+        }
+    }
+
+    /// In absolute units, for a profiled white `scale`.
+    fn absolute(&self, scale: f64) -> Wander {
+        Wander {
+            random_walk_q: scale * self.random_walk_q,
+            flicker_var: scale * self.flicker_var,
+            flicker: self.flicker,
+        }
+    }
+
+    fn is_none(&self) -> bool {
+        self.random_walk_q <= 0.0 && self.flicker_var <= 0.0
+    }
+
+    /// Bias instability `B` of the extra flicker (`flicker_var = (0.664 B)^2`).
+    fn bias_instability(&self) -> f64 {
+        self.flicker_var.max(0.0).sqrt() / crate::noise::BIAS_INSTABILITY_FACTOR
+    }
+
+    /// Settled: both parts within 0.1 % of `other`'s.
+    fn near(&self, other: &Wander) -> bool {
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-3 * b.max(1e-300);
+        close(self.random_walk_q, other.random_walk_q) && close(self.flicker_var, other.flicker_var)
+    }
+}
+
+/// Maximum-likelihood white scale and bias wander of residuals `r` whose covariance with
+/// wander `w` is `cov(w)` (scale 1): a random walk or extra flicker ([`profile_rho`], around
+/// `units` = (random-walk rate, flicker variance) scales); `flicker` fixes the family, None
+/// profiles both and keeps the likelier. Nested models are compared within one family (the
+/// base model's), so that the likelihood ratio is the effect's alone.
+fn profile_wander(
+    r: &[f64],
+    cov: impl Fn(Wander) -> DMatrix<f64>,
+    units: (f64, f64),
+    flicker: Option<bool>,
+) -> (f64, Wander, f64) {
+    let of = |flicker: bool, x: f64| Wander {
+        random_walk_q: if flicker { 0.0 } else { x },
+        flicker_var: if flicker { x } else { 0.0 },
+        flicker,
+    };
+    let run = |f: bool| {
+        let (scale, x, ll) = profile_rho(r, |x| cov(of(f, x)), if f { units.1 } else { units.0 });
+        (scale, of(f, x), ll)
+    };
+    match flicker {
+        Some(f) => run(f),
+        None => {
+            let (rw, fl) = (run(false), run(true));
+            if fl.2 > rw.2 { fl } else { rw }
+        }
+    }
 }
 
 /// `r^T C^-1 r` and `ln |C|` for residuals `r` with covariance `c`.
@@ -1938,14 +2042,6 @@ fn gls(r: &[f64], c: DMatrix<f64>) -> Option<(f64, f64)> {
     let logdet = 2.0 * ch.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
     let z = ch.solve(&DVector::from_column_slice(r));
     Some((r.iter().zip(z.iter()).map(|(a, b)| a * b).sum(), logdet))
-}
-
-/// `shared` with the random-walk rate `q` on every axis.
-fn with_random_walk(shared: &[SharedNoise; 3], q: f64) -> [SharedNoise; 3] {
-    std::array::from_fn(|a| SharedNoise {
-        random_walk_q: q,
-        ..shared[a]
-    })
 }
 
 /// Generalised chi-square per axis against the noise floor (white part from the points'
@@ -2015,18 +2111,18 @@ fn span_s(points: &[FitPoint]) -> f64 {
         - points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min)
 }
 
-/// [`profile_rho`] for one axis's residuals under [`segment_covariance`].
-fn profile_axis(r: &[f64], points: &[FitPoint], a: usize, shared: &SharedNoise) -> (f64, f64, f64) {
+/// [`profile_wander`] for one axis's residuals under [`segment_covariance`].
+fn profile_axis(
+    r: &[f64],
+    points: &[FitPoint],
+    a: usize,
+    shared: &SharedNoise,
+    flicker: Option<bool>,
+) -> (f64, Wander, f64) {
     let n = r.len() as f64;
     let s2 = points.iter().map(|p| p.std_error[a].powi(2)).sum::<f64>() / n;
-    let cov = |rho: f64| {
-        let s = SharedNoise {
-            random_walk_q: rho,
-            ..*shared
-        };
-        segment_covariance(points, a, &s, 1.0)
-    };
-    profile_rho(r, cov, s2 / span_s(points).max(1e-9))
+    let cov = |w: Wander| segment_covariance(points, a, &w.scaled(shared, 1.0), 1.0);
+    profile_wander(r, cov, (s2 / span_s(points).max(1e-9), s2), flicker)
 }
 
 /// Expected covariance of the residuals of a generalised least-squares fit with raw Jacobian
@@ -2727,7 +2823,7 @@ fn verdict_text(
     triad: Triad,
     model: &TriadModel,
     consistent: bool,
-    with_drift: Option<(f64, [f64; 3])>,
+    with_drift: Option<(f64, [Wander; 3])>,
     p: f64,
     axes: &[AxisVerdict; 3],
     candidates: &[Candidate],
@@ -2762,14 +2858,30 @@ fn verdict_text(
             axes[worst].residual_rms / axes[worst].noise_floor_rms
         );
         let any_significant = candidates.iter().any(|c| c.significant);
-        if let Some((pd, k)) = with_drift.filter(|_| !any_significant) {
+        if let Some((pd, w)) = with_drift.filter(|_| !any_significant) {
+            let per_axis: Vec<String> = w
+                .iter()
+                .zip(AXES)
+                .map(|(w, x)| {
+                    if w.flicker_var > 0.0 {
+                        format!("{x}: bias instability {:.2e} {u}", w.bias_instability())
+                    } else if w.random_walk_q > 0.0 {
+                        format!(
+                            "{x}: random walk {:.2e} {u}/sqrt(s)",
+                            w.random_walk_q.sqrt()
+                        )
+                    } else {
+                        format!("{x}: none")
+                    }
+                })
+                .collect();
             let _ = write!(
                 s,
                 " The excess is a slow wander of the bias between segments, not a missing effect: \
-                 with a random walk of {} {u}/sqrt(s) the residuals are consistent with the floor \
-                 (p = {pd:.3}). (Bias instability and random walk the segments are too short to \
-                 show; a long static recording through imu-noise measures them.)",
-                fmt3(k)
+                 with it ({}) the residuals are consistent with the floor (p = {pd:.3}). (Bias \
+                 instability and random walk the segments are too short to show; a long static \
+                 recording through imu-noise measures them.)",
+                per_axis.join(", ")
             );
         } else {
             match candidates.first() {
