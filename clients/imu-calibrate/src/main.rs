@@ -91,6 +91,11 @@ struct Cli {
     /// `[gyro.noise]` (e.g. from imu-noise) widen the bias standard errors by the bias wander.
     #[arg(long, value_name = "MODEL.toml")]
     model: Option<PathBuf>,
+    /// Also fit this effect of the library: `accel:scale-nonlinearity`, `gyro:g-sensitivity`,
+    /// or a bare effect id for accel and gyro wherever it applies (added to the --model file's
+    /// effects, or to bias + scale + misalignment). Repeatable.
+    #[arg(long = "add", value_name = "EFFECT")]
+    add: Vec<String>,
     /// Truth model to compare the fit with (prints fitted vs true in standard errors).
     #[arg(long, value_name = "TRUTH_MODEL.toml")]
     truth: Option<PathBuf>,
@@ -316,10 +321,11 @@ fn input_file(path: &Path) -> Result<InputFile> {
         .with_context(|| format!("reading {}", path.display()))
 }
 
-/// Fit options from the model file: its accel and gyro effects, and, from its noise tables (a
-/// noise characterisation such as imu-noise's), the bias wander over a recording of
-/// `duration_s` that no residual can show and the covariance of the segment means.
-fn options(model: Option<&Path>, duration_s: f64) -> Result<CalibrateOptions> {
+/// Fit options from the model file and `--add`: the accel and gyro effects, and, from the
+/// file's noise tables (a noise characterisation such as imu-noise's), the bias wander over a
+/// recording of `duration_s` that no residual can show and the covariance of the segment means.
+fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
+    let model = cli.model.as_deref();
     let mut opts = CalibrateOptions::default();
     if let Some(path) = model {
         let m =
@@ -339,6 +345,18 @@ fn options(model: Option<&Path>, duration_s: f64) -> Result<CalibrateOptions> {
         opts.gyro_bias_drift_rad_s = drift(&m.gyro);
         opts.accel_noise = m.accel.noise.clone();
         opts.gyro_noise = m.gyro.noise.clone();
+    }
+    for spec in &cli.add {
+        for (t, k) in imu_analysis::cli::parse_effect(spec, "--add").map_err(anyhow::Error::msg)? {
+            let m = if t == Triad::Gyro {
+                &mut opts.gyro
+            } else {
+                &mut opts.accel
+            };
+            if !m.has(k) {
+                m.add(k);
+            }
+        }
     }
     Ok(opts)
 }
@@ -680,7 +698,7 @@ fn run_reference_free(
     hashing: Hashing,
 ) -> Result<()> {
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
-    let base = options(cli.model.as_deref(), duration_s)?;
+    let base = options(cli, duration_s)?;
     let opts = ReferenceFreeOptions {
         accel: base.accel,
         gyro: base.gyro,
@@ -761,7 +779,7 @@ fn run_reference(
         .iter()
         .map(|(s, _)| s.t_s[s.len() - 1] - s.t_s[0])
         .fold(0.0, f64::max);
-    let mut opts = options(cli.model.as_deref(), duration_s)?;
+    let mut opts = options(cli, duration_s)?;
     opts.accel_turn_on_bias_m_s2 = accel_turn_on_bias_m_s2;
     opts.gyro_turn_on_bias_rad_s = gyro_turn_on_bias_rad_s;
     let pairs: Vec<_> = loaded.iter().map(|(s, r)| (s, r)).collect();

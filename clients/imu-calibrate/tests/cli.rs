@@ -506,3 +506,47 @@ fn calibrates_csv_counts_with_accel_and_gyro_in_two_files() {
         csv["recording"]
     );
 }
+
+/// Effects chosen by flags: `--add` extends the default model (bias + scale + misalignment);
+/// an unknown effect or one that does not apply to the triad is a clear error.
+#[test]
+fn effects_can_be_added_by_flags() {
+    let (_dir, rec, _truth) = record_shipped("index-table-12pos.toml", 13);
+    let plan = repo().join("config/plans/index-table-12pos.toml");
+    let args = |extra: &[&str]| -> Vec<OsString> {
+        [rec.as_os_str(), "--plan".as_ref(), plan.as_os_str()]
+            .iter()
+            .map(|s| s.to_os_string())
+            .chain(extra.iter().map(OsString::from))
+            .collect()
+    };
+    let (ok, out, err) = run_cli(&args(&["--add", "accel:scale-nonlinearity", "--json"]));
+    assert!(ok, "{err}");
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let names: Vec<&str> = j["fit"]["accel"]["names"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    for want in [
+        "bias.x",
+        "scale.z",
+        "misalignment.zy",
+        "scale-nonlinearity.quadratic.x",
+    ] {
+        assert!(names.contains(&want), "{want} not in {names:?}");
+    }
+    assert!(
+        !j["fit"]["gyro"]["names"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().starts_with("scale-nonlinearity")),
+        "the accel-only --add reached the gyro"
+    );
+    let (ok, _, err) = run_cli(&args(&["--add", "accel:no-such-effect"]));
+    assert!(!ok && err.contains("--add accel:no-such-effect"), "{err}");
+    let (ok, _, err) = run_cli(&args(&["--add", "accel:g-sensitivity"]));
+    assert!(!ok && err.contains("does not apply"), "{err}");
+}

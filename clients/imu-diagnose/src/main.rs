@@ -6,7 +6,6 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::str::FromStr;
 
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args, Parser, Subcommand};
@@ -281,31 +280,6 @@ fn options(path: Option<&Path>) -> Result<DiagnoseOptions> {
     Ok(opts)
 }
 
-/// Parses `--add`: `triad:effect` or a bare effect id (every triad of accel and gyro it applies
-/// to).
-fn parse_add(spec: &str) -> Result<Vec<(Triad, EffectKind)>> {
-    let (triads, id) = match spec.split_once(':') {
-        Some((t, id)) => {
-            let t = Triad::from_str(t.trim()).map_err(|e| anyhow::anyhow!("--add {spec}: {e}"))?;
-            if t == Triad::Mag {
-                bail!("--add {spec}: imu-diagnose works on accel and gyro");
-            }
-            (vec![t], id.trim())
-        }
-        None => (vec![Triad::Accel, Triad::Gyro], spec.trim()),
-    };
-    let k = EffectKind::from_str(id).map_err(|e| anyhow::anyhow!("--add {spec}: {e}"))?;
-    let out: Vec<(Triad, EffectKind)> = triads
-        .into_iter()
-        .filter(|t| k.applies_to(*t))
-        .map(|t| (t, k))
-        .collect();
-    if out.is_empty() {
-        bail!("--add {spec}: {id} does not apply to that triad");
-    }
-    Ok(out)
-}
-
 /// The input's path and SHA-256.
 fn input_file(path: &Path) -> Result<InputFile> {
     imu_analysis::provenance::input_file(path)
@@ -507,7 +481,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     let mut model = load_model(a.model.as_deref())?;
     let mut added = Vec::new();
     for spec in &a.add {
-        for (t, k) in parse_add(spec)? {
+        for (t, k) in imu_analysis::cli::parse_effect(spec, "--add").map_err(anyhow::Error::msg)? {
             let m = if t == Triad::Gyro {
                 &mut model.gyro
             } else {

@@ -5,6 +5,37 @@
 #[cfg(feature = "cli")]
 pub use csv_args::CsvArgs;
 
+use imu_model::{EffectKind, Triad};
+
+/// Parses an effect named on a command line (`--add`): `triad:effect` (`gyro:g-sensitivity`)
+/// or a bare effect id for accel and gyro, wherever it applies. Errors quote `flag` and the
+/// spec.
+pub fn parse_effect(spec: &str, flag: &str) -> Result<Vec<(Triad, EffectKind)>, String> {
+    use std::str::FromStr;
+    let (triads, id) = match spec.split_once(':') {
+        Some((t, id)) => {
+            let t = Triad::from_str(t.trim()).map_err(|e| format!("{flag} {spec}: {e}"))?;
+            if t == Triad::Mag {
+                return Err(format!(
+                    "{flag} {spec}: only accel and gyro models are fitted"
+                ));
+            }
+            (vec![t], id.trim())
+        }
+        None => (vec![Triad::Accel, Triad::Gyro], spec.trim()),
+    };
+    let k = EffectKind::from_str(id).map_err(|e| format!("{flag} {spec}: {e}"))?;
+    let out: Vec<(Triad, EffectKind)> = triads
+        .into_iter()
+        .filter(|t| k.applies_to(*t))
+        .map(|t| (t, k))
+        .collect();
+    if out.is_empty() {
+        return Err(format!("{flag} {spec}: {id} does not apply to that triad"));
+    }
+    Ok(out)
+}
+
 #[cfg(feature = "cli")]
 mod csv_args {
     use std::path::{Path, PathBuf};
