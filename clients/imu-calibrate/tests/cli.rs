@@ -79,41 +79,6 @@ dwell-s = 10.0
 accel-deg-s2 = 40.0
 "#;
 
-/// What to fit: the paper's accel model plus the quadratic nonlinearity the truth hides, and
-/// the gyro model with g-sensitivity.
-const MODEL: &str = r#"
-format = "imud-calibration/1"
-[accel.bias]
-value = [0.0, 0.0, 0.0]
-[accel.scale]
-value = [0.0, 0.0, 0.0]
-[accel.misalignment]
-[accel.scale-nonlinearity]
-quadratic = [0.0, 0.0, 0.0]
-cubic = [0.0, 0.0, 0.0]
-[gyro.bias]
-value = [0.0, 0.0, 0.0]
-[gyro.scale]
-value = [0.0, 0.0, 0.0]
-[gyro.misalignment]
-[gyro.g-sensitivity]
-matrix = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
-# Noise terms as a noise characterisation (imu-noise) would give them: they widen the bias
-# standard errors by the bias wander over the recording.
-[accel.noise]
-white-density = [1.5e-3, 1.5e-3, 1.8e-3]
-bias-instability = [1.27e-3, 9.8e-4, 4.2e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [2.0e-5, 2.0e-5, 2.0e-5]
-quantization-lsb = [2.1e-3, 2.1e-3, 2.1e-3]
-[gyro.noise]
-white-density = [1.0e-3, 1.0e-3, 1.0e-3]
-bias-instability = [2.4e-4, 2.4e-4, 2.4e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [1.0e-5, 1.0e-5, 1.0e-5]
-quantization-lsb = [2.6e-4, 2.6e-4, 2.6e-4]
-"#;
-
 fn model_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/example-3dm-gx1.toml")
 }
@@ -131,8 +96,9 @@ fn calibrates_a_simulated_recording_within_its_standard_errors() {
     c.log.dir = dir.path().join("log");
     c.name = "t".into();
     let out = imud::offline::record(sim, &c).unwrap();
-    let model = dir.path().join("model.toml");
-    std::fs::write(&model, MODEL).unwrap();
+    // What to fit: the shipped fit model (accel bias, scale, misalignment and the nonlinearity
+    // the truth hides; gyro bias, scale, misalignment, g-sensitivity; the 3DM-GX1's noise).
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/fit-3dm-gx1.toml");
     let cal_path = dir.path().join("cal.toml");
 
     let run = |json: bool| {

@@ -9,39 +9,6 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// What to fit: the accel model with the nonlinearity the truth hides, the gyro model with
-/// g-sensitivity; noise tables as a noise characterisation would give them.
-const MODEL: &str = r#"
-format = "imud-calibration/1"
-[accel.bias]
-value = [0.0, 0.0, 0.0]
-[accel.scale]
-value = [0.0, 0.0, 0.0]
-[accel.misalignment]
-[accel.scale-nonlinearity]
-quadratic = [0.0, 0.0, 0.0]
-cubic = [0.0, 0.0, 0.0]
-[gyro.bias]
-value = [0.0, 0.0, 0.0]
-[gyro.scale]
-value = [0.0, 0.0, 0.0]
-[gyro.misalignment]
-[gyro.g-sensitivity]
-matrix = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
-[accel.noise]
-white-density = [1.5e-3, 1.5e-3, 1.8e-3]
-bias-instability = [1.27e-3, 9.8e-4, 4.2e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [2.0e-5, 2.0e-5, 2.0e-5]
-quantization-lsb = [2.1e-3, 2.1e-3, 2.1e-3]
-[gyro.noise]
-white-density = [1.0e-3, 1.0e-3, 1.0e-3]
-bias-instability = [2.4e-4, 2.4e-4, 2.4e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [1.0e-5, 1.0e-5, 1.0e-5]
-quantization-lsb = [2.6e-4, 2.6e-4, 2.6e-4]
-"#;
-
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
@@ -140,8 +107,9 @@ fn an_index_table_and_a_rate_table_session_fit_jointly_within_their_standard_err
         None,
     )
     .unwrap();
-    let model = dir.path().join("model.toml");
-    std::fs::write(&model, MODEL).unwrap();
+    // What to fit: the shipped fit model (accel bias, scale, misalignment and the nonlinearity
+    // the truth hides; gyro bias, scale, misalignment, g-sensitivity; the 3DM-GX1's noise).
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/fit-3dm-gx1.toml");
     let cal_path = dir.path().join("cal.toml");
     let truth = truth_model();
 
