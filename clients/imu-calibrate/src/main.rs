@@ -331,10 +331,10 @@ fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
         let m =
             Calibration::load(path).with_context(|| format!("loading model {}", path.display()))?;
         if !m.accel.kinds().is_empty() {
-            opts.accel = effects_only(&m.accel);
+            opts.accel = m.accel.effects_only();
         }
         if !m.gyro.kinds().is_empty() {
-            opts.gyro = effects_only(&m.gyro);
+            opts.gyro = m.gyro.effects_only();
         }
         let drift = |t: &TriadModel| {
             t.noise
@@ -359,15 +359,6 @@ fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
         }
     }
     Ok(opts)
-}
-
-/// The effects and values of a model, without its noise and residual statistics.
-fn effects_only(m: &TriadModel) -> TriadModel {
-    let mut out = m.clone();
-    out.noise = None;
-    out.residual_rms = None;
-    out.set_std_errors(None);
-    out
 }
 
 /// Fitted vs true for every parameter (an effect absent from the truth has truth 0).
@@ -412,6 +403,31 @@ fn truth_rows(fit: &FitResult, truth: &TriadModel) -> Vec<TruthRow> {
     )
 }
 
+/// The parameter table: name, value, standard error (`missing` where there is none), unit.
+fn print_params(
+    out: &mut impl Write,
+    names: &[String],
+    params: &[f64],
+    std_errors: &[Option<f64>],
+    units: &[String],
+    missing: &str,
+) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "  {:<36} {:>13} {:>11}  unit",
+        "parameter", "value", "std error"
+    )?;
+    for i in 0..params.len() {
+        let se = std_errors[i].map_or_else(|| missing.to_string(), |s| format!("{s:.3e}"));
+        writeln!(
+            out,
+            "  {:<36} {:>13.5e} {:>11}  {}",
+            names[i], params[i], se, units[i]
+        )?;
+    }
+    Ok(())
+}
+
 fn print_fit(out: &mut impl Write, fit: &FitResult) -> std::io::Result<()> {
     writeln!(
         out,
@@ -423,19 +439,14 @@ fn print_fit(out: &mut impl Write, fit: &FitResult) -> std::io::Result<()> {
         fit.iterations,
         if fit.converged { "" } else { ", NOT converged" }
     )?;
-    writeln!(
+    print_params(
         out,
-        "  {:<36} {:>13} {:>11}  unit",
-        "parameter", "value", "std error"
+        &fit.names,
+        &fit.params,
+        &fit.std_errors,
+        &fit.units,
+        "not fitted",
     )?;
-    for i in 0..fit.params.len() {
-        let se = fit.std_errors[i].map_or_else(|| "not fitted".to_string(), |s| format!("{s:.3e}"));
-        writeln!(
-            out,
-            "  {:<36} {:>13.5e} {:>11}  {}",
-            fit.names[i], fit.params[i], se, fit.units[i]
-        )?;
-    }
     let unit = fit.triad.unit();
     writeln!(
         out,
@@ -532,19 +543,14 @@ fn print_triad_fit(out: &mut impl Write, fit: &TriadFit) -> std::io::Result<()> 
         fit.iterations,
         if fit.converged { "" } else { ", NOT converged" }
     )?;
-    writeln!(
+    print_params(
         out,
-        "  {:<36} {:>13} {:>11}  unit",
-        "parameter", "value", "std error"
+        &fit.names,
+        &fit.params,
+        &fit.std_errors,
+        &fit.units,
+        "held",
     )?;
-    for i in 0..fit.params.len() {
-        let se = fit.std_errors[i].map_or_else(|| "held".to_string(), |s| format!("{s:.3e}"));
-        writeln!(
-            out,
-            "  {:<36} {:>13.5e} {:>11}  {}",
-            fit.names[i], fit.params[i], se, fit.units[i]
-        )?;
-    }
     writeln!(
         out,
         "  residual RMS {:.3e} {} ({})",

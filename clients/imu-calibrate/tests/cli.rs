@@ -6,79 +6,6 @@ use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// 2 x 6 static positions (60-degree steps), then rate plateaus on each axis.
-const SCENARIO: &str = r#"
-name = "calibration-short"
-rate-hz = 100.0
-latitude-deg = 40.0
-
-[[segment]]
-kind = "static"
-orientation = { x = "north", z = "up" }
-duration-s = 20.0
-
-[[segment]]
-kind = "index-table"
-axis = "x"
-step-deg = 60.0
-positions = 6
-dwell-s = 20.0
-move-s = 3.0
-
-[[segment]]
-kind = "static"
-orientation = { y = "north", z = "up" }
-move-s = 5.0
-duration-s = 20.0
-
-[[segment]]
-kind = "index-table"
-axis = "y"
-step-deg = 60.0
-positions = 6
-dwell-s = 20.0
-move-s = 3.0
-
-[[segment]]
-kind = "static"
-orientation = { z = "up", x = "north" }
-move-s = 5.0
-duration-s = 10.0
-
-[[segment]]
-kind = "rate-steps"
-axis = "z"
-rates-deg-s = [40, 80, 0, -40, -80, 0]
-dwell-s = 10.0
-accel-deg-s2 = 40.0
-
-[[segment]]
-kind = "static"
-orientation = { x = "up", y = "north" }
-move-s = 5.0
-duration-s = 10.0
-
-[[segment]]
-kind = "rate-steps"
-axis = "x"
-rates-deg-s = [40, 80, 0, -40, -80, 0]
-dwell-s = 10.0
-accel-deg-s2 = 40.0
-
-[[segment]]
-kind = "static"
-orientation = { y = "up", z = "north" }
-move-s = 5.0
-duration-s = 10.0
-
-[[segment]]
-kind = "rate-steps"
-axis = "y"
-rates-deg-s = [40, 80, 0, -40, -80, 0]
-dwell-s = 10.0
-accel-deg-s2 = 40.0
-"#;
-
 fn model_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/example-3dm-gx1.toml")
 }
@@ -86,8 +13,8 @@ fn model_path() -> PathBuf {
 #[test]
 fn calibrates_a_simulated_recording_within_its_standard_errors() {
     let dir = tempfile::tempdir().unwrap();
-    let scenario = dir.path().join("scenario.toml");
-    std::fs::write(&scenario, SCENARIO).unwrap();
+    // The shipped session: index-table sweeps, then a rate table on each axis.
+    let scenario = repo().join("config/scenarios/calibration-session.toml");
     let mut sim = imu_sim::SimOptions::from_files(&scenario, Some(&model_path())).unwrap();
     sim.seed = 17;
     let truth_path = dir.path().join("truth.mcap");

@@ -14,82 +14,6 @@ use imu_analysis::reference::{Reference, SegmentTruth};
 use imu_analysis::segment::{Segment, SegmentKind, SegmentOptions, detect};
 use imu_model::{Calibration, EffectKind, NoiseModel, TriadModel, Vec3};
 
-/// Two index-table sweeps (60-degree steps about x and y, 20 s per position), then each axis in
-/// turn on a vertical rate table (+/-40 and +/-80 deg/s) with a still position with that axis up
-/// and one with it down: accel gains and nonlinearity, gyro gains and g-sensitivity.
-const SCENARIO: &str = r#"
-name = "close-the-loop"
-rate-hz = 100.0
-latitude-deg = 40.0
-transition-s = 5.0
-
-[[segment]]
-kind = "static"
-orientation = { x = "north", z = "up" }
-duration-s = 20.0
-[[segment]]
-kind = "index-table"
-axis = "x"
-step-deg = 60.0
-positions = 6
-dwell-s = 20.0
-move-s = 3.0
-[[segment]]
-kind = "static"
-orientation = { y = "north", z = "up" }
-duration-s = 20.0
-[[segment]]
-kind = "index-table"
-axis = "y"
-step-deg = 60.0
-positions = 6
-dwell-s = 20.0
-move-s = 3.0
-
-[[segment]]
-kind = "static"
-orientation = { z = "up", x = "north" }
-duration-s = 15.0
-[[segment]]
-kind = "rate-steps"
-axis = "z"
-rates-deg-s = [40, 80, -40, -80, 0]
-dwell-s = 10.0
-accel-deg-s2 = 40.0
-[[segment]]
-kind = "static"
-orientation = { z = "down", x = "north" }
-duration-s = 15.0
-[[segment]]
-kind = "static"
-orientation = { x = "up", y = "north" }
-duration-s = 15.0
-[[segment]]
-kind = "rate-steps"
-axis = "x"
-rates-deg-s = [40, 80, -40, -80, 0]
-dwell-s = 10.0
-accel-deg-s2 = 40.0
-[[segment]]
-kind = "static"
-orientation = { x = "down", y = "north" }
-duration-s = 15.0
-[[segment]]
-kind = "static"
-orientation = { y = "up", z = "north" }
-duration-s = 15.0
-[[segment]]
-kind = "rate-steps"
-axis = "y"
-rates-deg-s = [40, 80, -40, -80, 0]
-dwell-s = 10.0
-accel-deg-s2 = 40.0
-[[segment]]
-kind = "static"
-orientation = { y = "down", z = "north" }
-duration-s = 15.0
-"#;
-
 fn config_path(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../config")
@@ -100,12 +24,11 @@ fn truth_model_path() -> PathBuf {
     config_path("models/example-3dm-gx1.toml")
 }
 
-/// One offline session of `SCENARIO` under the example truth model (bias, scale, misalignment,
+/// One offline session of config/scenarios/calibration-session.toml under the example truth model (bias, scale, misalignment,
 /// scale nonlinearity, lever arm; gyro g-sensitivity); `calibration` is what imud applies.
 /// Returns the recording and the truth file.
 fn record(dir: &Path, name: &str, seed: u64, calibration: Option<&Path>) -> (PathBuf, PathBuf) {
-    let scenario = dir.join("scenario.toml");
-    std::fs::write(&scenario, SCENARIO).unwrap();
+    let scenario = config_path("scenarios/calibration-session.toml");
     record_scenario(dir, name, &scenario, &truth_model_path(), seed, calibration)
 }
 

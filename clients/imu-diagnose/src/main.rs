@@ -225,28 +225,6 @@ struct LadderJson<'a> {
     calibration: &'a Calibration,
 }
 
-/// The base model: bias + scale + misalignment.
-fn base_model() -> TriadModel {
-    let mut m = TriadModel::default();
-    for k in [
-        EffectKind::Bias,
-        EffectKind::Scale,
-        EffectKind::Misalignment,
-    ] {
-        m.add(k);
-    }
-    m
-}
-
-/// The effects and values of a model, without its noise and residual statistics.
-fn effects_only(m: &TriadModel) -> TriadModel {
-    let mut out = m.clone();
-    out.noise = None;
-    out.residual_rms = None;
-    out.set_std_errors(None);
-    out
-}
-
 /// The model file's accel and gyro effects (a triad without effects gets the base model), and
 /// the file itself (for its id and description).
 fn load_model(path: Option<&Path>) -> Result<Calibration> {
@@ -257,14 +235,14 @@ fn load_model(path: Option<&Path>) -> Result<Calibration> {
         None => Calibration::identity(),
     };
     cal.accel = if cal.accel.kinds().is_empty() {
-        base_model()
+        TriadModel::with_effects(&TriadModel::PAPER_BASE)
     } else {
-        effects_only(&cal.accel)
+        cal.accel.effects_only()
     };
     cal.gyro = if cal.gyro.kinds().is_empty() {
-        base_model()
+        TriadModel::with_effects(&TriadModel::PAPER_BASE)
     } else {
-        effects_only(&cal.gyro)
+        cal.gyro.effects_only()
     };
     Ok(cal)
 }

@@ -827,14 +827,7 @@ impl<'a> Workbench<'a> {
         };
         // The calibrated up direction of each pose, from a bias + scale + misalignment fit of
         // the magnitudes (the measured direction if that fit fails).
-        let mut first = TriadModel::default();
-        for k in [
-            EffectKind::Bias,
-            EffectKind::Scale,
-            EffectKind::Misalignment,
-        ] {
-            first.add(k);
-        }
+        let first = TriadModel::with_effects(&TriadModel::PAPER_BASE);
         let mag = wb.magnitude.clone().expect("set above");
         let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first, None) {
             Ok(f) => wb

@@ -894,14 +894,7 @@ pub struct CalibrateOptions {
 impl Default for CalibrateOptions {
     /// Accel and gyro: bias + scale + misalignment.
     fn default() -> Self {
-        let mut accel = TriadModel::default();
-        for k in [
-            EffectKind::Bias,
-            EffectKind::Scale,
-            EffectKind::Misalignment,
-        ] {
-            accel.add(k);
-        }
+        let accel = TriadModel::with_effects(&TriadModel::PAPER_BASE);
         CalibrateOptions {
             gyro: accel.clone(),
             accel,

@@ -132,14 +132,7 @@ pub struct ReferenceFreeOptions {
 impl Default for ReferenceFreeOptions {
     /// Accel and gyro: bias + scale + misalignment; standard gravity.
     fn default() -> Self {
-        let mut accel = TriadModel::default();
-        for k in [
-            EffectKind::Bias,
-            EffectKind::Scale,
-            EffectKind::Misalignment,
-        ] {
-            accel.add(k);
-        }
+        let accel = TriadModel::with_effects(&TriadModel::PAPER_BASE);
         ReferenceFreeOptions {
             gyro: accel.clone(),
             accel,
@@ -360,15 +353,6 @@ fn held_entries(names: &[String], mask: &[bool]) -> Vec<Unobservable> {
         .collect()
 }
 
-/// The model's effects and values without noise and fit statistics.
-fn effects_only(m: &TriadModel) -> TriadModel {
-    let mut out = m.clone();
-    out.noise = None;
-    out.residual_rms = None;
-    out.set_std_errors(None);
-    out
-}
-
 /// Standard error of a segment mean per axis (floored so a quantised, noiseless axis cannot
 /// take all the weight).
 pub(crate) fn mean_se(std: [f64; 3], n: usize) -> Vec3 {
@@ -456,7 +440,7 @@ fn fit_accel(
     still_s: f64,
 ) -> Result<AccelOutcome, ReferenceFreeError> {
     let triad = Triad::Accel;
-    let mut model = effects_only(&opts.accel);
+    let mut model = opts.accel.effects_only();
     let names = model.param_names(triad);
     let units = model.param_units(triad);
     let mut p0 = model.params();
@@ -980,7 +964,7 @@ fn calibrate_reference_free_once(
     let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
 
     // Gyro: split the model into offsets (still poses) and gains (moves).
-    let gyro_model = effects_only(&opts.gyro);
+    let gyro_model = opts.gyro.effects_only();
     let mut offsets = TriadModel::default();
     let mut gains = TriadModel::default();
     for k in gyro_model.kinds() {

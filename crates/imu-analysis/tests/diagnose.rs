@@ -131,15 +131,7 @@ fn record_with_truth(scenario: &str, truth: &str, seed: u64) -> Run {
 }
 
 fn base_model() -> TriadModel {
-    let mut m = TriadModel::default();
-    for k in [
-        EffectKind::Bias,
-        EffectKind::Scale,
-        EffectKind::Misalignment,
-    ] {
-        m.add(k);
-    }
-    m
+    TriadModel::with_effects(&TriadModel::PAPER_BASE)
 }
 
 fn base_calibration() -> Calibration {

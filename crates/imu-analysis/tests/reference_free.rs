@@ -278,17 +278,7 @@ fn reference_free_is_about_as_precise_as_an_index_table() {
         &std::fs::read_to_string(repo_path("config/scenarios/index-table-12pos.toml")).unwrap(),
         22,
     );
-    let paper = {
-        let mut m = TriadModel::default();
-        for k in [
-            EffectKind::Bias,
-            EffectKind::Scale,
-            EffectKind::Misalignment,
-        ] {
-            m.add(k);
-        }
-        m
-    };
+    let paper = { TriadModel::with_effects(&TriadModel::PAPER_BASE) };
     let se_of = |names: &[String], se: &[Option<f64>], name: &str| {
         se[names.iter().position(|n| n == name).unwrap()].unwrap()
     };

@@ -22,6 +22,32 @@ impl TriadModel {
             .fold(measured, |v, e| e.inverse(v, c))
     }
 
+    /// The paper's base model (Eq. 1-2): bias, scale and misalignment, all zero.
+    pub const PAPER_BASE: [EffectKind; 3] = [
+        EffectKind::Bias,
+        EffectKind::Scale,
+        EffectKind::Misalignment,
+    ];
+
+    /// A model with the effects `kinds` at their neutral values.
+    pub fn with_effects(kinds: &[EffectKind]) -> TriadModel {
+        let mut m = TriadModel::default();
+        for k in kinds {
+            m.add(*k);
+        }
+        m
+    }
+
+    /// The effects and their values only: without noise characterisation, residual
+    /// statistics and standard errors (a model to fit, from a calibration file).
+    pub fn effects_only(&self) -> TriadModel {
+        let mut out = self.clone();
+        out.noise = None;
+        out.residual_rms = None;
+        out.set_std_errors(None);
+        out
+    }
+
     /// Kinds of the present effects, in canonical order.
     pub fn kinds(&self) -> Vec<EffectKind> {
         self.effects().iter().map(|e| e.kind()).collect()
