@@ -7,12 +7,12 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
-use imu_analysis::allan::{self, Kind, Options, TauSet};
 use imu_analysis::input::{AccelUnit, GyroUnit};
-use imu_analysis::noise::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
 use imu_analysis::plot::{Chart, Series, Style, write_svg};
 use imu_analysis::progress::read_any;
 use imu_analysis::{ImuSeries, Source};
+use imu_stats::allan::{self, Kind, Options, TauSet};
+use imu_stats::noise_terms::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
 use serde::Serialize;
 
 const G_M_S2: f64 = 9.80665;
@@ -176,7 +176,7 @@ fn print_table(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()
     )?;
     for r in reports {
         let t = &r.fit;
-        let pm = |x: &imu_analysis::noise::Term| format!("{:.3e}+-{:.1e}", x.value, x.sigma);
+        let pm = |x: &imu_stats::noise_terms::Term| format!("{:.3e}+-{:.1e}", x.value, x.sigma);
         writeln!(
             w,
             "{:<7}{:<3}{:>24}{:>24}{:>24}{:>12.2e}{:>12.2e}  N {:.4} {}, B {:.4} {}, K {:.4} {}",

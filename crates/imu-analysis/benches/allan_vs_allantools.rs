@@ -5,8 +5,8 @@
 use std::process::Command;
 use std::time::Instant;
 
-use imu_analysis::allan::{Kind, Options, StreamingOadev, TauSet, deviation};
 use imu_model::{NoiseGenerator, NoiseModel};
+use imu_stats::allan::{Kind, Options, StreamingOadev, TauSet, deviation};
 
 const N_SAMPLES: usize = 10_000_000;
 

@@ -11,7 +11,8 @@ use serde::Serialize;
 
 use crate::input::ImuSeries;
 use crate::plot::{Chart, Series, Style};
-use crate::thermal::{correlation, lstsq};
+use imu_stats::descriptive::correlation;
+use imu_stats::linear::ordinary_least_squares;
 
 /// Errors of the dynamic analysis.
 #[derive(Debug, thiserror::Error)]
@@ -315,7 +316,7 @@ pub fn estimate_delay(
         if a.len() < 10 {
             return f64::NAN;
         }
-        correlation(&a, &b)
+        correlation(&a, &b).unwrap_or(f64::NAN)
     };
     let cs: Vec<(i64, f64)> = (-kmax..=kmax).map(|k| (k, corr_at(k))).collect();
     let &(kbest, cbest) = cs
@@ -395,7 +396,7 @@ pub fn analyze(
         err_deg.push((angle - r).to_degrees());
     }
     let rows: Vec<Vec<f64>> = t.iter().map(|&x| vec![1.0, x - t[0]]).collect();
-    let (c, cov) = lstsq(&rows, &err_deg).ok_or_else(|| {
+    let (c, cov) = ordinary_least_squares(&rows, &err_deg).ok_or_else(|| {
         DynamicError::NoOverlap(format!("{}: degenerate time span", series.origin))
     })?;
     let rss: f64 = rows
@@ -438,7 +439,7 @@ pub fn analyze(
         max_abs_error_deg: err_deg.iter().fold(0.0, |a, e| a.max(e.abs())),
         rms_error_deg: (err_deg.iter().map(|e| e * e).sum::<f64>() / err_deg.len() as f64).sqrt(),
         growth_deg_s: c[1],
-        growth_std_deg_s: (cov[1][1] * s2).sqrt(),
+        growth_std_deg_s: (cov[(1, 1)] * s2).sqrt(),
         growth_deg_h: c[1] * 3600.0,
         error_curve,
         angle_curve,

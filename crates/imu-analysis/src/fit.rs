@@ -13,8 +13,9 @@
 //! matrix) are held at their starting values and reported as unobservable instead of being
 //! given a meaningless number.
 
-use imu_model::nalgebra::{DMatrix, DVector, SymmetricEigen};
+use imu_model::nalgebra::{DMatrix, DVector};
 use imu_model::{Conditions, EffectKind, Triad, TriadModel, Vec3};
+use imu_stats::lsq::{LsqOptions, covariance, find_unobservable, jacobian, minimize};
 
 /// One observation: a segment's true input and measured mean.
 #[derive(Clone, Debug, PartialEq)]
@@ -107,14 +108,7 @@ impl Default for FitOptions {
     }
 }
 
-/// Why a parameter was not fitted.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct Unobservable {
-    /// Parameter name (`<effect>.<name>`).
-    pub name: String,
-    /// Why (zero column, or collinear with which parameters).
-    pub reason: String,
-}
+pub use imu_stats::lsq::Unobservable;
 
 /// Result of [`fit_triad`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -362,7 +356,7 @@ pub fn session_covariance(
                 bias_instability_tau_max_s: tau_max_s,
                 ..Default::default()
             };
-            let b2 = shared.flicker_var / crate::noise::BIAS_INSTABILITY_FACTOR.powi(2);
+            let b2 = shared.flicker_var / imu_stats::noise_terms::BIAS_INSTABILITY_FACTOR.powi(2);
             unit_model
                 .flicker_bank(FLICKER_BANK_DT_S)
                 .into_iter()
@@ -413,7 +407,8 @@ fn shared_noise(opts: &FitOptions, points: &[FitPoint]) -> [SharedNoise; 3] {
     std::array::from_fn(|a| SharedNoise {
         random_walk_q: n.random_walk[a].powi(2),
         random_walk_origin_s: Some(t_first.min(0.0)),
-        flicker_var: (crate::noise::BIAS_INSTABILITY_FACTOR * n.bias_instability[a]).powi(2),
+        flicker_var: (imu_stats::noise_terms::BIAS_INSTABILITY_FACTOR * n.bias_instability[a])
+            .powi(2),
         flicker_tau_s: 1.0,
         flicker_tau_max_s: Some(n.bias_instability_tau_max_s),
     })
@@ -476,92 +471,30 @@ fn raw_residuals(model: &mut TriadModel, p: &[f64], points: &[FitPoint]) -> DVec
     r
 }
 
-/// Numeric Jacobian of the residuals (whitened by `w`, raw without) with respect to the free
-/// parameters.
-fn jacobian(
-    model: &mut TriadModel,
-    p: &[f64],
-    free: &[usize],
-    points: &[FitPoint],
-    w: Option<&Whitener>,
-) -> DMatrix<f64> {
-    let mut j = DMatrix::zeros(3 * points.len(), free.len());
-    let mut q = p.to_vec();
-    for (c, &i) in free.iter().enumerate() {
-        let h = 1e-6 * p[i].abs().max(1e-3);
-        q[i] = p[i] + h;
-        let up = raw_residuals(model, &q, points);
-        q[i] = p[i] - h;
-        let down = raw_residuals(model, &q, points);
-        q[i] = p[i];
-        let d = (up - down) / (2.0 * h);
-        match w {
-            Some(w) => j.set_column(c, &w.apply(&d)),
-            None => j.set_column(c, &d),
-        }
+/// The engine's settings for a triad fit.
+fn lsq_options(opts: &FitOptions) -> LsqOptions {
+    LsqOptions {
+        max_iterations: opts.max_iterations,
+        tolerance: opts.tolerance,
+        min_eigenvalue: opts.min_eigenvalue,
+        collinear_advice: "; vary the input (e.g. gravity direction) to separate them".into(),
     }
-    model.set_params(p);
-    j
 }
 
-/// Levenberg-Marquardt with Marquardt's diagonal scaling from `p`; returns the whitened cost,
-/// the iterations and whether it converged.
-fn solve(
-    m: &mut TriadModel,
-    p: &mut Vec<f64>,
-    free: &[usize],
-    points: &[FitPoint],
-    w: &Whitener,
-    opts: &FitOptions,
-) -> (f64, usize, bool) {
-    let mut r = w.apply(&raw_residuals(m, p, points));
-    let mut cost = r.norm_squared();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    while iterations < opts.max_iterations {
-        iterations += 1;
-        let j = jacobian(m, p, free, points, Some(w));
-        let a = j.transpose() * &j;
-        let g = j.transpose() * &r;
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut damped = a.clone();
-            for d in 0..free.len() {
-                damped[(d, d)] += lambda * a[(d, d)].max(1e-30);
-            }
-            let Some(step) = damped.cholesky().map(|c| c.solve(&(-&g))) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let mut q = p.clone();
-            for (c, &i) in free.iter().enumerate() {
-                q[i] += step[c];
-            }
-            let rq = w.apply(&raw_residuals(m, &q, points));
-            let cq = rq.norm_squared();
-            if cq.is_finite() && cq <= cost {
-                let change = (cost - cq) / cost.max(1e-300);
-                *p = q;
-                r = rq;
-                cost = cq;
-                lambda = (lambda / 10.0).max(1e-12);
-                improved = true;
-                if change < opts.tolerance {
-                    m.set_params(p);
-                    return (cost, iterations, true);
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved {
-            // No downhill step at any damping: at the minimum to machine precision.
-            m.set_params(p);
-            return (cost, iterations, true);
+/// The residuals of `points` under `model` at a parameter vector, whitened by `w` (raw
+/// without): the problem the least-squares engine solves.
+fn triad_residuals<'a>(
+    model: &'a mut TriadModel,
+    points: &'a [FitPoint],
+    w: Option<&'a Whitener>,
+) -> impl FnMut(&[f64]) -> DVector<f64> + 'a {
+    move |p: &[f64]| {
+        let raw = raw_residuals(model, p, points);
+        match w {
+            Some(w) => w.apply(&raw),
+            None => raw,
         }
     }
-    m.set_params(p);
-    (cost, iterations, false)
 }
 
 /// The drift rate variance `q` of one axis that brings its whitened chi-square down to `dof`
@@ -603,78 +536,6 @@ fn drift_q(
         }
     }
     hi
-}
-
-/// Find the free parameters the data cannot determine. Zero columns go first; then, while the
-/// normalised normal matrix has an eigenvalue below `min_eig`, the parameter with a large share
-/// in that eigenvector that comes LAST in canonical order is dropped (secondary effects such as
-/// g-sensitivity follow the bias, so a g-sensitivity column collinear with a bias goes, not the
-/// bias).
-fn find_unobservable(
-    model: &mut TriadModel,
-    p: &[f64],
-    free: &mut Vec<usize>,
-    points: &[FitPoint],
-    names: &[String],
-    min_eig: f64,
-) -> Vec<Unobservable> {
-    let mut out = Vec::new();
-    let w = Whitener::new(points, &Sessions::default(), &[SharedNoise::default(); 3]);
-    loop {
-        if free.is_empty() {
-            return out;
-        }
-        let j = jacobian(model, p, free, points, Some(&w));
-        let norms: Vec<f64> = (0..free.len()).map(|c| j.column(c).norm()).collect();
-        let max_norm = norms.iter().copied().fold(0.0, f64::max);
-        if let Some(c) = norms
-            .iter()
-            .position(|n| *n <= 1e-12 * max_norm.max(1e-300))
-        {
-            out.push(Unobservable {
-                name: names[free[c]].clone(),
-                reason: "the data do not excite it (zero Jacobian column)".into(),
-            });
-            free.remove(c);
-            continue;
-        }
-        let mut jn = j.clone();
-        for (c, n) in norms.iter().enumerate() {
-            jn.column_mut(c).unscale_mut(*n);
-        }
-        let eig = SymmetricEigen::new(jn.transpose() * &jn);
-        let (k, lam) = eig
-            .eigenvalues
-            .iter()
-            .copied()
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .expect("non-empty");
-        if lam >= min_eig {
-            return out;
-        }
-        let v = eig.eigenvectors.column(k);
-        let involved: Vec<usize> = (0..free.len()).filter(|&c| v[c].abs() > 0.1).collect();
-        let drop = *involved.last().unwrap_or(&(free.len() - 1));
-        let others: Vec<&str> = involved
-            .iter()
-            .filter(|&&c| c != drop)
-            .map(|&c| names[free[c]].as_str())
-            .collect();
-        out.push(Unobservable {
-            name: names[free[drop]].clone(),
-            reason: format!(
-                "collinear with {} in these data (eigenvalue {lam:.1e} of the normalised normal \
-                 matrix); vary the input (e.g. gravity direction) to separate them",
-                if others.is_empty() {
-                    "other parameters".to_string()
-                } else {
-                    others.join(", ")
-                }
-            ),
-        });
-        free.remove(drop);
-    }
 }
 
 /// Fit the parameters of `model` (its current values are the starting point; the effects
@@ -724,8 +585,19 @@ pub fn fit_triad_sessions(
     let mut free: Vec<usize> = (0..np)
         .filter(|&i| !opts.fixed.get(i).copied().unwrap_or(false))
         .collect();
-    let unobservable =
-        find_unobservable(&mut m, &p, &mut free, points, &names, opts.min_eigenvalue);
+    let lsq = lsq_options(opts);
+    // Observability is judged on the white errors alone (secondary effects such as
+    // g-sensitivity follow the bias in canonical order, so a g-sensitivity column collinear with
+    // a bias goes, not the bias).
+    let white = Whitener::new(points, &Sessions::default(), &[SharedNoise::default(); 3]);
+    let unobservable = find_unobservable(
+        &mut triad_residuals(&mut m, points, Some(&white)),
+        &p,
+        &mut free,
+        &names,
+        &lsq,
+    );
+    m.set_params(&p);
     if free.is_empty() {
         return Err(FitError::NothingToFit { triad });
     }
@@ -743,7 +615,13 @@ pub fn fit_triad_sessions(
     // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
     let mut q = shared_noise(opts, points);
     let mut w = Whitener::new(points, sessions, &q);
-    let (mut cost, mut iterations, mut converged) = solve(&mut m, &mut p, &free, points, &w, opts);
+    let first = minimize(
+        &mut triad_residuals(&mut m, points, Some(&w)),
+        &mut p,
+        &free,
+        &lsq,
+    );
+    let (mut cost, mut iterations, mut converged) = (first.cost, first.iterations, first.converged);
     if opts.drift_model {
         let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
         for _ in 0..8 {
@@ -756,10 +634,15 @@ pub fn fit_triad_sessions(
                 s.random_walk_q = v;
             }
             w = Whitener::new(points, sessions, &q);
-            let (c, it, conv) = solve(&mut m, &mut p, &free, points, &w, opts);
-            cost = c;
-            iterations += it;
-            converged = conv;
+            let next = minimize(
+                &mut triad_residuals(&mut m, points, Some(&w)),
+                &mut p,
+                &free,
+                &lsq,
+            );
+            cost = next.cost;
+            iterations += next.iterations;
+            converged = next.converged;
             if settled {
                 break;
             }
@@ -768,12 +651,12 @@ pub fn fit_triad_sessions(
 
     let dof = n_obs - free.len();
     let reduced_chi2 = cost / dof as f64;
-    let j = jacobian(&mut m, &p, &free, points, Some(&w));
-    let a = j.transpose() * &j;
+    let j = jacobian(&mut triad_residuals(&mut m, points, Some(&w)), &p, &free);
+    m.set_params(&p);
     let mut warnings = Vec::new();
     // Scale by the reduced chi-square only upwards: below 1 the white errors are trusted.
-    let mut cov = match a.clone().try_inverse() {
-        Some(inv) => inv * reduced_chi2.max(1.0),
+    let mut cov = match covariance(&j, reduced_chi2) {
+        Some(cov) => cov,
         None => {
             warnings.push("normal matrix not invertible: no standard errors".into());
             DMatrix::from_element(free.len(), free.len(), f64::NAN)
@@ -826,7 +709,8 @@ pub fn fit_triad_sessions(
     let residual_rms = sq.map(|s| (s / points.len() as f64).sqrt());
     let raw_final = raw_residuals(&mut m, &p, points);
     let chi2_axis = std::array::from_fn(|a| w.axis_chi2(&raw_final, a));
-    let jacobian_raw = jacobian(&mut m, &p, &free, points, None);
+    let jacobian_raw = jacobian(&mut triad_residuals(&mut m, points, None), &p, &free);
+    m.set_params(&p);
     // Standard errors go into the model per effect; an effect with a held parameter gets none
     // (a 0 would claim the held value is exact).
     let mut rest = std_errors.as_slice();

@@ -12,7 +12,8 @@ use serde::Serialize;
 
 use crate::input::ImuSeries;
 use crate::plot::{Chart, Series, Style};
-use crate::thermal::{lstsq, mean, std_dev};
+use imu_stats::descriptive::{mean, std_dev};
+use imu_stats::linear::ordinary_least_squares;
 
 /// Errors of the impact analysis.
 #[derive(Debug, thiserror::Error)]
@@ -368,13 +369,13 @@ fn pooled(
     }
     let rows: Vec<Vec<f64>> = x.iter().map(|&v| vec![v]).collect();
     let fit = |y: &[f64]| -> Pooled {
-        match lstsq(&rows, y) {
+        match ordinary_least_squares(&rows, y) {
             Some((c, cov)) if rows.len() > 1 => {
                 let rss: f64 = x.iter().zip(y).map(|(x, y)| (y - c[0] * x).powi(2)).sum();
                 let s2 = rss / (rows.len() - 1) as f64;
                 Pooled {
                     value: c[0],
-                    std_error: (cov[0][0] * s2).sqrt(),
+                    std_error: (cov[(0, 0)] * s2).sqrt(),
                 }
             }
             _ => Pooled {

@@ -4,15 +4,12 @@
 //!
 //! No device I/O and no tokio here: these are pure computations over files.
 
-pub mod allan;
 pub mod cli;
 pub mod diagnose;
 pub mod dynamic;
 pub mod fit;
 pub mod impact;
 pub mod input;
-pub mod lsq;
-pub mod noise;
 pub mod plan;
 pub mod plot;
 #[cfg(feature = "progress")]
@@ -23,7 +20,6 @@ pub mod reference_free;
 pub mod reference_log;
 pub mod report;
 pub mod segment;
-pub mod stats;
 pub mod thermal;
 
 pub use input::{ImuSeries, InputError, Source};

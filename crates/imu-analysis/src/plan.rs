@@ -53,8 +53,10 @@
 use std::path::Path;
 
 use imu_model::Vec3;
+use imu_model::did_you_mean;
+use imu_model::earth::{normal_gravity_m_s2, unknown_heading_variance_rad2_s2};
 use imu_model::nalgebra::{Matrix3, Rotation3, Unit};
-use imu_model::units::EARTH_RATE_RAD_S;
+use imu_model::units::{EARTH_RATE_RAD_S, REFERENCE_TEMP_C};
 use serde::Deserialize;
 
 use crate::ImuSeries;
@@ -68,10 +70,6 @@ pub const PLAN_FORMAT: &str = "imud-plan/1";
 pub const DEFAULT_DIRECTION_TOLERANCE_DEG: f64 = 10.0;
 /// Default largest deviation of a plateau's measured rate from the nominal one, percent.
 pub const DEFAULT_RATE_TOLERANCE_PERCENT: f64 = 10.0;
-/// Temperature assumed when neither the recording nor the plan gives one, deg C (the
-/// reference temperature `t0-c` of the temperature effects: they are inert at it).
-pub const FALLBACK_TEMP_C: f64 = 25.0;
-
 /// Errors loading a plan file.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
@@ -419,47 +417,6 @@ pub struct PlanCaveats {
     pub gyro_bias_std_rad_s: Option<[f64; 3]>,
     /// Remarks for the report (gravity used, unknown Earth rate, assumed temperature).
     pub notes: Vec<String>,
-}
-
-/// WGS-84 normal gravity on the ellipsoid (Somigliana's formula) at `latitude_deg`, with the
-/// free-air correction for `height_m` above it, m/s^2. 9.7803 at the equator, 9.8017 at 40 deg,
-/// 9.8322 at the poles.
-pub fn normal_gravity_m_s2(latitude_deg: f64, height_m: f64) -> f64 {
-    const GAMMA_E: f64 = 9.780_325_335_9;
-    const K: f64 = 0.001_931_852_652_41;
-    const E2: f64 = 0.006_694_379_990_13;
-    let s2 = latitude_deg.to_radians().sin().powi(2);
-    GAMMA_E * (1.0 + K * s2) / (1.0 - E2 * s2).sqrt() - 3.086e-6 * height_m
-}
-
-/// Levenshtein distance, for "did you mean" hints.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut cur = vec![i + 1];
-        for (j, cb) in b.iter().enumerate() {
-            let sub = prev[j] + usize::from(ca != *cb);
-            cur.push(sub.min(prev[j + 1] + 1).min(cur[j] + 1));
-        }
-        prev = cur;
-    }
-    prev[b.len()]
-}
-
-/// ` (did you mean `x`?)` for the closest of `candidates` within 3 edits (a key missing only
-/// its unit suffix, `latitude` for `latitude-deg`, counts as 1), else "".
-pub(crate) fn did_you_mean(name: &str, candidates: &[&str]) -> String {
-    candidates
-        .iter()
-        .map(|c| {
-            let prefix = name.len() >= 3 && c.starts_with(name);
-            (if prefix { 1 } else { edit_distance(name, c) }, *c)
-        })
-        .filter(|(d, _)| *d <= 3)
-        .min()
-        .map(|(_, c)| format!(" (did you mean `{c}`?)"))
-        .unwrap_or_default()
 }
 
 /// The `[[step]]` (1-based) a byte offset falls in, by counting the step headers up to the
@@ -1148,7 +1105,7 @@ impl Plan {
         if series.temp.is_empty() {
             notes.push(format!(
                 "the recording has no temperature readings: {} deg C assumed{}",
-                self.temp_c.unwrap_or(FALLBACK_TEMP_C),
+                self.temp_c.unwrap_or(REFERENCE_TEMP_C),
                 if self.temp_c.is_some() {
                     " (plan temp-c)"
                 } else {
@@ -1429,17 +1386,14 @@ impl Plan {
                 let l = lat.to_radians();
                 ((n * l.cos() + up * l.sin()) * om, [0.0; 3])
             }
-            (Some(lat), None) => {
-                // The horizontal part (Omega cos L) points to an unknown heading: uniform over
-                // the circle, each horizontal direction has variance (Omega cos L)^2 / 2.
-                let l = lat.to_radians();
-                let h = om * l.cos();
-                (
-                    up * (om * l.sin()),
-                    std::array::from_fn(|a| h * ((1.0 - up[a] * up[a]).max(0.0) / 2.0).sqrt()),
-                )
-            }
-            (None, _) => (Vec3::zeros(), [om / 3f64.sqrt(); 3]),
+            (Some(lat), None) => (
+                up * imu_model::earth::earth_rate_split_rad_s(lat).0,
+                std::array::from_fn(|a| unknown_heading_variance_rad2_s2(Some(lat), up[a]).sqrt()),
+            ),
+            (None, _) => (
+                Vec3::zeros(),
+                [unknown_heading_variance_rad2_s2(None, 0.0).sqrt(); 3],
+            ),
         }
     }
 
@@ -1587,14 +1541,6 @@ up = "z"
         assert!((w - Vec3::new(0.0, -om * l.sin(), 0.0)).norm() < 1e-15);
         assert_eq!(sd[1], 0.0);
         assert!((sd[0] - om * l.cos() / 2f64.sqrt()).abs() < 1e-15);
-    }
-
-    #[test]
-    fn normal_gravity_matches_wgs84() {
-        assert!((normal_gravity_m_s2(0.0, 0.0) - 9.780_325_3).abs() < 1e-6);
-        assert!((normal_gravity_m_s2(90.0, 0.0) - 9.832_184_9).abs() < 1e-6);
-        assert!((normal_gravity_m_s2(45.0, 0.0) - 9.806_197_6).abs() < 1e-5);
-        assert!(normal_gravity_m_s2(45.0, 1000.0) < normal_gravity_m_s2(45.0, 0.0) - 3e-3);
     }
 
     #[test]

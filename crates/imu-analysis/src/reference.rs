@@ -185,7 +185,7 @@ pub struct SegmentTruth {
 }
 
 /// Mean temperature and time since power-on over segment `s`, from the recording itself: its
-/// temperature readings (else `fallback_temp_c`, else [`crate::plan::FALLBACK_TEMP_C`]) and its
+/// temperature readings (else `fallback_temp_c`, else [`imu_model::units::REFERENCE_TEMP_C`]) and its
 /// time since the first sample plus `powered_on_before_s`.
 pub(crate) fn recording_conditions(
     series: &ImuSeries,
@@ -196,7 +196,7 @@ pub(crate) fn recording_conditions(
     let times = &series.t_s[s.range()];
     let n = times.len().max(1) as f64;
     let temp_c = if series.temp.is_empty() {
-        fallback_temp_c.unwrap_or(crate::plan::FALLBACK_TEMP_C)
+        fallback_temp_c.unwrap_or(imu_model::units::REFERENCE_TEMP_C)
     } else {
         times.iter().map(|&t| series.temp_at(t)).sum::<f64>() / n
     };

@@ -30,14 +30,15 @@
 //! the 3DM-GX1's gyro noise the difference is small; on a quieter sensor the raw times leave
 //! several times the residual (see the synthetic test).
 
+use imu_model::earth::normal_gravity_m_s2;
 use imu_model::nalgebra::{DVector, Matrix3, UnitQuaternion};
 use imu_model::units::{EARTH_RATE_RAD_S, STANDARD_GRAVITY_M_S2};
 use imu_model::{Calibration, Conditions, EffectKind, Triad, TriadModel, Vec3};
 
 use crate::ImuSeries;
 use crate::fit::{FitError, FitOptions, FitPoint, FitResult, Unobservable, fit_triad};
-use crate::lsq::{LsqError, LsqOptions, LsqSolution, least_squares};
 use crate::segment::{Segment, SegmentError, SegmentKind, SegmentOptions, Segmentation};
+use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution, least_squares};
 
 /// What to record, in every message about too few or too clustered poses.
 pub const POSE_ADVICE: &str = "hold the unit still in 30 or more orientations: each axis up and \
@@ -61,26 +62,13 @@ pub(crate) const GYRO_GAIN_KINDS: [EffectKind; 5] = [
 /// Accel misalignment entries held at 0 to fix the rotation gauge.
 pub(crate) const GAUGE: [&str; 3] = ["misalignment.xy", "misalignment.xz", "misalignment.yz"];
 
-/// WGS-84 normal gravity on the ellipsoid at a geodetic latitude (Somigliana's formula), m/s^2.
-/// Height lowers it by about 3.1e-6 m/s^2 per metre (not applied).
-pub fn normal_gravity_m_s2(latitude_deg: f64) -> f64 {
-    /// Normal gravity at the equator, m/s^2.
-    const GAMMA_EQUATOR_M_S2: f64 = 9.780_325_335_9;
-    /// Somigliana's constant.
-    const K: f64 = 0.001_931_852_652_41;
-    /// First eccentricity squared.
-    const E2: f64 = 0.006_694_379_990_14;
-    let s2 = latitude_deg.to_radians().sin().powi(2);
-    GAMMA_EQUATOR_M_S2 * (1.0 + K * s2) / (1.0 - E2 * s2).sqrt()
-}
-
 /// Local gravity for a reference-free fit, m/s^2, and the note saying where it came from: the
 /// given value, else WGS-84 normal gravity at the latitude, else standard gravity.
 pub fn local_gravity(gravity_m_s2: Option<f64>, latitude_deg: Option<f64>) -> (f64, String) {
     match (gravity_m_s2, latitude_deg) {
         (Some(g), _) => (g, format!("local gravity {g:.6} m/s^2 (given)")),
         (None, Some(lat)) => {
-            let g = normal_gravity_m_s2(lat);
+            let g = normal_gravity_m_s2(lat, 0.0);
             (
                 g,
                 format!(
@@ -363,7 +351,11 @@ pub(crate) fn pose_conditions(series: &ImuSeries, seg: &Segment) -> Conditions {
     let mid_s = 0.5 * (seg.start_s + seg.end_s);
     let temp_c = series.temp_at(mid_s);
     Conditions {
-        temp_c: if temp_c.is_finite() { temp_c } else { 25.0 },
+        temp_c: if temp_c.is_finite() {
+            temp_c
+        } else {
+            imu_model::units::REFERENCE_TEMP_C
+        },
         // The power-on time is unknown: recording time stands in (a warm-up effect would be
         // referred to the recording's start).
         time_since_power_on_s: mid_s,
@@ -801,10 +793,7 @@ fn fit_gyro_static(
     g_m_s2: f64,
 ) -> Result<FitResult, FitError> {
     let (vertical_rad_s, horizontal_rad_s) = match opts.latitude_deg {
-        Some(lat) => {
-            let l = lat.to_radians();
-            (EARTH_RATE_RAD_S * l.sin(), EARTH_RATE_RAD_S * l.cos())
-        }
+        Some(lat) => imu_model::earth::earth_rate_split_rad_s(lat),
         None => (0.0, EARTH_RATE_RAD_S),
     };
     let points: Vec<FitPoint> = poses
@@ -1004,7 +993,7 @@ fn calibrate_reference_free_once(
             "gyro bias: Earth's vertical rate at latitude {lat} deg removed at each pose; the \
              horizontal part ({:.1e} rad/s, direction unknown without a heading) is carried in \
              the bias standard errors",
-            EARTH_RATE_RAD_S * lat.to_radians().cos()
+            imu_model::earth::earth_rate_split_rad_s(lat).1
         ),
         None => format!(
             "gyro bias: Earth's rate (up to {EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
@@ -1351,14 +1340,6 @@ value = [8.7e-3, -6.1e-3, 1.05e-2]
             "truth.toml",
         )
         .unwrap()
-    }
-
-    #[test]
-    fn normal_gravity_matches_wgs84_reference_values() {
-        assert!((normal_gravity_m_s2(0.0) - 9.780_325_336).abs() < 1e-9);
-        // The pole value is a separate defining constant: it checks k and e^2.
-        assert!((normal_gravity_m_s2(90.0) - 9.832_184_937_8).abs() < 1e-9);
-        assert_eq!(normal_gravity_m_s2(-30.0), normal_gravity_m_s2(30.0));
     }
 
     #[test]

@@ -49,9 +49,11 @@ use imu_model::Vec3;
 use imu_model::units::{DEG_TO_RAD, EARTH_RATE_RAD_S, STANDARD_GRAVITY_M_S2};
 
 use crate::ImuSeries;
-use crate::plan::{did_you_mean, format_direction, normal_gravity_m_s2, parse_direction};
+use crate::plan::{format_direction, parse_direction};
 use crate::reference::SegmentTruth;
 use crate::segment::{Segment, SegmentKind};
+use imu_model::did_you_mean;
+use imu_model::earth::normal_gravity_m_s2;
 
 /// Largest relative difference between a plateau's measured and reference rate magnitude
 /// before the log is taken to be in other units or of another run.
@@ -518,7 +520,7 @@ impl ReferenceLog {
             .iter()
             .map(|w| Vec3::from(*w).norm())
             .collect();
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let mean = imu_stats::descriptive::mean;
         let (rec_mean, ref_mean) = (mean(&rec), mean(&refm));
         let ref_std =
             (refm.iter().map(|m| (m - ref_mean).powi(2)).sum::<f64>() / refm.len() as f64).sqrt();
@@ -609,7 +611,9 @@ impl ReferenceLog {
                     .map(|v| (*r, v))
             })
             .collect();
-        let correlation = pearson(&pairs);
+        let (rec_side, ref_side): (Vec<f64>, Vec<f64>) = pairs.iter().copied().unzip();
+        let correlation =
+            imu_stats::descriptive::correlation(&rec_side, &ref_side).unwrap_or(f64::NAN);
         if pairs.len() < 10 || correlation.is_nan() || correlation < MIN_CORRELATION {
             return Err(fail(format!(
                 "the best offset ({offset_s:.3} s, log clock minus recording clock) overlaps \
@@ -624,24 +628,6 @@ impl ReferenceLog {
             correlation: Some(correlation),
         })
     }
-}
-
-fn pearson(pairs: &[(f64, f64)]) -> f64 {
-    let n = pairs.len() as f64;
-    if pairs.len() < 2 {
-        return f64::NAN;
-    }
-    let (ma, mb) = (
-        pairs.iter().map(|p| p.0).sum::<f64>() / n,
-        pairs.iter().map(|p| p.1).sum::<f64>() / n,
-    );
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (a, b) in pairs {
-        sab += (a - ma) * (b - mb);
-        saa += (a - ma).powi(2);
-        sbb += (b - mb).powi(2);
-    }
-    sab / (saa * sbb).sqrt()
 }
 
 impl AlignedLog {
@@ -816,15 +802,12 @@ impl AlignedLog {
                 SegmentKind::Plateau => (2.0 / turned_rad.max(1e-9)).min(1.0),
             };
             for (b, m) in sd.iter_mut().enumerate() {
-                let x = match t.latitude_deg {
-                    Some(lat) => {
-                        EARTH_RATE_RAD_S
-                            * lat.to_radians().cos()
-                            * left
-                            * ((1.0 - a[b] * a[b]).max(0.0) / 2.0).sqrt()
-                    }
-                    None => EARTH_RATE_RAD_S / 3f64.sqrt(),
-                };
+                // What a partial turn leaves of the horizontal part; without a latitude the
+                // whole rate is unknown.
+                let left = if t.latitude_deg.is_some() { left } else { 1.0 };
+                let x = left
+                    * imu_model::earth::unknown_heading_variance_rad2_s2(t.latitude_deg, a[b])
+                        .sqrt();
                 *m = m.max(x);
             }
         }
@@ -882,7 +865,7 @@ impl AlignedLog {
             notes.push(format!(
                 "the recording has no temperature readings: {} deg C assumed; temperature \
                  effects cannot be fitted",
-                crate::plan::FALLBACK_TEMP_C
+                imu_model::units::REFERENCE_TEMP_C
             ));
         }
         notes

@@ -8,6 +8,8 @@
 //! walk make neighbouring bins agree with each other, which a white-noise formula would read
 //! as a (spurious) temperature coefficient.
 
+use imu_stats::descriptive::{correlation, mean};
+use imu_stats::linear::ordinary_least_squares;
 use serde::Serialize;
 
 use crate::input::ImuSeries;
@@ -254,11 +256,11 @@ pub fn analyze(
     let tau = warmup.as_ref().map_or(f64::NAN, |w| w.tau_s);
     let shape: Vec<f64> = times.iter().map(|t| (-t / tau).exp()).collect();
     let temp_vs_warmup_corr = if tau.is_finite() {
-        correlation(&temps, &shape)
+        correlation(&temps, &shape).unwrap_or(f64::NAN)
     } else {
         f64::NAN
     };
-    let temp_vs_time_corr = correlation(&temps, &times);
+    let temp_vs_time_corr = correlation(&temps, &times).unwrap_or(f64::NAN);
     let note = format!(
         "In a monotonic warm-up the temperature follows time: its correlation with a warm-up \
          transient exp(-t/tau) is {temp_vs_warmup_corr:.3} (with time {temp_vs_time_corr:.3}), so a \
@@ -442,7 +444,7 @@ fn fit_warmup(temp: &[(f64, f64)]) -> Option<WarmupFit> {
     let rss_at = |ln_tau: f64| -> (f64, f64, f64) {
         let tau = ln_tau.exp();
         let rows: Vec<Vec<f64>> = ts.iter().map(|t| vec![1.0, (-t / tau).exp()]).collect();
-        match lstsq(&rows, &ys) {
+        match ordinary_least_squares(&rows, &ys) {
             Some((c, _)) => {
                 let rss = rows
                     .iter()
@@ -487,8 +489,8 @@ fn fit_warmup(temp: &[(f64, f64)]) -> Option<WarmupFit> {
         })
         .collect();
     let s2 = rss / (n as f64 - 3.0).max(1.0);
-    let tau_std_s = lstsq(&jac, &ys)
-        .map(|(_, cov)| (cov[2][2] * s2).sqrt())
+    let tau_std_s = ordinary_least_squares(&jac, &ys)
+        .map(|(_, cov)| (cov[(2, 2)] * s2).sqrt())
         .unwrap_or(f64::NAN);
     Some(WarmupFit {
         tau_s: tau,
@@ -520,7 +522,7 @@ pub(crate) fn poly_fit(x: &[f64], y: &[f64], degree: usize) -> PolyFit {
     if n <= p {
         return nan();
     }
-    let Some((c, cov)) = lstsq(&rows, y) else {
+    let Some((c, cov)) = ordinary_least_squares(&rows, y) else {
         return nan();
     };
     let resid: Vec<f64> = rows
@@ -539,9 +541,9 @@ pub(crate) fn poly_fit(x: &[f64], y: &[f64], degree: usize) -> PolyFit {
             // Coefficient k = sum_i w_i y_i with w = row k of (X^T X)^-1 X^T.
             let w: Vec<f64> = rows
                 .iter()
-                .map(|r| (0..p).map(|j| cov[k][j] * r[j]).sum())
+                .map(|r| (0..p).map(|j| cov[(k, j)] * r[j]).sum())
                 .collect();
-            let white = cov[k][k] * s2;
+            let white = cov[(k, k)] * s2;
             let sum_w: f64 = w.iter().sum();
             let coloured = if sum_w.abs() < 1e-9 * w.iter().map(|v| v.abs()).sum::<f64>() {
                 let mut v = 0.0;
@@ -557,14 +559,14 @@ pub(crate) fn poly_fit(x: &[f64], y: &[f64], degree: usize) -> PolyFit {
             white.max(coloured).sqrt()
         })
         .collect();
-    let r1 = crate::stats::lag1_autocorrelation(&resid).clamp(0.0, 0.95);
+    let r1 = imu_stats::descriptive::lag1_autocorrelation(&resid).clamp(0.0, 0.95);
     let inflation = ((1.0 + r1) / (1.0 - r1))
-        .max((std_errors[p - 1] * std_errors[p - 1] / (cov[p - 1][p - 1] * s2)).min(n as f64));
+        .max((std_errors[p - 1] * std_errors[p - 1] / (cov[(p - 1, p - 1)] * s2)).min(n as f64));
     let dof = ((n as f64) / inflation - p as f64).max(2.0);
     let t_stats: Vec<f64> = c.iter().zip(&std_errors).map(|(c, s)| c / s).collect();
     let p_values = t_stats
         .iter()
-        .map(|&t| crate::stats::student_t_two_sided_p(t, dof))
+        .map(|&t| imu_stats::distributions::student_t_two_sided_p(t, dof))
         .collect();
     PolyFit {
         coefficients: c,
@@ -574,94 +576,9 @@ pub(crate) fn poly_fit(x: &[f64], y: &[f64], degree: usize) -> PolyFit {
         residual_std: s2
             .sqrt()
             .max(gamma.iter().cloned().fold(0.0, f64::max).sqrt()),
-        residual_lag1_corr: crate::stats::lag1_autocorrelation(&resid),
+        residual_lag1_corr: imu_stats::descriptive::lag1_autocorrelation(&resid),
         dof_effective: dof,
     }
-}
-
-/// Least squares by the normal equations: coefficients and `(X^T X)^-1`.
-pub(crate) fn lstsq(rows: &[Vec<f64>], y: &[f64]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
-    let p = rows.first()?.len();
-    let mut ata = vec![vec![0.0; p]; p];
-    let mut aty = vec![0.0; p];
-    for (r, &yv) in rows.iter().zip(y) {
-        for i in 0..p {
-            aty[i] += r[i] * yv;
-            for j in 0..p {
-                ata[i][j] += r[i] * r[j];
-            }
-        }
-    }
-    let inv = invert(&ata)?;
-    let c = (0..p)
-        .map(|i| (0..p).map(|j| inv[i][j] * aty[j]).sum())
-        .collect();
-    Some((c, inv))
-}
-
-/// Gauss-Jordan inverse with partial pivoting (small matrices only).
-fn invert(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
-    let n = m.len();
-    let mut a: Vec<Vec<f64>> = m.to_vec();
-    let mut inv: Vec<Vec<f64>> = (0..n)
-        .map(|i| (0..n).map(|j| f64::from(u8::from(i == j))).collect())
-        .collect();
-    let scale = m
-        .iter()
-        .flatten()
-        .fold(0.0f64, |acc, v| acc.max(v.abs()))
-        .max(f64::MIN_POSITIVE);
-    for col in 0..n {
-        let piv = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[piv][col].abs() <= scale * 1e-14 {
-            return None;
-        }
-        a.swap(col, piv);
-        inv.swap(col, piv);
-        let d = a[col][col];
-        for j in 0..n {
-            a[col][j] /= d;
-            inv[col][j] /= d;
-        }
-        for i in 0..n {
-            if i != col {
-                let f = a[i][col];
-                if f != 0.0 {
-                    for j in 0..n {
-                        a[i][j] -= f * a[col][j];
-                        inv[i][j] -= f * inv[col][j];
-                    }
-                }
-            }
-        }
-    }
-    Some(inv)
-}
-
-/// Arithmetic mean (NaN when empty).
-pub(crate) fn mean(v: &[f64]) -> f64 {
-    v.iter().sum::<f64>() / v.len() as f64
-}
-
-/// Sample standard deviation (NaN with fewer than two values).
-pub(crate) fn std_dev(v: &[f64]) -> f64 {
-    if v.len() < 2 {
-        return f64::NAN;
-    }
-    let m = mean(v);
-    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
-}
-
-/// Pearson correlation (NaN when either side is constant).
-pub(crate) fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let (ma, mb) = (mean(a), mean(b));
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma).powi(2);
-        sbb += (y - mb).powi(2);
-    }
-    sab / (saa * sbb).sqrt()
 }
 
 /// Semi-variogram `gamma(h) = mean (e_{i+h} - e_i)^2 / 2` of a series, made non-decreasing
@@ -775,9 +692,9 @@ mod tests {
     #[test]
     fn t_distribution_p_values() {
         // Known quantiles: t = 2.228 at 10 dof -> p = 0.05; t = 1.96 at large dof -> 0.05.
-        assert!((crate::stats::student_t_two_sided_p(2.228, 10.0) - 0.05).abs() < 1e-3);
-        assert!((crate::stats::student_t_two_sided_p(1.96, 1e6) - 0.05).abs() < 1e-3);
-        assert!((crate::stats::student_t_two_sided_p(0.0, 5.0) - 1.0).abs() < 1e-12);
+        assert!((imu_stats::distributions::student_t_two_sided_p(2.228, 10.0) - 0.05).abs() < 1e-3);
+        assert!((imu_stats::distributions::student_t_two_sided_p(1.96, 1e6) - 0.05).abs() < 1e-3);
+        assert!((imu_stats::distributions::student_t_two_sided_p(0.0, 5.0) - 1.0).abs() < 1e-12);
     }
 
     #[test]

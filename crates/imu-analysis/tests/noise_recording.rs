@@ -7,10 +7,10 @@
 use std::path::PathBuf;
 
 use imu_analysis::Source;
-use imu_analysis::allan::{Kind, Options, TauSet, deviation};
 use imu_analysis::input::{CsvOptions, read_any};
-use imu_analysis::noise::fit_terms;
 use imu_model::Calibration;
+use imu_stats::allan::{Kind, Options, TauSet, deviation};
+use imu_stats::noise_terms::fit_terms;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")

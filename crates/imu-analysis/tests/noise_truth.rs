@@ -2,9 +2,9 @@
 //! own noise generator (`imu_model::NoiseGenerator`) plus the device's output quantization, for
 //! a gyro and an accelerometer triad; and a pure-white negative check.
 
-use imu_analysis::allan::{Kind, Options, TauSet, deviation};
-use imu_analysis::noise::fit_terms;
 use imu_model::{NoiseGenerator, NoiseModel, Vec3};
+use imu_stats::allan::{Kind, Options, TauSet, deviation};
+use imu_stats::noise_terms::fit_terms;
 
 const RATE_HZ: f64 = 100.0;
 const N_SAMPLES: usize = 6 * 3600 * 100;

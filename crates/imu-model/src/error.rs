@@ -195,11 +195,18 @@ fn edit_distance(a: &str, b: &str) -> usize {
     prev[b.len()]
 }
 
-fn did_you_mean(name: &str, candidates: &[String]) -> String {
+/// ` (did you mean `x`?)` for the closest of `candidates` within 3 edits (a name of at least 3
+/// characters that starts a candidate, such as `latitude` for `latitude-deg`, counts as 1),
+/// else "". The one "did you mean" rule of every config, plan, model and log reader.
+pub fn did_you_mean<S: AsRef<str>>(name: &str, candidates: &[S]) -> String {
     candidates
         .iter()
-        .map(|c| (edit_distance(name, c), c))
-        .filter(|(d, _)| *d <= 2)
+        .map(|c| {
+            let c = c.as_ref();
+            let prefix = name.len() >= 3 && c.starts_with(name);
+            (if prefix { 1 } else { edit_distance(name, c) }, c)
+        })
+        .filter(|(d, _)| *d <= 3)
         .min()
         .map(|(_, c)| format!(" (did you mean `{c}`?)"))
         .unwrap_or_default()

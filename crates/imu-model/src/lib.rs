@@ -113,6 +113,7 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 /// A 3x3 matrix of f64.
 pub type Mat3 = nalgebra::Matrix3<f64>;
 
+pub mod earth;
 pub mod units;
 
 mod calibration;
@@ -136,7 +137,7 @@ pub use effects::{
     AsymmetricScale, Bias, EffectKind, GSensitivity, LeverArm, Misalignment, Scale,
     ScaleNonlinearity, TempBias, TempScale, TriadModel, Warmup,
 };
-pub use error::{ModelError, line_col, line_of_key};
+pub use error::{ModelError, did_you_mean, line_col, line_of_key};
 pub use noise::{
     BIAS_INSTABILITY_ADEV_FACTOR, DEFAULT_BIAS_INSTABILITY_TAU_MAX_S, NoiseGenerator, NoiseModel,
 };

@@ -25,7 +25,7 @@ impl Default for Conditions {
     /// 25 degC, just powered on, no motion.
     fn default() -> Self {
         Conditions {
-            temp_c: 25.0,
+            temp_c: crate::units::REFERENCE_TEMP_C,
             time_since_power_on_s: 0.0,
             specific_force_m_s2: Vec3::zeros(),
             angular_rate_rad_s: Vec3::zeros(),

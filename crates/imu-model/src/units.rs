@@ -7,6 +7,9 @@
 pub const STANDARD_GRAVITY_M_S2: f64 = 9.80665;
 /// Earth's sidereal rotation rate (WGS-84), rad/s; 15.041 deg/h.
 pub const EARTH_RATE_RAD_S: f64 = 7.292115e-5;
+/// The temperature assumed where none is measured, and the default reference temperature `t0`
+/// of the temperature effects, deg C.
+pub const REFERENCE_TEMP_C: f64 = 25.0;
 /// Degrees to radians.
 pub const DEG_TO_RAD: f64 = std::f64::consts::PI / 180.0;
 /// Radians to degrees.

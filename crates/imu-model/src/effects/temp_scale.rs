@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 pub const VALID_TEMP_RANGE_C: (f64, f64) = (-40.0, 85.0);
 
 pub(crate) fn default_t0_c() -> f64 {
-    25.0
+    crate::units::REFERENCE_TEMP_C
 }
 
 /// Temperature-dependent scale. Forward: `y_i = x_i (1 + sum_k c_{k,i} (T - T0)^k)`, k = 1..n.

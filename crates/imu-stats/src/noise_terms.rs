@@ -26,6 +26,8 @@
 use serde::Serialize;
 use thiserror::Error;
 
+use nalgebra::{DMatrix, DVector};
+
 use crate::allan::{DevCurve, DevPoint, Kind};
 
 /// sqrt(2 ln 2 / pi): ADEV floor per unit bias instability.
@@ -136,43 +138,10 @@ fn basis(tau_s: f64) -> [f64; 5] {
     ]
 }
 
-/// Solves the symmetric positive-definite system `a x = b` (small, Gaussian elimination with
-/// partial pivoting); returns the inverse as well. `None` if singular.
-fn solve(a: &[Vec<f64>], b: &[f64]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
-    let n = b.len();
-    let mut m: Vec<Vec<f64>> = (0..n)
-        .map(|i| {
-            let mut row = a[i].clone();
-            row.extend((0..n).map(|j| if i == j { 1.0 } else { 0.0 }));
-            row.push(b[i]);
-            row
-        })
-        .collect();
-    for col in 0..n {
-        let piv = (col..n).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
-        if m[piv][col].abs() < 1e-13 {
-            return None;
-        }
-        m.swap(col, piv);
-        let p = m[col][col];
-        for v in &mut m[col] {
-            *v /= p;
-        }
-        for r in 0..n {
-            if r != col {
-                let f = m[r][col];
-                if f != 0.0 {
-                    let pivot_row = m[col].clone();
-                    for (v, p) in m[r].iter_mut().zip(&pivot_row) {
-                        *v -= f * p;
-                    }
-                }
-            }
-        }
-    }
-    let x = m.iter().map(|row| row[2 * n]).collect();
-    let inv = m.iter().map(|row| row[n..2 * n].to_vec()).collect();
-    Some((x, inv))
+/// Solves the normal equations `a x = b` of one passive set (columns scaled to unit norm, so
+/// the absolute pivot threshold is relative); returns the inverse as well. `None` if singular.
+fn solve(a: &DMatrix<f64>, b: &DVector<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
+    crate::linear::solve_with_inverse(a, b, 1e-13)
 }
 
 /// Fits the five IEEE terms to an ADEV/OADEV curve (see the module docs). The curve's EDF
@@ -203,12 +172,12 @@ pub fn fit_terms(curve: &DevCurve) -> Result<NoiseTerms, NoiseError> {
     let (rss, c, set, inv, scale) = result.expect("IRLS_PASSES > 0");
     let rows = weighted_rows(&pts, Some(&c));
     let normal = |set: &[usize]| normal_equations(&rows, &scale, set);
-    let full = solve(&normal(&[0, 1, 2, 3, 4]).0, &[0.0; 5]).map(|(_, inv)| inv);
+    let full = solve(&normal(&[0, 1, 2, 3, 4]).0, &DVector::zeros(5)).map(|(_, inv)| inv);
     let term = |j: usize| -> Term {
         let var_c = if let Some(k) = set.iter().position(|&s| s == j) {
-            inv[k][k] / (scale[j] * scale[j])
+            inv[(k, k)] / (scale[j] * scale[j])
         } else if let Some(f) = &full {
-            f[j][j] / (scale[j] * scale[j])
+            f[(j, j)] / (scale[j] * scale[j])
         } else {
             f64::NAN
         };
@@ -272,30 +241,25 @@ fn weighted_rows(pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Rows {
         .collect()
 }
 
-fn normal_equations(rows: &Rows, scale: &[f64; 5], set: &[usize]) -> (Vec<Vec<f64>>, Vec<f64>) {
-    let ata = set
-        .iter()
-        .map(|&i| {
-            set.iter()
-                .map(|&j| {
-                    rows.iter()
-                        .map(|(a, _)| a[i] / scale[i] * a[j] / scale[j])
-                        .sum()
-                })
-                .collect()
-        })
-        .collect();
-    let atb = set
-        .iter()
-        .map(|&i| rows.iter().map(|(a, b)| a[i] / scale[i] * b).sum())
-        .collect();
+fn normal_equations(rows: &Rows, scale: &[f64; 5], set: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
+    let n = set.len();
+    let ata = DMatrix::from_fn(n, n, |r, c| {
+        let (i, j) = (set[r], set[c]);
+        rows.iter()
+            .map(|(a, _)| a[i] / scale[i] * a[j] / scale[j])
+            .sum()
+    });
+    let atb = DVector::from_fn(n, |r, _| {
+        let i = set[r];
+        rows.iter().map(|(a, b)| a[i] / scale[i] * b).sum()
+    });
     (ata, atb)
 }
 
 /// Best passive-set solution: (cost, coefficients, passive set, inverse normal matrix).
-type Candidate = (f64, [f64; 5], Vec<usize>, Vec<Vec<f64>>);
+type Candidate = (f64, [f64; 5], Vec<usize>, DMatrix<f64>);
 
-type Pass = (f64, [f64; 5], Vec<usize>, Vec<Vec<f64>>, [f64; 5]);
+type Pass = (f64, [f64; 5], Vec<usize>, DMatrix<f64>, [f64; 5]);
 
 /// One exact NNLS solve over all 31 non-empty passive sets.
 fn nnls_pass(pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Result<Pass, NoiseError> {

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use imu_analysis::allan::{Kind, Options, TauSet, deviation};
+use imu_stats::allan::{Kind, Options, TauSet, deviation};
 
 fn peer_script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/python/allantools_peer.py")

@@ -2,7 +2,7 @@
 //! 1000-point sets, /work/shared/reference/allan-reference-values.md) to 1e-4 relative, and the
 //! streaming OADEV against the batch computation.
 
-use imu_analysis::allan::{
+use imu_stats::allan::{
     DevCurve, Kind, Options, StreamingOadev, TauSet, deviation, deviation_from_phase,
 };
 

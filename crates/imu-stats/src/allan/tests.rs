@@ -1,0 +1,116 @@
+//! Tests of the Allan family against direct sums, every kernel path and the streaming form.
+
+use pulp::{Arch, Simd};
+
+use super::kernels::*;
+use super::*;
+
+#[test]
+fn tau_sets() {
+    assert_eq!(TauSet::Octave.factors(10), vec![1, 2, 4, 8]);
+    assert_eq!(
+        TauSet::PerDecade(3).factors(100),
+        vec![1, 2, 5, 10, 22, 46, 100]
+    );
+    assert_eq!("5-per-decade".parse::<TauSet>(), Ok(TauSet::PerDecade(5)));
+    assert!("x".parse::<TauSet>().is_err());
+}
+
+/// Every kernel path (octave runs, other tau groups, per-tau leftovers, block edges, vector
+/// tails) on both the scalar and the best SIMD instruction set, against the plain sum.
+#[test]
+fn second_difference_kernels_equal_the_plain_sum() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut walk = 0.0;
+    let x: Vec<f64> = (0..2 * BLOCK + 1237)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            walk += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            walk
+        })
+        .collect();
+    let plain = |m: usize| -> f64 {
+        (0..x.len() - 2 * m)
+            .map(|i| {
+                let d = x[i + 2 * m] - 2.0 * x[i + m] + x[i];
+                d * d
+            })
+            .sum()
+    };
+    let max_m = (x.len() - 1) / 2;
+    for ms in [
+        TauSet::Octave.factors(max_m),
+        TauSet::PerDecade(7).factors(max_m),
+        vec![
+            1, 2, 3, 5, 6, 12, 24, 25, 50, 100, 101, 202, 404, 808, 1616, 3232, max_m,
+        ],
+        vec![max_m],
+    ] {
+        let range = 0..x.len() - 2 * ms[0];
+        let scalar = pulp::Scalar::new().vectorize(BlockedPass {
+            x: &x,
+            ms: &ms,
+            range: range.clone(),
+        });
+        let best = Arch::new().dispatch(BlockedPass {
+            x: &x,
+            ms: &ms,
+            range,
+        });
+        for (k, &m) in ms.iter().enumerate() {
+            let want = plain(m);
+            for got in [scalar[k], best[k], second_difference_sum_sq(&x, m)] {
+                assert!((got / want - 1.0).abs() < 1e-12, "m {m}: {got} vs {want}");
+            }
+        }
+    }
+}
+
+/// A long series (phase on two threads, in the huge-page array, sums on two threads) gives
+/// the same curve as its phase in a plain `Vec`, and the same sums as one thread.
+#[test]
+fn long_series_phase_array_equals_the_vec_phase() {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let y: Vec<f64> = (0..PARALLEL_MIN_PHASE_POINTS + 4321)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        })
+        .collect();
+    let mut mapped = LongArray::zeros(y.len() + 1);
+    assert!(matches!(mapped, LongArray::Mapped(_)));
+    integrate_into(&y, 0.01, &mut mapped);
+    let plain = phase_from_rate(&y, 0.01);
+    assert!(mapped.iter().eq(plain.iter()));
+    let o = Options::default();
+    let a = deviation(Kind::Oadev, &y, 0.01, &o).expect("long");
+    let b = deviation_from_phase(Kind::Oadev, &plain, 0.01, &o).expect("long");
+    assert_eq!(a, b);
+    // The two-thread chunked sums equal one single-threaded pass.
+    let ms = TauSet::Octave.factors(Kind::Oadev.max_m(plain.len()));
+    let one = Arch::new().dispatch(BlockedPass {
+        x: &plain,
+        ms: &ms,
+        range: 0..plain.len() - 2,
+    });
+    for (p, q) in oadev_sums(&plain, &ms).iter().zip(&one) {
+        assert!((p / q - 1.0).abs() < 1e-12, "{p} vs {q}");
+    }
+}
+
+#[test]
+fn errors_say_what_is_wrong() {
+    let o = Options::default();
+    assert!(matches!(
+        deviation(Kind::Oadev, &[1.0], 1.0, &o),
+        Err(AllanError::TooShort { .. })
+    ));
+    assert!(matches!(
+        deviation(Kind::Oadev, &[1.0, 2.0, 3.0], 0.0, &o),
+        Err(AllanError::BadPeriod { .. })
+    ));
+}

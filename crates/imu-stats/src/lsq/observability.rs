@@ -1,0 +1,121 @@
+//! What the data determine: the numeric Jacobian, the parameters the data cannot separate
+//! (held and named before the fit) and the weakest parameter combination after it.
+
+use nalgebra::{DMatrix, Dyn, SymmetricEigen};
+
+use super::{LsqOptions, Residuals, Unobservable};
+
+/// Numeric Jacobian of `f` at `p` with respect to the parameters `free` (central differences,
+/// step `1e-6 max(|p_i|, 1e-3)`).
+pub fn jacobian<R: Residuals + ?Sized>(f: &mut R, p: &[f64], free: &[usize]) -> DMatrix<f64> {
+    let mut q = p.to_vec();
+    let mut j: Option<DMatrix<f64>> = None;
+    for (c, &i) in free.iter().enumerate() {
+        let h = 1e-6 * p[i].abs().max(1e-3);
+        q[i] = p[i] + h;
+        let up = f.residuals(&q);
+        q[i] = p[i] - h;
+        let down = f.residuals(&q);
+        q[i] = p[i];
+        let j = j.get_or_insert_with(|| DMatrix::zeros(up.len(), free.len()));
+        j.set_column(c, &((up - down) / (2.0 * h)));
+    }
+    j.unwrap_or_else(|| DMatrix::zeros(f.residuals(p).len(), 0))
+}
+
+/// Column norms and the eigen-decomposition of the normalised normal matrix.
+fn normalised_eigen(j: &DMatrix<f64>) -> (Vec<f64>, SymmetricEigen<f64, Dyn>) {
+    let norms: Vec<f64> = (0..j.ncols()).map(|c| j.column(c).norm()).collect();
+    let mut jn = j.clone();
+    for (c, n) in norms.iter().enumerate() {
+        jn.column_mut(c).unscale_mut(n.max(1e-300));
+    }
+    (norms, SymmetricEigen::new(jn.transpose() * &jn))
+}
+
+/// Index and value of the smallest eigenvalue.
+fn smallest(eig: &SymmetricEigen<f64, Dyn>) -> (usize, f64) {
+    eig.eigenvalues
+        .iter()
+        .copied()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("non-empty")
+}
+
+/// Drop from `free` the parameters the Jacobian at `p` cannot separate: zero columns first,
+/// then, while the normalised normal matrix has an eigenvalue below `opts.min_eigenvalue`,
+/// the parameter with a large share (|component| > 0.1) in that eigenvector that comes LAST
+/// in `free`. `names` is in the layout of `p`.
+pub fn find_unobservable<R: Residuals + ?Sized>(
+    f: &mut R,
+    p: &[f64],
+    free: &mut Vec<usize>,
+    names: &[String],
+    opts: &LsqOptions,
+) -> Vec<Unobservable> {
+    let mut out = Vec::new();
+    while !free.is_empty() {
+        let j = jacobian(f, p, free);
+        let (norms, eig) = normalised_eigen(&j);
+        let max_norm = norms.iter().copied().fold(0.0, f64::max);
+        if let Some(c) = norms
+            .iter()
+            .position(|n| *n <= 1e-12 * max_norm.max(1e-300))
+        {
+            out.push(Unobservable {
+                name: names[free[c]].clone(),
+                reason: "the data do not excite it (zero Jacobian column)".into(),
+            });
+            free.remove(c);
+            continue;
+        }
+        let (k, lam) = smallest(&eig);
+        if lam >= opts.min_eigenvalue {
+            break;
+        }
+        let v = eig.eigenvectors.column(k);
+        let involved: Vec<usize> = (0..free.len()).filter(|&c| v[c].abs() > 0.1).collect();
+        let drop = *involved.last().unwrap_or(&(free.len() - 1));
+        let others: Vec<&str> = involved
+            .iter()
+            .filter(|&&c| c != drop)
+            .map(|&c| names[free[c]].as_str())
+            .collect();
+        let with = if others.is_empty() {
+            "other parameters".to_string()
+        } else {
+            others.join(", ")
+        };
+        out.push(Unobservable {
+            name: names[free[drop]].clone(),
+            reason: format!(
+                "collinear with {with} in these data (eigenvalue {lam:.1e} of the normalised \
+                 normal matrix){}",
+                opts.collinear_advice
+            ),
+        });
+        free.remove(drop);
+    }
+    out
+}
+
+/// The weakest parameter combination of a Jacobian.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Weakest {
+    /// Smallest eigenvalue of the normalised normal matrix (1 = independent, 0 = inseparable).
+    pub eigenvalue: f64,
+    /// Columns with a large share (|component| > 0.3) in its eigenvector.
+    pub members: Vec<usize>,
+}
+
+/// The weakest combination of the columns of `j` (at least one column).
+pub fn weakest_combination(j: &DMatrix<f64>) -> Weakest {
+    let (_, eig) = normalised_eigen(j);
+    let (k, eigenvalue) = smallest(&eig);
+    let v = eig.eigenvectors.column(k);
+    Weakest {
+        eigenvalue,
+        members: (0..j.ncols()).filter(|&c| v[c].abs() > 0.3).collect(),
+    }
+}

@@ -1,0 +1,112 @@
+//! Tests of the least-squares engine on problems with known answers.
+
+use nalgebra::DVector;
+
+use super::*;
+/// A straight line through noisy points: the fit, its standard errors (scaled by the
+/// scatter) and an unobservable duplicate parameter.
+#[test]
+fn fits_a_line_and_names_a_duplicate_parameter() {
+    let xs: Vec<f64> = (0..20).map(|i| i as f64).collect();
+    // Deterministic +/-0.5 scatter, so the reduced chi-square with sigma = 0.1 is large.
+    let ys: Vec<f64> = xs
+        .iter()
+        .enumerate()
+        .map(|(i, x)| 2.0 + 0.5 * x + if i % 2 == 0 { 0.5 } else { -0.5 })
+        .collect();
+    let sigma = 0.1;
+    let f = |p: &[f64]| {
+        DVector::from_iterator(
+            xs.len(),
+            xs.iter()
+                .zip(&ys)
+                .map(|(x, y)| (p[0] + p[2] + p[1] * x - y) / sigma),
+        )
+    };
+    let names: Vec<String> = ["a", "b", "a2"].iter().map(|s| s.to_string()).collect();
+    let s = least_squares(f, &[0.0, 0.0, 0.0], &[], &names, &LsqOptions::default()).unwrap();
+    assert_eq!(s.free, vec![0, 1]);
+    assert_eq!(s.unobservable.len(), 1);
+    assert_eq!(s.unobservable[0].name, "a2");
+    assert!(s.unobservable[0].reason.contains("collinear with a"));
+    assert!((s.params[1] - 0.5).abs() < 0.01, "{:?}", s.params);
+    assert!((s.params[0] - 2.0).abs() < 0.3, "{:?}", s.params);
+    assert_eq!(s.std_errors[2], None);
+    // Ordinary least squares of a line: se(b) = s / sqrt(sum (x - mean)^2), with s the
+    // residual standard deviation (the chi-square scaling replaces the stated 0.1).
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    let sxx: f64 = xs.iter().map(|x| (x - mean).powi(2)).sum();
+    let res_sd = (s.chi2 / s.dof as f64).sqrt() * sigma;
+    let want = res_sd / sxx.sqrt();
+    assert!(
+        (s.std_errors[1].unwrap() / want - 1.0).abs() < 1e-4,
+        "{:?} vs {want}",
+        s.std_errors[1]
+    );
+    assert!(s.reduced_chi2 > 10.0);
+    assert!(s.converged);
+
+    let e = least_squares(
+        |p: &[f64]| DVector::from_vec(vec![p[0] - 1.0, p[1] - 2.0]),
+        &[0.0, 0.0],
+        &[],
+        &names[..2],
+        &LsqOptions::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, LsqError::TooFewResiduals { .. }), "{e}");
+}
+
+/// Holding a rejected parameter at 0 and refitting: the loop ends when the caller accepts,
+/// with what was held in order.
+#[test]
+fn refit_holding_holds_what_the_caller_rejects() {
+    let xs: Vec<f64> = (0..30).map(|i| i as f64 / 10.0).collect();
+    // y = 1 + 2 x exactly; a quadratic term would fit to ~0 but the caller forbids any value
+    // of it (say, a model that must stay monotonic), so it is held.
+    let ys: Vec<f64> = xs.iter().map(|x| 1.0 + 2.0 * x).collect();
+    let names: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+    let (sol, held) = refit_holding(
+        |held: &[usize]| {
+            let fixed: Vec<bool> = (0..3).map(|i| held.contains(&i)).collect();
+            let f = |p: &[f64]| {
+                DVector::from_iterator(
+                    xs.len(),
+                    xs.iter()
+                        .zip(&ys)
+                        .map(|(x, y)| (p[0] + p[1] * x + p[2] * x * x - y) / 0.01),
+                )
+            };
+            least_squares(f, &[0.0, 0.0, 0.0], &fixed, &names, &LsqOptions::default())
+        },
+        |s: &LsqSolution, held: &[usize]| {
+            Ok((!held.contains(&2) && s.params[2] != 0.0).then_some(2))
+        },
+    )
+    .unwrap();
+    assert_eq!(held, vec![2]);
+    assert_eq!(sol.params[2], 0.0);
+    assert_eq!(sol.free, vec![0, 1]);
+    assert!((sol.params[1] - 2.0).abs() < 1e-9);
+}
+
+/// A collinear parameter's reason carries the caller's advice.
+#[test]
+fn collinear_advice_is_appended() {
+    let names: Vec<String> = ["a", "b"].iter().map(|s| s.to_string()).collect();
+    let opts = LsqOptions {
+        collinear_advice: "; vary the input".into(),
+        ..LsqOptions::default()
+    };
+    let f = |p: &[f64]| DVector::from_iterator(5, (0..5).map(|i| p[0] + p[1] - i as f64));
+    let s = least_squares(f, &[0.0, 0.0], &[], &names, &opts).unwrap();
+    assert_eq!(s.unobservable[0].name, "b");
+    assert!(
+        s.unobservable[0]
+            .reason
+            .ends_with("matrix); vary the input"),
+        "{:?}",
+        s.unobservable
+    );
+}
