@@ -8,11 +8,11 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 
+use imu_analysis::characterize::{dynamic, impact, thermal};
 use imu_analysis::input::{ImuSeries, InputError, Source};
-use imu_analysis::plot::{Chart, write_svg};
 use imu_analysis::progress::read_any;
-use imu_analysis::report::{self, Section};
-use imu_analysis::{dynamic, impact, thermal};
+use imu_analysis::render::html::{self, Section};
+use imu_analysis::render::svg::{Chart, write_svg};
 
 /// Offline thermal, impact and dynamic tests of IMU recordings.
 #[derive(Debug, Parser)]
@@ -217,7 +217,7 @@ fn emit(
         }
     }
     if let Some(path) = &output.html {
-        let page = report::page(&section.title, std::slice::from_ref(&section));
+        let page = html::page(&section.title, std::slice::from_ref(&section));
         std::fs::write(path, page).with_context(|| format!("writing {}", path.display()))?;
     }
     let mut out = io::stdout().lock();
@@ -288,7 +288,7 @@ fn run(args: &Args) -> Result<()> {
             text.push_str(&r.confounding.note);
             text.push('\n');
             let charts = thermal::charts(&r);
-            let section = report::thermal_section(&r, &charts);
+            let section = html::thermal_section(&r, &charts);
             emit(output, &r, &text, section, &charts, "thermal")
         }
         Command::Impact {
@@ -327,7 +327,7 @@ fn run(args: &Args) -> Result<()> {
                 ));
             }
             let charts = impact::charts(&series, &r);
-            let section = report::impact_section(&r, &charts);
+            let section = html::impact_section(&r, &charts);
             emit(output, &r, &text, section, &charts, "impact")
         }
         Command::Dynamic {
@@ -380,7 +380,7 @@ fn run(args: &Args) -> Result<()> {
             let r = dynamic::compare(&reference, raw, corrected);
             let text = format!("{}\n", r.summary);
             let charts = dynamic::charts(&r);
-            let section = report::dynamic_section(&r, &charts);
+            let section = html::dynamic_section(&r, &charts);
             emit(output, &r, &text, section, &charts, "dynamic")
         }
     }

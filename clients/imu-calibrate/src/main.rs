@@ -11,14 +11,14 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, ArgMatches, CommandFactory, FromArgMatches, Parser};
 use imu_analysis::Source;
-use imu_analysis::fit::{
+use imu_analysis::calibrate::reference_free::{
+    ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
+};
+use imu_analysis::calibrate::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate_recordings,
 };
 use imu_analysis::progress::read_any;
 use imu_analysis::reference::Reference;
-use imu_analysis::reference_free::{
-    ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
-};
 use imu_analysis::segment::SegmentKind;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;

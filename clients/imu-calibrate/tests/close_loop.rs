@@ -259,7 +259,7 @@ fn calibration_file_from_imu_calibrate_corrects_a_new_session_in_imud() {
 /// up to 2e-3 rad/s at 1 g: several times the noise of a segment mean.)
 #[test]
 fn workbench_ladder_calibration_corrects_a_new_session_in_imud() {
-    use imu_analysis::diagnose::{DiagnoseOptions, Workbench};
+    use imu_analysis::workbench::{DiagnoseOptions, Workbench};
     use imu_model::Triad;
     let dir = tempfile::tempdir().unwrap();
     let scenario = config_path("scenarios/workbench-demo.toml");

@@ -10,10 +10,12 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
-use imu_analysis::diagnose::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::input::read_any;
 use imu_analysis::reference::Reference;
-use imu_analysis::report::{Section, diagnose_section, ladder_section, page, verdict_section};
+use imu_analysis::render::html::{
+    Section, diagnose_section, ladder_section, page, verdict_section,
+};
+use imu_analysis::workbench::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::{ImuSeries, segment::SegmentKind};
 use imu_model::{Calibration, EffectKind, InputFile, Triad, TriadModel};
 use serde::Serialize;
@@ -406,7 +408,7 @@ fn print_ladder(out: &mut impl Write, steps: &[LadderStep]) -> std::io::Result<(
         let added = s
             .added
             .map_or_else(|| "base model".to_string(), |(t, k)| format!("{t} {k}"));
-        let cell = |x: &imu_analysis::diagnose::StepSummary| {
+        let cell = |x: &imu_analysis::workbench::StepSummary| {
             let axes: Vec<String> = (0..3)
                 .map(|a| format!("{:.2e}/{:.2e}", x.residual_rms[a], x.noise_floor_rms[a]))
                 .collect();

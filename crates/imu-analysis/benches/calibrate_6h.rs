@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use imu_analysis::fit::{CalibrateOptions, bias_drift_from_noise, calibrate};
+use imu_analysis::calibrate::{CalibrateOptions, bias_drift_from_noise, calibrate};
 use imu_analysis::input::{CsvOptions, Source, read_any};
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::{SegmentKind, SegmentOptions, detect};

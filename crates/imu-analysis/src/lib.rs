@@ -1,25 +1,30 @@
-//! Offline analyses of IMU recordings, shared by the client binaries: reading inputs (imud
-//! recordings, rosbag2 MCAP with `sensor_msgs/msg/Imu`, CSV) into SI time series; Allan-family
-//! deviations and IEEE noise terms; small SVG charts.
+//! Offline analyses of IMU recordings, with IMU meaning, on top of `imu-stats` (numerics) and
+//! `imu-model` (the error model). Layers, lowest first; a module imports only from layers below
+//! it (or its own children):
+//!
+//! - [`input`]: imud recordings, rosbag2 MCAP (`sensor_msgs/msg/Imu`) and CSV -> [`ImuSeries`].
+//! - [`segment`]: static intervals and rate plateaus, thresholds from the data.
+//! - [`reference`]: the true input of each segment: a test plan, a reference log or the
+//!   simulator's truth (leaves `segment_truth` and `direction` below `plan`, `log`, `truth`).
+//! - [`calibrate`]: fits of the error model to segments (and reference-free, to still poses and
+//!   the moves between them); the calibration file imud loads.
+//! - [`characterize`]: thermal, impact and dynamic tests.
+//! - [`workbench`]: the model workbench: noise floor, verdicts, candidates, the ladder.
+//! - [`render`]: SVG charts (a leaf the analyses draw with) and HTML report pages.
+//! - [`provenance`]: input hashes for the files the tools write.
 //!
 //! No device I/O and no tokio here: these are pure computations over files.
 
+pub mod calibrate;
+pub mod characterize;
 pub mod cli;
-pub mod diagnose;
-pub mod dynamic;
-pub mod fit;
-pub mod impact;
 pub mod input;
-pub mod plan;
-pub mod plot;
 #[cfg(feature = "progress")]
 pub mod progress;
 pub mod provenance;
 pub mod reference;
-pub mod reference_free;
-pub mod reference_log;
-pub mod report;
+pub mod render;
 pub mod segment;
-pub mod thermal;
+pub mod workbench;
 
 pub use input::{ImuSeries, InputError, Source};

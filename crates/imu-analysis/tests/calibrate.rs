@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use imu_analysis::ImuSeries;
-use imu_analysis::fit::{
+use imu_analysis::calibrate::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{Source, read_mcap};

@@ -8,10 +8,10 @@
 //! outside the library must not be blamed on a library effect.
 
 use imu_analysis::ImuSeries;
-use imu_analysis::diagnose::{DiagnoseOptions, Ladder, TriadDiagnosis, Workbench};
 use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
+use imu_analysis::workbench::{DiagnoseOptions, Ladder, TriadDiagnosis, Workbench};
 use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, Triad, TriadModel};
 
@@ -256,7 +256,7 @@ fn assert_found_by(wb: &Workbench, triad: Triad, effect: EffectKind, max_ratio: 
 }
 
 /// Residual RMS over the noise floor RMS, all three axes together.
-fn rms_ratio(s: &imu_analysis::diagnose::StepSummary) -> f64 {
+fn rms_ratio(s: &imu_analysis::workbench::StepSummary) -> f64 {
     let sq = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
     (sq(&s.residual_rms) / sq(&s.noise_floor_with_drift_rms)).sqrt()
 }
@@ -555,7 +555,9 @@ fn ladder_finds_two_hidden_effects() {
 
 #[test]
 fn report_sections_show_the_verdict_the_ladder_and_charts() {
-    use imu_analysis::report::{diagnose_section, escape, ladder_section, page, verdict_section};
+    use imu_analysis::render::html::{
+        diagnose_section, escape, ladder_section, page, verdict_section,
+    };
     let run = record(
         INDEX_TABLE,
         "[gyro.g-sensitivity]\nmatrix = [[1.5e-4, 0.0, 0.5e-4], [0.0, -1.2e-4, 0.0], [0.6e-4, 0.0, 2.0e-4]]\n",

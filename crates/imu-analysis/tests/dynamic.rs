@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use imu_analysis::dynamic::{DynamicOptions, Reference, analyze, compare};
+use imu_analysis::characterize::dynamic::{DynamicOptions, Reference, analyze, compare};
 use imu_analysis::input::{Source, read_mcap};
 
 const SCENARIO: &str = r#"

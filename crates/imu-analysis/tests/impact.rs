@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use imu_analysis::impact::{ImpactOptions, analyze};
+use imu_analysis::characterize::impact::{ImpactOptions, analyze};
 use imu_analysis::input::{Source, read_mcap};
 
 const COUNT: usize = 30;

@@ -9,13 +9,13 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use imu_analysis::ImuSeries;
-use imu_analysis::fit::{
+use imu_analysis::calibrate::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{Source, read_mcap};
-use imu_analysis::plan::Plan;
 use imu_analysis::reference::Reference;
-use imu_analysis::reference_log::ReferenceLog;
+use imu_analysis::reference::log::ReferenceLog;
+use imu_analysis::reference::plan::Plan;
 use imu_analysis::segment::SegmentKind;
 use imu_bus::truth::{Truth, read_truth};
 use imu_model::units::EARTH_RATE_RAD_S;
@@ -459,7 +459,7 @@ fn table_log_csv(truth: &Truth, offset_s: f64) -> String {
         let up = seg
             .axis_sensor
             .map_or(-Vec3::from(seg.gravity_dir_sensor), Vec3::from);
-        let a = imu_analysis::plan::format_direction(&up);
+        let a = imu_analysis::reference::direction::format_direction(&up);
         if (seg.kind == "static" || seg.kind == "rate") && a != axis {
             csv.push_str(&format!("# table-axis = {a}\n"));
             axis = a;
@@ -492,7 +492,7 @@ fn a_rate_tables_one_column_log_gives_the_gyro_gains_of_the_truth() {
     let axes: Vec<String> = table
         .axis_lines
         .iter()
-        .map(|(_, _, a)| imu_analysis::plan::format_direction(&Vec3::from(*a)))
+        .map(|(_, _, a)| imu_analysis::reference::direction::format_direction(&Vec3::from(*a)))
         .collect();
     assert_eq!(axes, ["+z", "+x", "+y"]);
     let aligned = log.align(&run.series).unwrap();

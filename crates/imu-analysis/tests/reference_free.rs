@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use imu_analysis::ImuSeries;
-use imu_analysis::fit::{CalibrateOptions, bias_drift_from_noise, calibrate};
-use imu_analysis::input::{Source, read_mcap};
-use imu_analysis::reference::Reference;
-use imu_analysis::reference_free::{
+use imu_analysis::calibrate::reference_free::{
     ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
 };
+use imu_analysis::calibrate::{CalibrateOptions, bias_drift_from_noise, calibrate};
+use imu_analysis::input::{Source, read_mcap};
+use imu_analysis::reference::Reference;
 use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, TriadModel};
 
@@ -269,7 +269,7 @@ fn reference_free_recovers_the_truth_within_its_standard_errors() {
 /// over random poses: with that term fitted the bias costs more (measured: ~2.6-4.5 x).
 #[test]
 fn reference_free_is_about_as_precise_as_an_index_table() {
-    use imu_analysis::fit::{FitOptions, FitPoint, fit_triad};
+    use imu_analysis::calibrate::{FitOptions, FitPoint, fit_triad};
     use imu_analysis::segment::{SegmentKind, detect};
     use imu_model::{Conditions, Triad, Vec3};
 

@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
+use imu_analysis::characterize::thermal::{ThermalOptions, ThermalReport, analyze};
 use imu_analysis::input::{Source, read_mcap};
-use imu_analysis::thermal::{ThermalOptions, ThermalReport, analyze};
 
 /// 40 minutes static while warming 22 -> 38 deg C with a 10-minute time constant.
 const SCENARIO: &str = r#"

@@ -10,7 +10,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::input::ImuSeries;
-use crate::plot::{Chart, Series, Style};
+use crate::render::svg::{Chart, Series, Style};
 use imu_stats::descriptive::correlation;
 use imu_stats::linear::ordinary_least_squares;
 

@@ -11,7 +11,7 @@
 use serde::Serialize;
 
 use crate::input::ImuSeries;
-use crate::plot::{Chart, Series, Style};
+use crate::render::svg::{Chart, Series, Style};
 use imu_stats::descriptive::{mean, std_dev};
 use imu_stats::linear::ordinary_least_squares;
 

@@ -5,11 +5,11 @@
 
 use std::fmt::Write as _;
 
-use crate::diagnose::{LadderStep, StepSummary, TriadDiagnosis};
-use crate::dynamic::{DynamicReport, DynamicRun};
-use crate::impact::{ImpactReport, Stats};
-use crate::plot::{Chart, Series, Style, render_svg};
-use crate::thermal::ThermalReport;
+use crate::characterize::dynamic::{DynamicReport, DynamicRun};
+use crate::characterize::impact::{ImpactReport, Stats};
+use crate::characterize::thermal::ThermalReport;
+use crate::render::svg::{Chart, Series, Style, render_svg};
+use crate::workbench::{LadderStep, StepSummary, TriadDiagnosis};
 
 /// One titled HTML fragment.
 #[derive(Debug, Clone, PartialEq)]
@@ -435,7 +435,7 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
 /// most), the pooled Allan deviation of the noise floor, spectral lines, the ranked candidates
 /// and ambiguities, and the model change for the top claimed candidate. `signals` are the
 /// workbench's explanatory signals for this triad
-/// ([`Workbench::signal_values`](crate::diagnose::Workbench::signal_values)), in the order of
+/// ([`Workbench::signal_values`](crate::workbench::Workbench::signal_values)), in the order of
 /// `d.segments`; pass an empty slice to leave the correlate charts out.
 pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Section {
     let triad = d.triad.to_string();

@@ -13,7 +13,7 @@ use imu_stats::linear::ordinary_least_squares;
 use serde::Serialize;
 
 use crate::input::ImuSeries;
-use crate::plot::{Chart, Series, Style};
+use crate::render::svg::{Chart, Series, Style};
 
 const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
 

@@ -6,7 +6,7 @@
 //! keeps the output deterministic (tests compare it) and costs about 300 lines.
 //!
 //! ```
-//! use imu_analysis::plot::{Chart, Series, Style, render_svg};
+//! use imu_analysis::render::svg::{Chart, Series, Style, render_svg};
 //! let chart = Chart {
 //!     title: "ADEV".into(),
 //!     x_label: "tau [s]".into(),

@@ -1,0 +1,205 @@
+//! The accel fit against the gravity magnitude at each pose, with the rotation gauge held.
+
+use super::*;
+
+/// The accel fit from the gravity magnitude at each pose.
+pub(super) struct AccelOutcome {
+    pub(super) fit: TriadFit,
+    pub(super) up: Vec<Vec3>,
+    pub(super) magnitude_error_m_s2: Vec<f64>,
+}
+
+pub(super) fn fit_accel(
+    series: &ImuSeries,
+    poses: &[&Segment],
+    opts: &ReferenceFreeOptions,
+    g_m_s2: f64,
+    still_s: f64,
+) -> Result<AccelOutcome, ReferenceFreeError> {
+    let triad = Triad::Accel;
+    let mut model = opts.accel.effects_only();
+    let names = model.param_names(triad);
+    let units = model.param_units(triad);
+    let mut p0 = model.params();
+    let gauge: Vec<usize> = GAUGE
+        .iter()
+        .filter_map(|g| names.iter().position(|n| n == g))
+        .collect();
+    let mut fixed = held(triad, &names, &opts.hold);
+    let requested = fixed.clone();
+    for &i in &gauge {
+        p0[i] = 0.0;
+        fixed[i] = true;
+    }
+    let n_free = fixed.iter().filter(|f| !**f).count();
+    if poses.len() <= n_free {
+        return Err(ReferenceFreeError::TooFewPoses {
+            triad,
+            found: poses.len(),
+            needed: n_free + 1,
+            n_free,
+            what: model
+                .kinds()
+                .iter()
+                .map(|k| k.id())
+                .collect::<Vec<_>>()
+                .join(", "),
+            still_s,
+        });
+    }
+    let measured: Vec<Vec3> = poses.iter().map(|s| s.mean_accel()).collect();
+    let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
+    // The error of |mean| is the mean's error along the gravity direction.
+    let sigma_m_s2: Vec<f64> = poses
+        .iter()
+        .zip(&measured)
+        .map(|(s, m)| {
+            let u = m.normalize();
+            let se = mean_se(s.std_accel_m_s2, s.n);
+            (0..3)
+                .map(|a| (u[a] * se[a]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                .max(1e-12)
+        })
+        .collect();
+    let mut work = model.clone();
+    let residual = |p: &[f64]| {
+        work.set_params(p);
+        DVector::from_iterator(
+            measured.len(),
+            measured
+                .iter()
+                .zip(&conditions)
+                .zip(&sigma_m_s2)
+                .map(|((m, c), s)| (work.inverse(*m, c).norm() - g_m_s2) / s),
+        )
+    };
+    let sol =
+        least_squares(residual, &p0, &fixed, &names, &opts.lsq).map_err(|source| match source {
+            LsqError::TooFewResiduals { n_free, .. } => ReferenceFreeError::TooFewPoses {
+                triad,
+                found: poses.len(),
+                needed: n_free + 1,
+                n_free,
+                what: "after dropping unobservable parameters".into(),
+                still_s,
+            },
+            source => ReferenceFreeError::Lsq { triad, source },
+        })?;
+    let primary: Vec<&Unobservable> = sol
+        .unobservable
+        .iter()
+        .filter(|u| {
+            ["bias.", "scale.", "misalignment."]
+                .iter()
+                .any(|p| u.name.starts_with(p))
+        })
+        .collect();
+    if !primary.is_empty() {
+        return Err(ReferenceFreeError::Unobservable {
+            names: primary
+                .iter()
+                .map(|u| u.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            reason: primary[0].reason.clone(),
+        });
+    }
+
+    model.set_params(&sol.params);
+    let mut std_errors = sol.std_errors.clone();
+    if let Some(drift) = opts.accel_bias_drift_m_s2 {
+        for (a, axis) in ["bias.x", "bias.y", "bias.z"].iter().enumerate() {
+            if let Some(i) = names.iter().position(|n| n == axis)
+                && let Some(se) = std_errors[i].as_mut()
+            {
+                *se = (*se * *se + drift[a] * drift[a]).sqrt();
+            }
+        }
+    }
+    store_std_errors(&mut model, &std_errors, &gauge);
+
+    let corrected: Vec<Vec3> = measured
+        .iter()
+        .zip(&conditions)
+        .map(|(m, c)| model.inverse(*m, c))
+        .collect();
+    let magnitude_error_m_s2: Vec<f64> = corrected.iter().map(|f| f.norm() - g_m_s2).collect();
+    let up: Vec<Vec3> = corrected.iter().map(|f| f.normalize()).collect();
+    let n = corrected.len() as f64;
+    let rms = (magnitude_error_m_s2.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    // Per axis: the magnitude error as a vector along gravity.
+    let mut sq = [0.0; 3];
+    for (u, e) in up.iter().zip(&magnitude_error_m_s2) {
+        for a in 0..3 {
+            sq[a] += (u[a] * e).powi(2) / n;
+        }
+    }
+    model.residual_rms = Some(sq.map(f64::sqrt));
+
+    let mut warnings = conditioning_warnings(triad, &sol, &names, opts.weak_eigenvalue, "poses");
+    if poses.len() < 2 * n_free {
+        warnings.push(format!(
+            "accel: only {} poses for {n_free} parameters: standard errors are rough; {POSE_ADVICE}",
+            poses.len()
+        ));
+    }
+    let axis = ["x", "y", "z"];
+    for a in 0..3 {
+        let hi = up.iter().map(|u| u[a]).fold(f64::NEG_INFINITY, f64::max);
+        let lo = up.iter().map(|u| u[a]).fold(f64::INFINITY, f64::min);
+        // 0.7 ~ cos 45 degrees.
+        if hi < 0.7 || lo > -0.7 {
+            warnings.push(format!(
+                "accel {}: the axis never pointed within 45 degrees of {} (its gravity component \
+                 spans {lo:.2}..{hi:.2} g): {POSE_ADVICE}",
+                axis[a],
+                if hi < 0.7 && lo > -0.7 {
+                    "up or down"
+                } else if hi < 0.7 {
+                    "up"
+                } else {
+                    "down"
+                },
+            ));
+        }
+    }
+    let mut unobservable: Vec<Unobservable> = gauge
+        .iter()
+        .map(|&i| Unobservable {
+            name: names[i].clone(),
+            reason: "gauge: the gravity magnitude cannot see a rotation of the whole frame; held \
+                     at 0 so that the accelerometer axes define the body frame"
+                .into(),
+        })
+        .collect();
+    unobservable.extend(held_entries(&names, &requested));
+    unobservable.extend(sol.unobservable.iter().cloned());
+    Ok(AccelOutcome {
+        fit: TriadFit {
+            triad,
+            model,
+            names,
+            units,
+            params: sol.params.clone(),
+            std_errors,
+            free: sol.free.clone(),
+            correlation: sol.correlation.clone(),
+            unobservable,
+            residual: "|corrected specific force| - g at each still pose".into(),
+            residual_unit: "m/s^2".into(),
+            residual_rms: rms,
+            n_residuals: poses.len(),
+            chi2: sol.chi2,
+            dof: sol.dof,
+            reduced_chi2: sol.reduced_chi2,
+            min_eigenvalue: sol.min_eigenvalue,
+            iterations: sol.iterations,
+            converged: sol.converged,
+            warnings,
+        },
+        up,
+        magnitude_error_m_s2,
+    })
+}

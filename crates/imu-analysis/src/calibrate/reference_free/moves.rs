@@ -1,0 +1,168 @@
+//! The moves between poses: rate integrated to a rotation (quaternions), its noise, and the gyro
+//! gains fitted to the rotations.
+
+use super::*;
+
+/// One move prepared for integration.
+#[derive(Clone, Debug)]
+pub(crate) struct MoveData {
+    pub(super) from_pose: usize,
+    pub(super) to_pose: usize,
+    /// Gyro sample minus the interpolated still-pose rate, rad/s, from the last sample of the
+    /// pose before to the first of the pose after.
+    pub(super) rate_rad_s: Vec<Vec3>,
+    /// Sample interval from the line fitted to the times, s.
+    pub(super) step_s: f64,
+    /// Calibrated up direction at the pose before.
+    pub(super) up_before: Vec3,
+    /// Orthonormal basis of the plane normal to the calibrated up direction after.
+    pub(super) e1: Vec3,
+    pub(super) e2: Vec3,
+    /// Conditions for the gain model (those of the pose before).
+    pub(super) conditions: Conditions,
+    /// Expected noise of each residual component, rad.
+    pub(crate) sigma_rad: f64,
+}
+
+impl MoveData {
+    /// The rotation `sensor_before_from_sensor_after` integrated with the rate corrected by
+    /// `gains` (midpoint rule on consecutive samples).
+    pub(super) fn rotation(&self, gains: &TriadModel) -> UnitQuaternion<f64> {
+        let mut q = UnitQuaternion::identity();
+        let mut w0 = gains.inverse(self.rate_rad_s[0], &self.conditions);
+        for r in &self.rate_rad_s[1..] {
+            let w1 = gains.inverse(*r, &self.conditions);
+            q *= UnitQuaternion::from_scaled_axis((w0 + w1) * (0.5 * self.step_s));
+            w0 = w1;
+        }
+        q
+    }
+
+    /// Predicted minus measured up direction after the move, in the plane normal to the
+    /// measured one, rad.
+    pub(crate) fn residual(&self, gains: &TriadModel) -> [f64; 2] {
+        let predicted = self
+            .rotation(gains)
+            .inverse_transform_vector(&self.up_before);
+        [self.e1.dot(&predicted), self.e2.dot(&predicted)]
+    }
+}
+
+/// Two unit vectors completing `u` to an orthonormal basis.
+pub(super) fn normal_basis(u: Vec3) -> (Vec3, Vec3) {
+    let helper = if u.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let e1 = u.cross(&helper).normalize();
+    (e1, u.cross(&e1))
+}
+
+/// The gyro gain model `gains` fitted to the integrated rotations of `moves` (two whitened
+/// residuals per move), with the parameters marked in `fixed` held.
+pub(crate) fn fit_gains(
+    moves: &[MoveData],
+    gains: &TriadModel,
+    fixed: &[bool],
+    lsq: &LsqOptions,
+) -> Result<LsqSolution, LsqError> {
+    let mut work = gains.clone();
+    let residual = |p: &[f64]| {
+        work.set_params(p);
+        let mut r = DVector::zeros(2 * moves.len());
+        for (k, m) in moves.iter().enumerate() {
+            let [a, b] = m.residual(&work);
+            r[2 * k] = a / m.sigma_rad;
+            r[2 * k + 1] = b / m.sigma_rad;
+        }
+        r
+    };
+    let names = gains.param_names(Triad::Gyro);
+    least_squares(residual, &gains.params(), fixed, &names, lsq)
+}
+
+/// Prepares the moves between consecutive poses; returns them and the number skipped.
+pub(crate) fn prepare_moves(
+    series: &ImuSeries,
+    poses: &[&Segment],
+    up: &[Vec3],
+    conditions: &[Conditions],
+    g_m_s2: f64,
+) -> (Vec<MoveData>, usize) {
+    let mut out = Vec::new();
+    let mut skipped = 0;
+    for k in 0..poses.len().saturating_sub(1) {
+        let (a, b) = (poses[k], poses[k + 1]);
+        let lo = a.first_sample;
+        let hi = b.first_sample + b.n - 1;
+        let (i0, i1) = (a.first_sample + a.n - 1, b.first_sample);
+        if i1 <= i0 || hi <= lo {
+            skipped += 1;
+            continue;
+        }
+        let t = &series.t_s[lo..=hi];
+        let nominal_s = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+        if t.windows(2)
+            .any(|w| !(w[1] - w[0] > 0.0 && w[1] - w[0] < 1.5 * nominal_s))
+        {
+            // Lost samples: the rate over the gap is unknown.
+            skipped += 1;
+            continue;
+        }
+        // Straight line of time against sample index over both poses and the move.
+        let n = t.len() as f64;
+        let x_mean = (n - 1.0) / 2.0;
+        let t_mean = t.iter().sum::<f64>() / n;
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for (i, ti) in t.iter().enumerate() {
+            let dx = i as f64 - x_mean;
+            sxy += dx * (ti - t_mean);
+            sxx += dx * dx;
+        }
+        let period_s = sxy / sxx;
+        let time = |i: usize| t_mean + period_s * ((i - lo) as f64 - x_mean);
+        let mid_a = time(a.first_sample) + 0.5 * period_s * (a.n - 1) as f64;
+        let mid_b = time(b.first_sample) + 0.5 * period_s * (b.n - 1) as f64;
+        let (ga, gb) = (a.mean_gyro(), b.mean_gyro());
+        let weight_b = |t_s: f64| (t_s - mid_a) / (mid_b - mid_a);
+        let rate_rad_s: Vec<Vec3> = (i0..=i1)
+            .map(|i| {
+                let w = weight_b(time(i));
+                Vec3::from(series.gyro_rad_s[i]) - (ga * (1.0 - w) + gb * w)
+            })
+            .collect();
+        let duration_s = period_s * (i1 - i0) as f64;
+        // Integrals of the interpolation weights over the move, for the bias error.
+        let (mut int_a, mut int_b) = (0.0, 0.0);
+        for i in i0..i1 {
+            let w = 0.5 * (weight_b(time(i)) + weight_b(time(i + 1)));
+            int_a += (1.0 - w) * period_s;
+            int_b += w * period_s;
+        }
+        // Per-axis variances averaged over the axes: white gyro noise integrated over the
+        // move, the error of the two pose rates weighted by their share of the interpolation,
+        // and the error of the two gravity directions.
+        let mean_sq = |v: Vec3| v.norm_squared() / 3.0;
+        let white_var =
+            (mean_sq(Vec3::from(a.std_gyro_rad_s)) + mean_sq(Vec3::from(b.std_gyro_rad_s))) / 2.0;
+        let var_rad2 = white_var * period_s * duration_s
+            + int_a * int_a * mean_sq(mean_se(a.std_gyro_rad_s, a.n))
+            + int_b * int_b * mean_sq(mean_se(b.std_gyro_rad_s, b.n))
+            + (mean_sq(mean_se(a.std_accel_m_s2, a.n)) + mean_sq(mean_se(b.std_accel_m_s2, b.n)))
+                / (g_m_s2 * g_m_s2);
+        let (e1, e2) = normal_basis(up[k + 1]);
+        out.push(MoveData {
+            from_pose: k,
+            to_pose: k + 1,
+            rate_rad_s,
+            step_s: period_s,
+            up_before: up[k],
+            e1,
+            e2,
+            conditions: conditions[k],
+            sigma_rad: var_rad2.sqrt().max(1e-12),
+        });
+    }
+    (out, skipped)
+}

@@ -1,0 +1,7 @@
+//! The paper's characterisation tests beyond calibration: thermal (warm-up, temperature
+//! coefficients with coloured-noise significance, 3.1.3/3.2.3), impact (shock response and
+//! bias shifts, 3.3) and dynamic (integrated angle against a rate table, 3.4).
+
+pub mod dynamic;
+pub mod impact;
+pub mod thermal;

@@ -1,0 +1,142 @@
+//! Scoring and ranking candidate effects: merging a candidate into a model, claims and
+//! ambiguities, barely excited or unobservable candidates, parameter values.
+
+use super::*;
+
+/// `spec`'s effects with their values taken, by parameter name, from the first of `parts` that
+/// has them (else `spec`'s own).
+pub(super) fn merged(spec: &TriadModel, parts: &[&TriadModel]) -> TriadModel {
+    let t = Triad::Gyro;
+    let names = spec.param_names(t);
+    let mut p = spec.params();
+    for (i, n) in names.iter().enumerate() {
+        if let Some(v) = parts.iter().find_map(|m| {
+            m.param_names(t)
+                .iter()
+                .position(|x| x == n)
+                .map(|j| m.params()[j])
+        }) {
+            p[i] = v;
+        }
+    }
+    let mut out = spec.clone();
+    out.set_params(&p);
+    out
+}
+
+/// Observable candidates first, by AIC improvement.
+pub(super) fn sort_candidates(c: &mut [Candidate]) {
+    c.sort_by(|a, b| {
+        (b.new_params > 0)
+            .cmp(&(a.new_params > 0))
+            .then(b.delta_aic.total_cmp(&a.delta_aic))
+    });
+}
+
+/// Sorts `candidates`, finds the pairs this recording cannot tell apart (significant, their
+/// explained patterns correlated, comparable AIC), and claims the best one when the model is
+/// not `consistent` with the noise, it is significant, explains a substantial share of the
+/// excess and is not confused with another.
+pub(super) fn rank_and_claim(
+    candidates: &mut [Candidate],
+    consistent: bool,
+    triad: Triad,
+    opts: &DiagnoseOptions,
+) -> Vec<Ambiguity> {
+    sort_candidates(candidates);
+    let mut ambiguities = Vec::new();
+    let sig: Vec<usize> = (0..candidates.len())
+        .filter(|&i| candidates[i].significant)
+        .collect();
+    for (ai, &i) in sig.iter().enumerate() {
+        for &j in &sig[ai + 1..] {
+            let (ci, cj) = (&candidates[i], &candidates[j]);
+            let r = descriptive::correlation(&ci.pattern, &cj.pattern).unwrap_or(0.0);
+            // Comparable likelihoods: an AIC difference under 10 (a likelihood ratio under
+            // e^5) does not pick one of two non-nested models with confidence.
+            let comparable = (ci.delta_aic - cj.delta_aic).abs() < AMBIGUOUS_AIC;
+            if r.abs() >= opts.ambiguity_correlation && comparable {
+                ambiguities.push(Ambiguity {
+                    triad,
+                    effects: [ci.effect, cj.effect],
+                    correlation: r,
+                    separating_recording: separating_recording(ci.effect, cj.effect),
+                });
+            }
+        }
+    }
+    if let Some(top) = candidates.first_mut() {
+        let confused = ambiguities.iter().any(|a| a.effects.contains(&top.effect));
+        top.claimed =
+            !consistent && top.significant && top.share_of_excess >= opts.min_share && !confused;
+    }
+    ambiguities
+}
+
+/// Physical upper bound of a lever arm inside an IMU package, m.
+pub(super) const MAX_LEVER_ARM_M: f64 = 1.0;
+
+/// Parameters of candidate `k` that the recording excites so weakly that their standard error
+/// exceeds any physically possible value (a lever arm seen only through Earth's rate, a
+/// time constant longer than the recording): what to say instead of their fitted values.
+pub(super) fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<String> {
+    let prefix = format!("{}.", k.id());
+    (0..r.names.len())
+        .filter(|&i| r.names[i].starts_with(&prefix))
+        .filter_map(|i| {
+            let se = r.std_errors[i]?;
+            let name = &r.names[i];
+            match k {
+                EffectKind::LeverArm if se > MAX_LEVER_ARM_M => Some(format!(
+                    "{name}: standard error {se:.1e} m, more than any lever arm inside an IMU \
+                     package ({MAX_LEVER_ARM_M} m): the recording barely excites it (rotate \
+                     about each axis at several rates)"
+                )),
+                EffectKind::Warmup if name.ends_with("tau_s") && se > span_s => Some(format!(
+                    "{name}: standard error {se:.0} s, longer than the recording ({span_s:.0} s): \
+                     no decay is resolved (record from power-on)"
+                )),
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -> Candidate {
+    Candidate {
+        effect: k,
+        triad,
+        new_params: 0,
+        not_observable: vec![why.clone()],
+        chi2: f64::NAN,
+        dof: 0,
+        f: f64::NAN,
+        p_value: f64::NAN,
+        delta_aic: f64::NEG_INFINITY,
+        share_of_excess: 0.0,
+        residual_rms: [f64::NAN; 3],
+        significant: false,
+        claimed: false,
+        explanation: format!(
+            "{}: not observable in this recording ({why})",
+            k.description()
+        ),
+        params: Vec::new(),
+        model_change: String::new(),
+        fit: None,
+        pattern: Vec::new(),
+    }
+}
+
+pub(super) fn effect_params(r: &FitResult, k: EffectKind) -> Vec<ParamValue> {
+    let prefix = format!("{}.", k.id());
+    (0..r.names.len())
+        .filter(|&i| r.names[i].starts_with(&prefix))
+        .map(|i| ParamValue {
+            name: r.names[i].clone(),
+            value: r.params[i],
+            std_error: r.std_errors[i],
+            unit: r.units[i].clone(),
+        })
+        .collect()
+}

@@ -1,0 +1,275 @@
+//! The workbench's words: what drives each effect's parameters, what a fitted candidate means
+//! physically, the model change, which recording separates two effects, and the verdict text.
+
+use super::*;
+
+pub(super) const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// What drives one parameter, in physical words.
+pub(super) fn driver(k: EffectKind, param: &str, triad: Triad) -> String {
+    let t = triad.name();
+    let rest = param.split_once('.').map_or("", |x| x.1);
+    let axis_of = |s: &str| s.chars().last().map(String::from).unwrap_or_default();
+    match k {
+        EffectKind::GSensitivity => {
+            let mut c = rest.chars();
+            let (row, col) = (c.next().unwrap_or('?'), c.next().unwrap_or('?'));
+            format!("the {row}-{t} residual follows the specific force along {col}")
+        }
+        EffectKind::Misalignment => {
+            let mut c = rest.chars();
+            let (row, col) = (c.next().unwrap_or('?'), c.next().unwrap_or('?'));
+            format!("the {row}-{t} residual follows the input along {col}")
+        }
+        EffectKind::ScaleNonlinearity => {
+            let power = if rest.starts_with("quadratic") {
+                "square"
+            } else {
+                "cube"
+            };
+            let a = axis_of(rest);
+            format!("the {a}-{t} residual follows the {power} of its input")
+        }
+        EffectKind::AsymmetricScale => {
+            let a = axis_of(rest);
+            format!("the {a}-{t} gain differs between positive and negative input")
+        }
+        EffectKind::Scale => format!(
+            "the {}-{t} residual is proportional to its input",
+            axis_of(rest)
+        ),
+        EffectKind::Bias => format!("a constant offset on {}-{t}", axis_of(rest)),
+        EffectKind::TempBias => format!("the {}-{t} residual follows temperature", axis_of(rest)),
+        EffectKind::TempScale => format!("the {}-{t} gain follows temperature", axis_of(rest)),
+        EffectKind::Warmup => format!(
+            "the {}-{t} residual decays with time since power-on",
+            axis_of(rest)
+        ),
+        EffectKind::LeverArm => format!(
+            "the {t} residual follows the square of the rotation rate (centripetal \
+             acceleration of a proof mass offset along {})",
+            axis_of(rest)
+        ),
+    }
+}
+
+pub(super) fn explain(k: EffectKind, triad: Triad, params: &[ParamValue], r: &FitResult) -> String {
+    // The parameter with the largest |value / se| names the pattern.
+    let best = params
+        .iter()
+        .filter(|p| !p.name.ends_with("tau_s"))
+        .max_by(|a, b| {
+            let t = |p: &ParamValue| p.std_error.map_or(0.0, |s| (p.value / s).abs());
+            t(a).total_cmp(&t(b))
+        });
+    let mut s = k.description().to_string();
+    if let Some(p) = best {
+        let _ = write!(
+            s,
+            ": {} ({} = {:.3e}{} {})",
+            driver(k, &p.name, triad),
+            p.name,
+            p.value,
+            p.std_error
+                .map_or(String::new(), |e| format!(" +/- {e:.1e}")),
+            p.unit
+        );
+    }
+    if let Some(tau) = params.iter().find(|p| p.name.ends_with("tau_s")) {
+        let _ = write!(s, ", time constant {:.0} s", tau.value);
+    }
+    let _ = write!(
+        s,
+        "; residual RMS with it: {:.3e} {:.3e} {:.3e} {}",
+        r.residual_rms[0],
+        r.residual_rms[1],
+        r.residual_rms[2],
+        triad.unit()
+    );
+    s
+}
+
+/// The TOML lines of `k` as fitted in `m` (what to add to the model file).
+pub(super) fn model_change(triad: Triad, m: &TriadModel, k: EffectKind) -> String {
+    let mut only = TriadModel::default();
+    only.add(k);
+    if let (Some(src), Some(dst)) = (m.get(k), only.get_mut(k)) {
+        dst.set_params(&src.params());
+    }
+    let mut cal = imu_model::Calibration::identity();
+    *cal.triad_mut(triad) = only;
+    let text = cal.to_toml_string();
+    let header = format!("[{}.{}", triad.name(), k.id());
+    match text.find(&header) {
+        Some(i) => text[i..].trim_end().to_string(),
+        None => text,
+    }
+}
+
+/// The recording that separates two effects the present one cannot.
+pub(super) fn separating_recording(a: EffectKind, b: EffectKind) -> String {
+    use EffectKind::*;
+    let has = |x: EffectKind| a == x || b == x;
+    if has(Warmup) && (has(TempBias) || has(TempScale)) {
+        "a temperature cycle after the warm-up has settled (heat and cool the sensor, e.g. in a \
+         chamber or with the sinusoidal temperature profile): temperature then changes without \
+         the time since power-on, and the two stop moving together"
+            .into()
+    } else if has(ScaleNonlinearity) && has(AsymmetricScale) {
+        "inputs of both signs at several magnitudes (e.g. rate steps of +/-20, 40, 60, 80 deg/s): \
+         a square bends both signs the same way, an asymmetry changes the gain with the sign"
+            .into()
+    } else if has(LeverArm) {
+        "rotations at several rates about each axis, with the sensor off the table axis in \
+         different directions: the centripetal term grows with the square of the rate and points \
+         along the offset"
+            .into()
+    } else if has(GSensitivity) {
+        "more static orientations (each axis up and down, and at 45 degrees): the g-dependent \
+         bias follows the specific force, the other effect does not"
+            .into()
+    } else {
+        format!(
+            "a recording in which the signals that drive {a} and {b} vary independently of each \
+             other"
+        )
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn verdict_text(
+    triad: Triad,
+    model: &TriadModel,
+    consistent: bool,
+    with_drift: Option<(f64, [Wander; 3])>,
+    p: f64,
+    axes: &[AxisVerdict; 3],
+    candidates: &[Candidate],
+    ambiguities: &[Ambiguity],
+    structure: &[Structure; 3],
+    lines: &[SpectralLine],
+) -> String {
+    let u = triad.unit();
+    let ids: Vec<&str> = model.kinds().iter().map(|k| k.id()).collect();
+    let mut s = format!("{triad} model [{}]: ", ids.join(", "));
+    if consistent {
+        let _ = write!(
+            s,
+            "consistent with the noise floor (p = {p:.3}); residual RMS {} vs floor {} {u}.",
+            fmt3(axes.each_ref().map(|a| a.residual_rms)),
+            fmt3(axes.each_ref().map(|a| a.noise_floor_rms))
+        );
+    } else {
+        let worst = (0..3)
+            .max_by(|&a, &b| {
+                (axes[a].residual_rms / axes[a].noise_floor_rms)
+                    .total_cmp(&(axes[b].residual_rms / axes[b].noise_floor_rms))
+            })
+            .unwrap_or(0);
+        let _ = write!(
+            s,
+            "NOT consistent with the noise floor (p = {p:.1e}); residual RMS {} vs floor {} {u}, \
+             worst on {} ({:.1}x the floor).",
+            fmt3(axes.each_ref().map(|a| a.residual_rms)),
+            fmt3(axes.each_ref().map(|a| a.noise_floor_rms)),
+            AXES[worst],
+            axes[worst].residual_rms / axes[worst].noise_floor_rms
+        );
+        let any_significant = candidates.iter().any(|c| c.significant);
+        if let Some((pd, w)) = with_drift.filter(|_| !any_significant) {
+            let per_axis: Vec<String> = w
+                .iter()
+                .zip(AXES)
+                .map(|(w, x)| {
+                    if w.flicker_var > 0.0 {
+                        format!("{x}: bias instability {:.2e} {u}", w.bias_instability())
+                    } else if w.random_walk_q > 0.0 {
+                        format!(
+                            "{x}: random walk {:.2e} {u}/sqrt(s)",
+                            w.random_walk_q.sqrt()
+                        )
+                    } else {
+                        format!("{x}: none")
+                    }
+                })
+                .collect();
+            let _ = write!(
+                s,
+                " The excess is a slow wander of the bias between segments, not a missing effect: \
+                 with it ({}) the residuals are consistent with the floor (p = {pd:.3}). (Bias \
+                 instability and random walk the segments are too short to show; a long static \
+                 recording through imu-noise measures them.)",
+                per_axis.join(", ")
+            );
+        } else {
+            match candidates.first() {
+                Some(c) if c.claimed => {
+                    let _ = write!(
+                        s,
+                        " Missing effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
+                        c.explanation,
+                        c.p_value,
+                        100.0 * c.share_of_excess.min(1.0)
+                    );
+                }
+                _ => {
+                    if let Some(a) = ambiguities.first() {
+                        let _ = write!(
+                            s,
+                            " {} and {} both explain the residual and cannot be told apart in this \
+                         recording (their explained patterns correlate {:.2}); to separate them \
+                         record {}.",
+                            a.effects[0], a.effects[1], a.correlation, a.separating_recording
+                        );
+                    } else {
+                        let _ = write!(
+                            s,
+                            " No effect of the library explains it: unexplained structure remains."
+                        );
+                        if let Some(c) = candidates.first().filter(|c| c.new_params > 0) {
+                            let _ = write!(
+                                s,
+                                " (Best candidate {}: p = {:.1e}, explains {:.0} % of the excess.)",
+                                c.effect,
+                                c.p_value,
+                                100.0 * c.share_of_excess.clamp(0.0, 1.0)
+                            );
+                        }
+                        let a = worst;
+                        if let Some(cr) = structure[a].correlates.first() {
+                            let _ = write!(
+                                s,
+                                " On {}: strongest correlate {} (r = {:.2}), lag-1 autocorrelation \
+                             {:.2}",
+                                AXES[a], cr.signal, cr.r, structure[a].lag1_autocorrelation
+                            );
+                        }
+                        if let Some((period, share)) = structure[a].dominant_period_s {
+                            let _ = write!(
+                                s,
+                                ", dominant period {period:.0} s ({:.0} % of the variance)",
+                                100.0 * share
+                            );
+                        }
+                        s.push('.');
+                    }
+                }
+            }
+        }
+    }
+    for l in lines {
+        let _ = write!(
+            s,
+            " Unexplained structure: a periodic component at {:.3} Hz, amplitude {:.2e} {u} on \
+             {}-{triad} ({:.0}x the local noise) inside the static segments; no library effect \
+             models a periodic disturbance (look for vibration or electrical interference at \
+             that frequency).",
+            l.frequency_hz, l.amplitude, AXES[l.axis], l.ratio
+        );
+    }
+    s
+}
+
+pub(super) fn fmt3(v: [f64; 3]) -> String {
+    format!("{:.2e}/{:.2e}/{:.2e}", v[0], v[1], v[2])
+}

@@ -1,0 +1,125 @@
+//! The ladder: add the best claimed effect until both triads are consistent, then the final,
+//! loadable calibration.
+
+use super::*;
+
+impl<'a> Workbench<'a> {
+    /// The ladder: from `base` (accel and gyro models), repeatedly add the best claimed effect
+    /// of a triad that is not yet consistent with its noise floor, until both are consistent
+    /// or nothing more is claimed.
+    pub fn ladder(&self, base: &imu_model::Calibration) -> Result<Ladder, DiagnoseError> {
+        let mut models = [base.accel.clone(), base.gyro.clone()];
+        let triads = [Triad::Accel, Triad::Gyro];
+        let mut steps = Vec::new();
+        let mut added: Vec<(Triad, EffectKind)> = Vec::new();
+        loop {
+            let diags = [
+                self.diagnose(Triad::Accel, &models[0])?,
+                self.diagnose(Triad::Gyro, &models[1])?,
+            ];
+            steps.push(LadderStep {
+                added: added.last().copied(),
+                accel: StepSummary::of(&diags[0]),
+                gyro: StepSummary::of(&diags[1]),
+            });
+            let pick = diags
+                .iter()
+                .enumerate()
+                .filter_map(|(i, d)| d.candidates.iter().find(|c| c.claimed).map(|c| (i, c)))
+                .max_by(|a, b| a.1.delta_aic.total_cmp(&b.1.delta_aic));
+            let Some((i, c)) = pick else {
+                let (calibration, notes) = self.final_calibration(base, &diags);
+                return Ok(Ladder {
+                    steps,
+                    final_diagnoses: diags,
+                    calibration,
+                    notes,
+                });
+            };
+            if steps.len() > self.opts.max_steps {
+                let (calibration, notes) = self.final_calibration(base, &diags);
+                return Ok(Ladder {
+                    steps,
+                    final_diagnoses: diags,
+                    calibration,
+                    notes,
+                });
+            }
+            added.push((triads[i], c.effect));
+            models[i] = c
+                .fit
+                .as_ref()
+                .map(|f| f.model.clone())
+                .expect("claimed candidates carry their fit");
+        }
+    }
+
+    pub(super) fn final_calibration(
+        &self,
+        base: &imu_model::Calibration,
+        diags: &[TriadDiagnosis; 2],
+    ) -> (imu_model::Calibration, Vec<String>) {
+        let mut notes = self.notes.clone();
+        let mut cal = base.clone();
+        cal.accel = diags[0].fit.model.clone();
+        cal.gyro = diags[1].fit.model.clone();
+        if self.magnitude.is_none() {
+            // A model imud would reject (e.g. a cubic term extrapolated over the full range) is
+            // refitted with the offending parameter held, as imu-calibrate does.
+            for (d, t) in diags.iter().zip([Triad::Accel, Triad::Gyro]) {
+                if d.fit.model.validate(t).is_ok() {
+                    continue;
+                }
+                let (points, _, _) = self.points(t);
+                let one = crate::calibrate::Sessions::default();
+                match crate::calibrate::fit_loadable(
+                    &d.fit.model,
+                    t,
+                    points,
+                    &one,
+                    &self.fit_opts(t),
+                ) {
+                    Ok(r) => {
+                        notes.extend(
+                            r.unobservable
+                                .iter()
+                                .map(|u| format!("{t} {}: {}", u.name, u.reason)),
+                        );
+                        *cal.triad_mut(t) = r.model;
+                    }
+                    Err(e) => notes.push(format!("{t}: {e}")),
+                }
+            }
+        }
+        if let Some(mag) = &self.magnitude {
+            // Reference-free: the gyro gains come from the moves; the final model (the
+            // ladder's accel and gyro offsets, the base's gyro gains) is calibrated as
+            // imu-calibrate --reference-free does.
+            let o = crate::calibrate::reference_free::ReferenceFreeOptions {
+                accel: diags[0].fit.model.clone(),
+                gyro: diags[1].fit.model.clone(),
+                gravity_m_s2: mag.gravity_m_s2,
+                latitude_deg: mag.latitude_deg,
+                segment: self.opts.segment.clone(),
+                ..Default::default()
+            };
+            match crate::calibrate::reference_free::calibrate_reference_free(self.series, &o) {
+                Ok(f) => {
+                    cal.accel = f.calibration.accel;
+                    cal.gyro = f.calibration.gyro;
+                    for n in f.notes {
+                        if !notes.contains(&n) {
+                            notes.push(n);
+                        }
+                    }
+                }
+                Err(e) => notes.push(format!(
+                    "the reference-free calibration of the final model failed ({e}): the \
+                     calibration holds the workbench's accel and gyro offset fits and the base \
+                     model's gyro gains as given"
+                )),
+            }
+        }
+        (cal, notes)
+    }
+}

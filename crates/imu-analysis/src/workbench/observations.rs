@@ -1,0 +1,249 @@
+//! Building a workbench: segmenting the recording and turning a reference (or, reference-free,
+//! the gravity magnitude, Earth's rate and the moves between poses) into observations.
+
+use super::*;
+
+impl<'a> Workbench<'a> {
+    /// Segments `series`, takes the truth from `reference`, measures the noise floors.
+    pub fn new(
+        series: &'a ImuSeries,
+        reference: &Reference,
+        opts: DiagnoseOptions,
+    ) -> Result<Workbench<'a>, DiagnoseError> {
+        let obs = Observations::from_recording(series, reference, &opts.segment, true)?;
+        let rate = series.sample_rate_hz();
+        let (accel_floor, gyro_floor) = floors(series, &obs, &opts)?;
+        let n_of = |v: &[(usize, FitPoint)]| -> Vec<usize> {
+            v.iter()
+                .map(|(i, _)| obs.segmentation.segments[*i].n)
+                .collect()
+        };
+        let (an, gn) = (n_of(&obs.accel), n_of(&obs.gyro));
+        let accel_points = floored_points(&obs.points(Triad::Accel), &accel_floor, rate, &an);
+        let gyro_points = floored_points(&obs.points(Triad::Gyro), &gyro_floor, rate, &gn);
+        let spectral = [
+            spectral_lines(series, &obs, Triad::Accel),
+            spectral_lines(series, &obs, Triad::Gyro),
+        ];
+        Ok(Workbench {
+            series,
+            accel_index: obs.accel.iter().map(|(i, _)| *i).collect(),
+            gyro_index: obs.gyro.iter().map(|(i, _)| *i).collect(),
+            obs,
+            accel_floor,
+            gyro_floor,
+            accel_points,
+            gyro_points,
+            opts,
+            spectral,
+            magnitude: None,
+            moves: Vec::new(),
+            moves_skipped: 0,
+            notes: Vec::new(),
+        })
+    }
+
+    /// A workbench without a reference: the unit was held still in many orientations and
+    /// turned between them (as for `imu-calibrate --reference-free`).
+    ///
+    /// - The accel is held against the gravity magnitude at every still pose
+    ///   (`g - |corrected mean|`, one residual per pose; its floor is the per-axis floor
+    ///   projected on the pose's direction); the rotation gauge is fixed as in the
+    ///   reference-free calibration (accel misalignment `xy`, `xz`, `yz` held at 0).
+    /// - The gyro offsets (bias, g-sensitivity, temperature, warm-up) are held against the
+    ///   still poses, whose true rate is Earth's: its vertical part along the calibrated up
+    ///   direction when the latitude is given; the part a heading would fix (horizontal, or all
+    ///   of it without a latitude) is an extra noise of each pose mean.
+    /// - The gyro gains (scale, misalignment, asymmetry, nonlinearity) are held against the
+    ///   rotations integrated over the moves between poses, as `imu-calibrate
+    ///   --reference-free` fits them, with the gain effects of the library as candidates; the
+    ///   ladder's calibration is that procedure's fit of the final model.
+    pub fn reference_free(
+        series: &'a ImuSeries,
+        gravity_m_s2: Option<f64>,
+        latitude_deg: Option<f64>,
+        opts: DiagnoseOptions,
+    ) -> Result<Workbench<'a>, DiagnoseError> {
+        use crate::calibrate::reference_free::{local_gravity, mean_se, pose_conditions};
+        use imu_model::units::EARTH_RATE_RAD_S;
+        let segmentation =
+            crate::segment::detect(series, &opts.segment).map_err(CalibrateError::from)?;
+        let (g_m_s2, gravity_note) = local_gravity(gravity_m_s2, latitude_deg);
+        let (vertical_rad_s, earth_note) = match latitude_deg {
+            Some(lat) => {
+                let (vertical, horizontal) = imu_model::earth::earth_rate_split_rad_s(lat);
+                (
+                    vertical,
+                    format!(
+                        "gyro: Earth's vertical rate at latitude {lat} deg is the true rate along \
+                         the calibrated up direction of each pose; its horizontal part \
+                         ({horizontal:.1e} rad/s, heading unknown) is counted as noise of each pose \
+                         mean"
+                    ),
+                )
+            }
+            None => (
+                0.0,
+                format!(
+                    "gyro: Earth's rate ({EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
+                     frame without latitude and heading) is counted as noise of each pose mean; \
+                     give the latitude to remove its vertical part"
+                ),
+            ),
+        };
+        // Variance of the unknown part of Earth's rate on axis `a` of a pose whose up
+        // direction is `u`: a horizontal vector at a random heading, or, without a latitude,
+        // a vector in a random direction.
+        let earth_var = |u: &Vec3, a: usize| {
+            imu_model::earth::unknown_heading_variance_rad2_s2(latitude_deg, u[a])
+        };
+        let poses: Vec<usize> = (0..segmentation.segments.len())
+            .filter(|&i| segmentation.segments[i].kind == SegmentKind::Static)
+            .collect();
+        let dirs: Vec<Vec3> = poses
+            .iter()
+            .map(|&i| segmentation.segments[i].mean_accel().normalize())
+            .collect();
+        let point = |i: usize, up: &Vec3, gyro: bool| -> FitPoint {
+            let s = &segmentation.segments[i];
+            let c = pose_conditions(series, s);
+            FitPoint {
+                true_input: if gyro {
+                    up * vertical_rad_s
+                } else {
+                    up * g_m_s2
+                },
+                measured: if gyro { s.mean_gyro() } else { s.mean_accel() },
+                std_error: mean_se(
+                    if gyro {
+                        s.std_gyro_rad_s
+                    } else {
+                        s.std_accel_m_s2
+                    },
+                    s.n,
+                ),
+                conditions: imu_model::Conditions {
+                    specific_force_m_s2: up * g_m_s2,
+                    ..c
+                },
+                t_s: 0.5 * (s.start_s + s.end_s),
+                duration_s: s.end_s - s.start_s,
+            }
+        };
+        let unknown = crate::calibrate::SegmentTruth {
+            specific_force_m_s2: [f64::NAN; 3],
+            angular_rate_rad_s: [f64::NAN; 3],
+            temp_c: f64::NAN,
+            time_since_power_on_s: f64::NAN,
+        };
+        let mut obs = Observations {
+            segment_truth: vec![unknown; segmentation.segments.len()],
+            accel: poses
+                .iter()
+                .zip(&dirs)
+                .map(|(&i, u)| (i, point(i, u, false)))
+                .collect(),
+            gyro: poses
+                .iter()
+                .zip(&dirs)
+                .map(|(&i, u)| (i, point(i, u, true)))
+                .collect(),
+            segmentation,
+        };
+        let rate = series.sample_rate_hz();
+        let (accel_floor, gyro_floor) = floors(series, &obs, &opts)?;
+        let n: Vec<usize> = poses
+            .iter()
+            .map(|&i| obs.segmentation.segments[i].n)
+            .collect();
+        let accel_points = floored_points(&obs.points(Triad::Accel), &accel_floor, rate, &n);
+        let spectral = [
+            spectral_lines(series, &obs, Triad::Accel),
+            spectral_lines(series, &obs, Triad::Gyro),
+        ];
+        let mut wb = Workbench {
+            series,
+            accel_index: poses.clone(),
+            gyro_index: poses.clone(),
+            obs: obs.clone(),
+            accel_floor,
+            gyro_floor,
+            accel_points,
+            gyro_points: Vec::new(),
+            opts,
+            spectral,
+            magnitude: Some(Magnitude {
+                g_m_s2,
+                dirs: dirs.clone(),
+                gravity_m_s2,
+                latitude_deg,
+            }),
+            moves: Vec::new(),
+            moves_skipped: 0,
+            notes: vec![
+                gravity_note,
+                "accel: held against the gravity magnitude at each still pose; misalignment xy, \
+                 xz, yz held at 0 (the magnitude cannot see a rotation of the whole frame: the \
+                 accelerometer axes define the frame)"
+                    .into(),
+                earth_note,
+                "gyro gains (scale, misalignment, asymmetry, nonlinearity, temperature scale) \
+                 are held against the rotations integrated over the moves between poses, the \
+                 gyro offsets against the still poses"
+                    .into(),
+            ],
+        };
+        // The calibrated up direction of each pose, from a bias + scale + misalignment fit of
+        // the magnitudes (the measured direction if that fit fails).
+        let first = TriadModel::with_effects(&TriadModel::PAPER_BASE);
+        let mag = wb.magnitude.clone().expect("set above");
+        let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first, None) {
+            Ok(f) => wb
+                .accel_points
+                .iter()
+                .map(|p| f.fit.model.inverse(p.measured, &p.conditions).normalize())
+                .collect(),
+            Err(_) => dirs,
+        };
+        for (k, (_, p)) in obs.accel.iter_mut().enumerate() {
+            p.true_input = up[k] * g_m_s2;
+            p.conditions.specific_force_m_s2 = up[k] * g_m_s2;
+            wb.accel_points[k].true_input = p.true_input;
+            wb.accel_points[k].conditions.specific_force_m_s2 = p.true_input;
+        }
+        for (k, (i, p)) in obs.gyro.iter_mut().enumerate() {
+            p.true_input = up[k] * vertical_rad_s;
+            p.conditions.specific_force_m_s2 = up[k] * g_m_s2;
+            obs.segment_truth[*i] = crate::calibrate::SegmentTruth {
+                specific_force_m_s2: (up[k] * g_m_s2).into(),
+                angular_rate_rad_s: p.true_input.into(),
+                temp_c: p.conditions.temp_c,
+                time_since_power_on_s: p.conditions.time_since_power_on_s,
+            };
+        }
+        let mut gyro_points = floored_points(&obs.points(Triad::Gyro), &wb.gyro_floor, rate, &n);
+        for (p, u) in gyro_points.iter_mut().zip(&up) {
+            for a in 0..3 {
+                p.std_error[a] = (p.std_error[a].powi(2) + earth_var(u, a)).sqrt();
+            }
+        }
+        wb.gyro_points = gyro_points;
+        let pose_segs: Vec<&crate::segment::Segment> = poses
+            .iter()
+            .map(|&i| &obs.segmentation.segments[i])
+            .collect();
+        let conditions: Vec<imu_model::Conditions> = pose_segs
+            .iter()
+            .map(|s| pose_conditions(series, s))
+            .collect();
+        (wb.moves, wb.moves_skipped) = crate::calibrate::reference_free::prepare_moves(
+            series,
+            &pose_segs,
+            &up,
+            &conditions,
+            g_m_s2,
+        );
+        wb.obs = obs;
+        Ok(wb)
+    }
+}
