@@ -77,6 +77,10 @@ pub trait EffectDef:
     const ID: &'static str;
     /// One line in physical terms.
     const DESCRIPTION: &'static str;
+    /// A gain: the effect scales with the input (zero input shows nothing of it), so only a
+    /// large input (rate plateaus, moves between poses, gravity in several directions) excites
+    /// it. Offsets (bias, g-sensitivity, temperature bias, warm-up, lever arm) are not gains.
+    const GAIN: bool = false;
     /// Whether the effect exists for this triad (default: all triads).
     fn applies_to(triad: Triad) -> bool {
         let _ = triad;

@@ -11,7 +11,9 @@
 
 use imu_model::nalgebra::{DMatrix, DVector};
 use imu_model::{Conditions, EffectKind, Triad, TriadModel, Vec3};
-use imu_stats::lsq::{LsqOptions, covariance, find_unobservable, jacobian, minimize};
+use imu_stats::lsq::{
+    LsqOptions, Residuals, covariance, find_unobservable, jacobian, minimize, refit_holding,
+};
 
 pub use crate::reference::{Reference, ReferenceError, SegmentTruth};
 

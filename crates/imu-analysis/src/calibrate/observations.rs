@@ -4,14 +4,6 @@
 
 use super::*;
 
-/// Effects whose parameters only a large input excites (held without rate plateaus).
-pub(super) const GAIN_KINDS: [EffectKind; 4] = [
-    EffectKind::Misalignment,
-    EffectKind::Scale,
-    EffectKind::AsymmetricScale,
-    EffectKind::ScaleNonlinearity,
-];
-
 pub(super) fn point(
     true_input: [f64; 3],
     mean: [f64; 3],
@@ -141,7 +133,8 @@ pub(super) fn gyro_model_with_plateaus(
     if plateaus {
         return (model.clone(), None);
     }
-    let held: Vec<EffectKind> = GAIN_KINDS.into_iter().filter(|k| model.has(*k)).collect();
+    // Gains: only a large input excites them, so they are held without rate plateaus.
+    let held: Vec<EffectKind> = model.kinds().into_iter().filter(|k| k.is_gain()).collect();
     if held.is_empty() {
         return (model.clone(), None);
     }

@@ -290,20 +290,34 @@ pub(super) fn lsq_options(opts: &FitOptions) -> LsqOptions {
     }
 }
 
-/// The residuals of `points` under `model` at a parameter vector, whitened by `w` (raw
-/// without): the problem the least-squares engine solves.
-pub(super) fn triad_residuals<'a>(
-    model: &'a mut TriadModel,
-    points: &'a [FitPoint],
-    w: Option<&'a Whitener>,
-) -> impl FnMut(&[f64]) -> DVector<f64> + 'a {
-    move |p: &[f64]| {
-        let raw = raw_residuals(model, p, points);
-        match w {
+/// The triad fit as a least-squares problem: raw residuals `forward(true) - measured` of
+/// `points` under `model`, whitened by `w` (none: raw).
+pub(super) struct TriadProblem<'a> {
+    pub(super) model: &'a mut TriadModel,
+    pub(super) points: &'a [FitPoint],
+    pub(super) w: Option<&'a Whitener>,
+}
+
+impl Residuals for TriadProblem<'_> {
+    fn raw(&mut self, p: &[f64]) -> DVector<f64> {
+        raw_residuals(self.model, p, self.points)
+    }
+
+    fn whiten(&self, raw: DVector<f64>) -> DVector<f64> {
+        match self.w {
             Some(w) => w.apply(&raw),
             None => raw,
         }
     }
+}
+
+/// [`TriadProblem`] over `points`, whitened by `w`.
+pub(super) fn triad_residuals<'a>(
+    model: &'a mut TriadModel,
+    points: &'a [FitPoint],
+    w: Option<&'a Whitener>,
+) -> TriadProblem<'a> {
+    TriadProblem { model, points, w }
 }
 
 /// The drift rate variance `q` of one axis that brings its whitened chi-square down to `dof`
@@ -578,47 +592,52 @@ pub(crate) fn fit_loadable(
     sessions: &Sessions,
     opts: &FitOptions,
 ) -> Result<FitResult, CalibrateError> {
-    let mut start = model.clone();
-    let mut fixed = vec![false; model.n_params()];
-    let mut held: Vec<Unobservable> = Vec::new();
-    loop {
-        let o = FitOptions {
-            fixed: fixed.clone(),
-            ..opts.clone()
-        };
-        let mut r = fit_triad_sessions(&start, triad, points, sessions, &o)?;
-        let Err(e) = r.model.validate(triad) else {
-            for u in &held {
-                r.warnings
-                    .push(format!("{} not fitted: {}", u.name, u.reason));
+    // Each held parameter: its index and why (the fitted value that made the model invalid).
+    let (mut r, held) = refit_holding(
+        |held: &[(usize, Unobservable)]| {
+            let mut start = model.clone();
+            let mut p = start.params();
+            let mut fixed = vec![false; model.n_params()];
+            for (i, _) in held {
+                p[*i] = 0.0;
+                fixed[*i] = true;
             }
-            r.unobservable.extend(held);
-            return Ok(r);
-        };
-        let name = invalid_param_name(&e.key);
-        let Some(i) = r
-            .names
-            .iter()
-            .position(|n| *n == name)
-            .filter(|&i| !fixed[i])
-        else {
-            return Err(CalibrateError::InvalidModel {
-                triad,
-                key: e.key,
-                message: e.message,
-            });
-        };
-        let se = r.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
-        held.push(Unobservable {
-            name,
-            reason: format!(
+            start.set_params(&p);
+            let o = FitOptions {
+                fixed,
+                ..opts.clone()
+            };
+            fit_triad_sessions(&start, triad, points, sessions, &o).map_err(CalibrateError::from)
+        },
+        |r: &FitResult, held: &[(usize, Unobservable)]| {
+            let Err(e) = r.model.validate(triad) else {
+                return Ok(None);
+            };
+            let name = invalid_param_name(&e.key);
+            let Some(i) = r
+                .names
+                .iter()
+                .position(|n| *n == name)
+                .filter(|&i| held.iter().all(|(h, _)| *h != i))
+            else {
+                return Err(CalibrateError::InvalidModel {
+                    triad,
+                    key: e.key,
+                    message: e.message,
+                });
+            };
+            let se = r.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
+            let reason = format!(
                 "fitted to {:.3e}{se}, it makes the model invalid ({}); held at 0 (no such term)",
                 r.params[i], e.message
-            ),
-        });
-        fixed[i] = true;
-        let mut p = start.params();
-        p[i] = 0.0;
-        start.set_params(&p);
+            );
+            Ok(Some((i, Unobservable { name, reason })))
+        },
+    )?;
+    for (_, u) in held {
+        r.warnings
+            .push(format!("{} not fitted: {}", u.name, u.reason));
+        r.unobservable.push(u);
     }
+    Ok(r)
 }

@@ -123,20 +123,96 @@ pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -
         ),
         params: Vec::new(),
         model_change: String::new(),
-        fit: None,
+        model: None,
         pattern: Vec::new(),
     }
 }
 
-pub(super) fn effect_params(r: &FitResult, k: EffectKind) -> Vec<ParamValue> {
+pub(super) fn effect_params(k: EffectKind, table: ParamTable<'_>) -> Vec<ParamValue> {
     let prefix = format!("{}.", k.id());
-    (0..r.names.len())
-        .filter(|&i| r.names[i].starts_with(&prefix))
+    (0..table.names.len())
+        .filter(|&i| table.names[i].starts_with(&prefix))
         .map(|i| ParamValue {
-            name: r.names[i].clone(),
-            value: r.params[i],
-            std_error: r.std_errors[i],
-            unit: r.units[i].clone(),
+            name: table.names[i].clone(),
+            value: table.params[i],
+            std_error: table.std_errors[i],
+            unit: table.units[i].clone(),
         })
         .collect()
+}
+
+/// A fitted parameter vector with its names, units and standard errors (parallel slices).
+#[derive(Clone, Copy)]
+pub(super) struct ParamTable<'a> {
+    pub(super) names: &'a [String],
+    pub(super) units: &'a [String],
+    pub(super) params: &'a [f64],
+    pub(super) std_errors: &'a [Option<f64>],
+}
+
+impl<'a> ParamTable<'a> {
+    /// The parameters of a triad fit.
+    pub(super) fn of(r: &'a FitResult) -> ParamTable<'a> {
+        ParamTable {
+            names: &r.names,
+            units: &r.units,
+            params: &r.params,
+            std_errors: &r.std_errors,
+        }
+    }
+}
+
+/// What both kinds of observation (segments against a reference, moves between poses) measure
+/// of a candidate; [`CandidateScore::into_candidate`] is the one place that turns it into a
+/// verdict (significance, AIC, share of the excess).
+pub(super) struct CandidateScore {
+    pub(super) effect: EffectKind,
+    pub(super) triad: Triad,
+    /// Parameters the candidate adds that the data determine.
+    pub(super) new_params: usize,
+    pub(super) not_observable: Vec<String>,
+    /// Chi-square and degrees of freedom with the candidate.
+    pub(super) chi2: f64,
+    pub(super) dof: usize,
+    /// F statistic and its p-value.
+    pub(super) f: f64,
+    pub(super) p_value: f64,
+    /// Likelihood-ratio statistic (2 ln L1/L0) of the nested comparison.
+    pub(super) likelihood_ratio: f64,
+    /// Chi-square the candidate explains, and the model's excess over its dof.
+    pub(super) explained_chi2: f64,
+    pub(super) excess_chi2: f64,
+    pub(super) residual_rms: [f64; 3],
+    pub(super) explanation: String,
+    pub(super) params: Vec<ParamValue>,
+    pub(super) model_change: String,
+    pub(super) model: TriadModel,
+    pub(super) pattern: Vec<f64>,
+}
+
+impl CandidateScore {
+    /// The candidate's verdict at significance level `alpha` (claims are made later, by
+    /// [`rank_and_claim`], across candidates).
+    pub(super) fn into_candidate(self, alpha: f64) -> Candidate {
+        Candidate {
+            effect: self.effect,
+            triad: self.triad,
+            new_params: self.new_params,
+            not_observable: self.not_observable,
+            chi2: self.chi2,
+            dof: self.dof,
+            f: self.f,
+            p_value: self.p_value,
+            delta_aic: self.likelihood_ratio - 2.0 * self.new_params as f64,
+            share_of_excess: self.explained_chi2 / self.excess_chi2,
+            residual_rms: self.residual_rms,
+            significant: self.p_value < alpha,
+            claimed: false,
+            explanation: self.explanation,
+            params: self.params,
+            model_change: self.model_change,
+            model: Some(self.model),
+            pattern: self.pattern,
+        }
+    }
 }

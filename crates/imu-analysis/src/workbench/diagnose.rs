@@ -137,8 +137,8 @@ impl<'a> Workbench<'a> {
                     .zip(&base_pattern)
                     .map(|(a, b)| b - a)
                     .collect();
-                let params = effect_params(&r, k);
-                Some(Candidate {
+                let params = effect_params(k, ParamTable::of(&r));
+                let score = CandidateScore {
                     effect: k,
                     triad,
                     new_params,
@@ -147,17 +147,17 @@ impl<'a> Workbench<'a> {
                     dof: r.dof,
                     f,
                     p_value: p,
-                    delta_aic: lr - 2.0 * new_params as f64,
-                    share_of_excess: d_chi2 / excess,
+                    likelihood_ratio: lr,
+                    explained_chi2: d_chi2,
+                    excess_chi2: excess,
                     residual_rms: r.residual_rms,
-                    significant: p < self.opts.alpha,
-                    claimed: false,
-                    explanation: explain(k, triad, &params, &r),
+                    explanation: explain(k, triad, &params, r.residual_rms),
                     model_change: model_change(triad, &r.model, k),
                     params,
-                    fit: Some(r),
+                    model: r.model,
                     pattern,
-                })
+                };
+                Some(score.into_candidate(self.opts.alpha))
             })
             .collect();
         let consistent_before = p_value >= self.opts.alpha;
@@ -185,21 +185,22 @@ impl<'a> Workbench<'a> {
         let mut consistent_with_drift = (consistent_before
             || p_value_with_drift >= self.opts.alpha)
             && spectral_lines.is_empty();
-        let mut verdict = verdict_text(
+        let mut verdict = verdict_text(&VerdictFacts {
             triad,
-            &model,
-            consistent_before,
-            (p_value_with_drift >= self.opts.alpha).then_some((p_value_with_drift, wander)),
+            model: &model,
+            consistent: consistent_before,
+            with_drift: (p_value_with_drift >= self.opts.alpha)
+                .then_some((p_value_with_drift, wander)),
             p_value,
-            &axes,
-            &candidates,
-            &ambiguities,
-            &structure,
-            &spectral_lines,
-        );
+            axes: &axes,
+            candidates: &candidates,
+            ambiguities: &ambiguities,
+            structure: &structure,
+            lines: &spectral_lines,
+        });
         let mut base = base;
         let mut moves = None;
-        if triad == Triad::Gyro && self.magnitude.is_some() {
+        if triad == Triad::Gyro && self.reference_free_magnitude().is_some() {
             // Reference-free: the gains are held against the moves between poses.
             let m = self.diagnose_moves(&full_model, &base.model)?;
             consistent &= m.verdict.consistent;
@@ -209,10 +210,10 @@ impl<'a> Workbench<'a> {
             // model: the offsets from the still poses, the gains from the moves.
             base.model = merged(&full_model, &[&base.model, &m.gains]);
             for c in &mut candidates {
-                if let Some(f) = c.fit.as_mut() {
+                if let Some(model) = c.model.as_mut() {
                     let mut spec = full_model.clone();
                     spec.add(c.effect);
-                    f.model = merged(&spec, &[&f.model, &m.gains]);
+                    *model = merged(&spec, &[model, &m.gains]);
                 }
             }
             candidates.extend(m.candidates);

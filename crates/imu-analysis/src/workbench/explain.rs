@@ -53,15 +53,27 @@ pub(super) fn driver(k: EffectKind, param: &str, triad: Triad) -> String {
     }
 }
 
-pub(super) fn explain(k: EffectKind, triad: Triad, params: &[ParamValue], r: &FitResult) -> String {
-    // The parameter with the largest |value / se| names the pattern.
-    let best = params
+/// The parameter with the largest |value / se| (a time constant never: it names no pattern):
+/// the one that names the candidate's pattern.
+pub(super) fn most_significant(params: &[ParamValue]) -> Option<&ParamValue> {
+    params
         .iter()
         .filter(|p| !p.name.ends_with("tau_s"))
         .max_by(|a, b| {
             let t = |p: &ParamValue| p.std_error.map_or(0.0, |s| (p.value / s).abs());
             t(a).total_cmp(&t(b))
-        });
+        })
+}
+
+/// One line on a fitted candidate: what it is, what drives its most significant parameter, its
+/// value, and the residual RMS with it.
+pub(super) fn explain(
+    k: EffectKind,
+    triad: Triad,
+    params: &[ParamValue],
+    residual_rms: [f64; 3],
+) -> String {
+    let best = most_significant(params);
     let mut s = k.description().to_string();
     if let Some(p) = best {
         let _ = write!(
@@ -81,9 +93,9 @@ pub(super) fn explain(k: EffectKind, triad: Triad, params: &[ParamValue], r: &Fi
     let _ = write!(
         s,
         "; residual RMS with it: {:.3e} {:.3e} {:.3e} {}",
-        r.residual_rms[0],
-        r.residual_rms[1],
-        r.residual_rms[2],
+        residual_rms[0],
+        residual_rms[1],
+        residual_rms[2],
         triad.unit()
     );
     s
@@ -136,19 +148,38 @@ pub(super) fn separating_recording(a: EffectKind, b: EffectKind) -> String {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-pub(super) fn verdict_text(
-    triad: Triad,
-    model: &TriadModel,
-    consistent: bool,
-    with_drift: Option<(f64, [Wander; 3])>,
-    p: f64,
-    axes: &[AxisVerdict; 3],
-    candidates: &[Candidate],
-    ambiguities: &[Ambiguity],
-    structure: &[Structure; 3],
-    lines: &[SpectralLine],
-) -> String {
+/// What a triad's verdict says, for [`verdict_text`].
+#[derive(Clone, Copy)]
+pub(super) struct VerdictFacts<'a> {
+    pub(super) triad: Triad,
+    pub(super) model: &'a TriadModel,
+    /// Consistent with the floor as it stands.
+    pub(super) consistent: bool,
+    /// The p-value and the wander with which it is consistent, if a bias wander explains it.
+    pub(super) with_drift: Option<(f64, [Wander; 3])>,
+    pub(super) p_value: f64,
+    pub(super) axes: &'a [AxisVerdict; 3],
+    pub(super) candidates: &'a [Candidate],
+    pub(super) ambiguities: &'a [Ambiguity],
+    pub(super) structure: &'a [Structure; 3],
+    pub(super) lines: &'a [SpectralLine],
+}
+
+/// The verdict of one triad in words: consistent or not, the worst axis, the wander or the
+/// missing effect that explains the excess, ambiguities, structure and spectral lines.
+pub(super) fn verdict_text(facts: &VerdictFacts<'_>) -> String {
+    let VerdictFacts {
+        triad,
+        model,
+        consistent,
+        with_drift,
+        p_value: p,
+        axes,
+        candidates,
+        ambiguities,
+        structure,
+        lines,
+    } = *facts;
     let u = triad.unit();
     let ids: Vec<&str> = model.kinds().iter().map(|k| k.id()).collect();
     let mut s = format!("{triad} model [{}]: ", ids.join(", "));

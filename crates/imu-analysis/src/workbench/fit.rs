@@ -38,7 +38,29 @@ impl<'a> Workbench<'a> {
 
     /// The gravity-magnitude observations when `t` is the accel of a reference-free workbench.
     pub(super) fn magnitude(&self, t: Triad) -> Option<&Magnitude> {
-        self.magnitude.as_ref().filter(|_| t == Triad::Accel)
+        self.reference_free_magnitude()
+            .filter(|_| t == Triad::Accel)
+    }
+
+    /// Reference-free: the gravity-magnitude observation (None with a reference).
+    pub(super) fn reference_free_magnitude(&self) -> Option<&Magnitude> {
+        match &self.mode {
+            Mode::Reference => None,
+            Mode::ReferenceFree { magnitude, .. } => Some(magnitude),
+        }
+    }
+
+    /// Reference-free: the moves between poses and how many were skipped (none with a
+    /// reference).
+    pub(super) fn moves(&self) -> (&[crate::calibrate::reference_free::MoveData], usize) {
+        match &self.mode {
+            Mode::Reference => (&[], 0),
+            Mode::ReferenceFree {
+                moves,
+                moves_skipped,
+                ..
+            } => (moves, *moves_skipped),
+        }
     }
 
     /// Number of residuals of `t`: three per segment, one per pose for gravity magnitudes.
@@ -112,13 +134,9 @@ impl<'a> Workbench<'a> {
     /// The model actually fittable on this recording for `triad` (gyro gains held without
     /// plateaus), and a note when something was held.
     pub fn fittable(&self, triad: Triad, model: &TriadModel) -> (TriadModel, Option<String>) {
-        if triad == Triad::Gyro && self.magnitude.is_some() {
-            use crate::calibrate::reference_free::GYRO_GAIN_KINDS;
-            let gains: Vec<EffectKind> = model
-                .kinds()
-                .into_iter()
-                .filter(|k| GYRO_GAIN_KINDS.contains(k))
-                .collect();
+        if triad == Triad::Gyro && self.reference_free_magnitude().is_some() {
+            let gains: Vec<EffectKind> =
+                model.kinds().into_iter().filter(|k| k.is_gain()).collect();
             if gains.is_empty() {
                 return (model.clone(), None);
             }

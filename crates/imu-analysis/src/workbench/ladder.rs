@@ -47,10 +47,9 @@ impl<'a> Workbench<'a> {
             }
             added.push((triads[i], c.effect));
             models[i] = c
-                .fit
-                .as_ref()
-                .map(|f| f.model.clone())
-                .expect("claimed candidates carry their fit");
+                .model
+                .clone()
+                .expect("claimed candidates carry their refitted model");
         }
     }
 
@@ -63,7 +62,7 @@ impl<'a> Workbench<'a> {
         let mut cal = base.clone();
         cal.accel = diags[0].fit.model.clone();
         cal.gyro = diags[1].fit.model.clone();
-        if self.magnitude.is_none() {
+        if self.reference_free_magnitude().is_none() {
             // A model imud would reject (e.g. a cubic term extrapolated over the full range) is
             // refitted with the offending parameter held, as imu-calibrate does.
             for (d, t) in diags.iter().zip([Triad::Accel, Triad::Gyro]) {
@@ -91,7 +90,7 @@ impl<'a> Workbench<'a> {
                 }
             }
         }
-        if let Some(mag) = &self.magnitude {
+        if let Some(mag) = self.reference_free_magnitude() {
             // Reference-free: the gyro gains come from the moves; the final model (the
             // ladder's accel and gyro offsets, the base's gyro gains) is calibrated as
             // imu-calibrate --reference-free does.

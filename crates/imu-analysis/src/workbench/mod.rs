@@ -249,9 +249,9 @@ pub struct Candidate {
     pub params: Vec<ParamValue>,
     /// The lines to add to the model file.
     pub model_change: String,
-    /// The refit.
+    /// The whole model refitted with the effect (None when not observable).
     #[serde(skip)]
-    pub fit: Option<FitResult>,
+    pub model: Option<TriadModel>,
     /// Explained pattern (base residual - residual with the effect, floor-normalised).
     #[serde(skip)]
     pattern: Vec<f64>,
@@ -361,6 +361,22 @@ struct MovesDiagnosis {
     text: String,
 }
 
+/// What a workbench holds the model against.
+#[derive(Clone, Debug)]
+enum Mode {
+    /// Segment means against a reference's true inputs (plan, log or truth).
+    Reference,
+    /// Hand-held still poses: the accel against the gravity magnitude, the gyro offsets against
+    /// Earth's rate, the gyro gains against the rotations integrated over the moves.
+    ReferenceFree {
+        magnitude: Magnitude,
+        /// The moves between consecutive still poses.
+        moves: Vec<crate::calibrate::reference_free::MoveData>,
+        /// Moves skipped (lost samples).
+        moves_skipped: usize,
+    },
+}
+
 /// The workbench's state: a recording's observations and noise floors.
 pub struct Workbench<'a> {
     series: &'a ImuSeries,
@@ -376,12 +392,8 @@ pub struct Workbench<'a> {
     gyro_index: Vec<usize>,
     opts: DiagnoseOptions,
     spectral: [Vec<SpectralLine>; 2],
-    /// Reference-free: the accel observations are gravity magnitudes.
-    magnitude: Option<Magnitude>,
-    /// Reference-free: the moves between consecutive still poses (gyro gains).
-    moves: Vec<crate::calibrate::reference_free::MoveData>,
-    /// Moves skipped (lost samples).
-    moves_skipped: usize,
+    /// What the model is held against.
+    mode: Mode,
     /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
     pub notes: Vec<String>,
 }

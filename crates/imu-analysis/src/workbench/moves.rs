@@ -14,7 +14,7 @@ impl<'a> Workbench<'a> {
         full: &TriadModel,
         offsets: &TriadModel,
     ) -> Result<MovesDiagnosis, DiagnoseError> {
-        use crate::calibrate::reference_free::{GYRO_GAIN_KINDS, fit_gains};
+        use crate::calibrate::reference_free::fit_gains;
         let triad = Triad::Gyro;
         let gain_model = |kinds: &[EffectKind]| {
             let mut g = TriadModel::default();
@@ -23,28 +23,26 @@ impl<'a> Workbench<'a> {
             }
             merged(&g, &[full])
         };
-        let kinds: Vec<EffectKind> = full
-            .kinds()
-            .into_iter()
-            .filter(|k| GYRO_GAIN_KINDS.contains(k))
-            .collect();
+        let kinds: Vec<EffectKind> = full.kinds().into_iter().filter(|k| k.is_gain()).collect();
         let lsq = imu_stats::lsq::LsqOptions {
             max_iterations: self.opts.fit.max_iterations,
             tolerance: self.opts.fit.tolerance,
             min_eigenvalue: self.opts.fit.min_eigenvalue,
             ..imu_stats::lsq::LsqOptions::default()
         };
-        let n_res = 2 * self.moves.len();
+        let n_res = 2 * self.moves().0.len();
         // Whitened residuals of a gain model (nothing fitted when it has no parameters).
         let whitened = |g: &TriadModel| -> Vec<f64> {
-            self.moves
+            self.moves()
+                .0
                 .iter()
                 .flat_map(|m| m.residual(g).map(|v| v / m.sigma_rad))
                 .collect()
         };
         let raw_rms = |g: &TriadModel| -> f64 {
             let sq: f64 = self
-                .moves
+                .moves()
+                .0
                 .iter()
                 .map(|m| m.residual(g).iter().map(|v| v * v).sum::<f64>())
                 .sum();
@@ -55,14 +53,14 @@ impl<'a> Workbench<'a> {
                 if g.n_params() == 0 {
                     return Ok((g.clone(), None));
                 }
-                let sol = fit_gains(&self.moves, g, &vec![false; g.n_params()], &lsq).map_err(
+                let sol = fit_gains(self.moves().0, g, &vec![false; g.n_params()], &lsq).map_err(
                     |e| match e {
                         imu_stats::lsq::LsqError::TooFewResiduals {
                             n_residuals,
                             n_free,
                         } => FitError::TooFewObservations {
                             triad,
-                            n_points: self.moves.len(),
+                            n_points: self.moves().0.len(),
                             n_obs: n_residuals,
                             n_free,
                         },
@@ -80,15 +78,16 @@ impl<'a> Workbench<'a> {
         let dof_0 = n_res.saturating_sub(free0).max(1);
         let p0 = distributions::chi2_sf(chi2_0, dof_0 as f64);
         let expected_rms_rad = (self
-            .moves
+            .moves()
+            .0
             .iter()
             .map(|m| m.sigma_rad * m.sigma_rad)
             .sum::<f64>()
-            / self.moves.len().max(1) as f64)
+            / self.moves().0.len().max(1) as f64)
             .sqrt();
         let verdict = MovesVerdict {
-            n_moves: self.moves.len(),
-            skipped: self.moves_skipped,
+            n_moves: self.moves().0.len(),
+            skipped: self.moves().1,
             effects: kinds.clone(),
             residual_rms_rad: raw_rms(&gains),
             expected_rms_rad,
@@ -99,9 +98,9 @@ impl<'a> Workbench<'a> {
         };
         let base_pattern = whitened(&gains);
         let excess = (chi2_0 - dof_0 as f64).max(1e-12);
-        let mut candidates: Vec<Candidate> = GYRO_GAIN_KINDS
+        let mut candidates: Vec<Candidate> = EffectKind::ALL
             .into_iter()
-            .filter(|k| !kinds.contains(k))
+            .filter(|k| k.is_gain() && !kinds.contains(k))
             .map(|k| {
                 let mut with = kinds.clone();
                 with.push(k);
@@ -131,45 +130,19 @@ impl<'a> Workbench<'a> {
                     .map(|(a, b)| b - a)
                     .collect();
                 let rms = raw_rms(&g);
-                let residuals: Vec<[f64; 3]> = self
-                    .moves
-                    .iter()
-                    .map(|m| {
-                        let [a, b] = m.residual(&g);
-                        [a, b, 0.0]
-                    })
-                    .collect();
                 let mut spec = full.clone();
                 spec.add(k);
-                let r = FitResult {
-                    triad,
-                    model: merged(&spec, &[offsets, &g]),
-                    names: g.param_names(triad),
-                    units: g.param_units(triad),
-                    params: sol.params.clone(),
-                    std_errors: sol.std_errors.clone(),
-                    correlation: sol.correlation.clone(),
-                    free: sol.free.clone(),
-                    unobservable: sol.unobservable.clone(),
-                    residual_rms: [rms; 3],
-                    residuals,
-                    jacobian_raw: DMatrix::zeros(0, 0),
-                    chi2: chi2_1,
-                    chi2_axis: [chi2_1 / 3.0; 3],
-                    dof: sol.dof,
-                    reduced_chi2: sol.reduced_chi2,
-                    drift_random_walk: [0.0; 3],
-                    iterations: sol.iterations,
-                    converged: sol.converged,
-                    warnings: Vec::new(),
-                };
-                let params = effect_params(&r, k);
-                let best = params
-                    .iter()
-                    .max_by(|a, b| {
-                        let t = |p: &ParamValue| p.std_error.map_or(0.0, |s| (p.value / s).abs());
-                        t(a).total_cmp(&t(b))
-                    })
+                let (names, units) = (g.param_names(triad), g.param_units(triad));
+                let params = effect_params(
+                    k,
+                    ParamTable {
+                        names: &names,
+                        units: &units,
+                        params: &sol.params,
+                        std_errors: &sol.std_errors,
+                    },
+                );
+                let best = most_significant(&params)
                     .map(|p| {
                         format!(
                             " ({} = {:.3e}{} {})",
@@ -181,7 +154,8 @@ impl<'a> Workbench<'a> {
                         )
                     })
                     .unwrap_or_default();
-                Candidate {
+                let model = merged(&spec, &[offsets, &g]);
+                CandidateScore {
                     effect: k,
                     triad,
                     new_params,
@@ -190,11 +164,10 @@ impl<'a> Workbench<'a> {
                     dof: sol.dof,
                     f,
                     p_value: p,
-                    delta_aic: lr - 2.0 * new_params as f64,
-                    share_of_excess: (chi2_0 - chi2_1).max(0.0) / excess,
+                    likelihood_ratio: lr,
+                    explained_chi2: (chi2_0 - chi2_1).max(0.0),
+                    excess_chi2: excess,
                     residual_rms: [rms; 3],
-                    significant: p < self.opts.alpha,
-                    claimed: false,
                     explanation: format!(
                         "{}{best}: the rotations integrated over the moves between poses \
                          need it; direction error after the moves {:.2e} rad RMS with it, \
@@ -203,11 +176,12 @@ impl<'a> Workbench<'a> {
                         rms,
                         verdict.residual_rms_rad
                     ),
-                    model_change: model_change(triad, &r.model, k),
+                    model_change: model_change(triad, &model, k),
                     params,
-                    fit: Some(r),
+                    model,
                     pattern,
                 }
+                .into_candidate(self.opts.alpha)
             })
             .collect();
         let ambiguities = rank_and_claim(&mut candidates, verdict.consistent, triad, &self.opts);

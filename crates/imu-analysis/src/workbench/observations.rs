@@ -36,9 +36,7 @@ impl<'a> Workbench<'a> {
             gyro_points,
             opts,
             spectral,
-            magnitude: None,
-            moves: Vec::new(),
-            moves_skipped: 0,
+            mode: Mode::Reference,
             notes: Vec::new(),
         })
     }
@@ -172,14 +170,16 @@ impl<'a> Workbench<'a> {
             gyro_points: Vec::new(),
             opts,
             spectral,
-            magnitude: Some(Magnitude {
-                g_m_s2,
-                dirs: dirs.clone(),
-                gravity_m_s2,
-                latitude_deg,
-            }),
-            moves: Vec::new(),
-            moves_skipped: 0,
+            mode: Mode::ReferenceFree {
+                magnitude: Magnitude {
+                    g_m_s2,
+                    dirs: dirs.clone(),
+                    gravity_m_s2,
+                    latitude_deg,
+                },
+                moves: Vec::new(),
+                moves_skipped: 0,
+            },
             notes: vec![
                 gravity_note,
                 "accel: held against the gravity magnitude at each still pose; misalignment xy, \
@@ -196,7 +196,7 @@ impl<'a> Workbench<'a> {
         // The calibrated up direction of each pose, from a bias + scale + misalignment fit of
         // the magnitudes (the measured direction if that fit fails).
         let first = TriadModel::with_effects(&TriadModel::PAPER_BASE);
-        let mag = wb.magnitude.clone().expect("set above");
+        let mag = wb.reference_free_magnitude().expect("set above").clone();
         let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first, None) {
             Ok(f) => wb
                 .accel_points
@@ -236,13 +236,21 @@ impl<'a> Workbench<'a> {
             .iter()
             .map(|s| pose_conditions(series, s))
             .collect();
-        (wb.moves, wb.moves_skipped) = crate::calibrate::reference_free::prepare_moves(
+        let (prepared, skipped) = crate::calibrate::reference_free::prepare_moves(
             series,
             &pose_segs,
             &up,
             &conditions,
             g_m_s2,
         );
+        if let Mode::ReferenceFree {
+            moves,
+            moves_skipped,
+            ..
+        } = &mut wb.mode
+        {
+            (*moves, *moves_skipped) = (prepared, skipped);
+        }
         wb.obs = obs;
         Ok(wb)
     }

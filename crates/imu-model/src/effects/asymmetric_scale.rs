@@ -66,6 +66,7 @@ impl Effect for AsymmetricScale {
 impl EffectDef for AsymmetricScale {
     const ID: &'static str = "asymmetric-scale";
     const DESCRIPTION: &'static str = "asymmetric scale factor: positive input is scaled by (1 + a), negative input by (1 - a)";
+    const GAIN: bool = true;
     fn neutral() -> Self {
         AsymmetricScale {
             value: [0.0; 3],

@@ -137,6 +137,7 @@ impl Effect for Misalignment {
 impl EffectDef for Misalignment {
     const ID: &'static str = "misalignment";
     const DESCRIPTION: &'static str = "axis misalignment / cross-coupling: each axis senses a small fraction of the other axes' input, y = (I + M) x (paper Eq. 1-2, M_A and M_G)";
+    const GAIN: bool = true;
     fn neutral() -> Self {
         Misalignment::default()
     }

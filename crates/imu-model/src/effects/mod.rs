@@ -40,6 +40,11 @@ macro_rules! register_effects {
                 match self { $(EffectKind::$Type => <$Type as EffectDef>::DESCRIPTION,)+ }
             }
 
+            /// Whether the effect is a gain (scales with the input; see [`EffectDef::GAIN`]).
+            pub fn is_gain(&self) -> bool {
+                match self { $(EffectKind::$Type => <$Type as EffectDef>::GAIN,)+ }
+            }
+
             /// Whether the effect exists for `triad` (g-sensitivity: gyro only; lever-arm: accel only).
             pub fn applies_to(&self, triad: Triad) -> bool {
                 match self { $(EffectKind::$Type => <$Type as EffectDef>::applies_to(triad),)+ }

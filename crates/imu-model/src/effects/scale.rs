@@ -54,6 +54,7 @@ impl EffectDef for Scale {
     const ID: &'static str = "scale";
     const DESCRIPTION: &'static str =
         "scale-factor error: each axis reads its input times (1 + s) (paper Eq. 1-2, S_A and S_G)";
+    const GAIN: bool = true;
     fn neutral() -> Self {
         Scale {
             value: [0.0; 3],

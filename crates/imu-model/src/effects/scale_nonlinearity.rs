@@ -188,6 +188,7 @@ impl Effect for ScaleNonlinearity {
 impl EffectDef for ScaleNonlinearity {
     const ID: &'static str = "scale-nonlinearity";
     const DESCRIPTION: &'static str = "scale-factor nonlinearity: output bends with the square and cube of the input, y = x + k2 x^2 + k3 x^3";
+    const GAIN: bool = true;
     fn neutral() -> Self {
         ScaleNonlinearity {
             quadratic: [0.0; 3],

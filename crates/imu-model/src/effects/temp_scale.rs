@@ -100,6 +100,7 @@ impl Effect for TempScale {
 impl EffectDef for TempScale {
     const ID: &'static str = "temp-scale";
     const DESCRIPTION: &'static str = "temperature-dependent scale factor: scale error is a polynomial in (T - T0) without constant term";
+    const GAIN: bool = true;
     fn neutral() -> Self {
         TempScale::with_degree(1)
     }

@@ -29,14 +29,29 @@ use serde::Serialize;
 
 pub use observability::{Weakest, find_unobservable, jacobian, weakest_combination};
 
-/// A least-squares problem: whitened residuals as a function of the parameters.
+/// A least-squares problem: residuals as a function of the parameters, and the linear map that
+/// whitens them (identity unless the problem says otherwise). The engine differentiates the raw
+/// residuals and whitens the difference, so a whitening by a covariance factor is applied once
+/// per Jacobian column, exactly as to the residuals.
 pub trait Residuals {
-    /// Whitened residuals at `p` (always the same length).
-    fn residuals(&mut self, p: &[f64]) -> DVector<f64>;
+    /// Raw residuals at `p` (always the same length).
+    fn raw(&mut self, p: &[f64]) -> DVector<f64>;
+
+    /// Whitens raw residuals (a linear map; identity by default).
+    fn whiten(&self, raw: DVector<f64>) -> DVector<f64> {
+        raw
+    }
+
+    /// Whitened residuals at `p`.
+    fn residuals(&mut self, p: &[f64]) -> DVector<f64> {
+        let raw = self.raw(p);
+        self.whiten(raw)
+    }
 }
 
+/// A closure returning residuals that are already whitened.
 impl<F: FnMut(&[f64]) -> DVector<f64>> Residuals for F {
-    fn residuals(&mut self, p: &[f64]) -> DVector<f64> {
+    fn raw(&mut self, p: &[f64]) -> DVector<f64> {
         self(p)
     }
 }

@@ -5,20 +5,21 @@ use nalgebra::{DMatrix, Dyn, SymmetricEigen};
 
 use super::{LsqOptions, Residuals, Unobservable};
 
-/// Numeric Jacobian of `f` at `p` with respect to the parameters `free` (central differences,
-/// step `1e-6 max(|p_i|, 1e-3)`).
+/// Numeric Jacobian of the whitened residuals of `f` at `p` with respect to the parameters
+/// `free`: central differences of the raw residuals (step `1e-6 max(|p_i|, 1e-3)`), whitened.
 pub fn jacobian<R: Residuals + ?Sized>(f: &mut R, p: &[f64], free: &[usize]) -> DMatrix<f64> {
     let mut q = p.to_vec();
     let mut j: Option<DMatrix<f64>> = None;
     for (c, &i) in free.iter().enumerate() {
         let h = 1e-6 * p[i].abs().max(1e-3);
         q[i] = p[i] + h;
-        let up = f.residuals(&q);
+        let up = f.raw(&q);
         q[i] = p[i] - h;
-        let down = f.residuals(&q);
+        let down = f.raw(&q);
         q[i] = p[i];
-        let j = j.get_or_insert_with(|| DMatrix::zeros(up.len(), free.len()));
-        j.set_column(c, &((up - down) / (2.0 * h)));
+        let column = f.whiten((up - down) / (2.0 * h));
+        let j = j.get_or_insert_with(|| DMatrix::zeros(column.len(), free.len()));
+        j.set_column(c, &column);
     }
     j.unwrap_or_else(|| DMatrix::zeros(f.residuals(p).len(), 0))
 }

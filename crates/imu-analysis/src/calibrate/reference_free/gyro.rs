@@ -85,7 +85,7 @@ pub(super) fn merge_gyro(
     let gain_names: Vec<String> = {
         let mut g = TriadModel::default();
         for k in model.kinds() {
-            if GYRO_GAIN_KINDS.contains(&k) {
+            if k.is_gain() {
                 g.add(k);
             }
         }

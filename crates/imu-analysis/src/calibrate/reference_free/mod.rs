@@ -38,7 +38,7 @@ use imu_model::{Calibration, Conditions, EffectKind, Triad, TriadModel, Vec3};
 use crate::ImuSeries;
 use crate::calibrate::{FitError, FitOptions, FitPoint, FitResult, Unobservable, fit_triad};
 use crate::segment::{Segment, SegmentError, SegmentKind, SegmentOptions, Segmentation};
-use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution, least_squares};
+use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution, least_squares, refit_holding};
 
 mod accel;
 mod gyro;
@@ -59,15 +59,6 @@ pub const POSE_ADVICE: &str = "hold the unit still in 30 or more orientations: e
 pub const PROCEDURE: &str = "reference-free multi-pose: accelerometer from the gravity magnitude \
      at still poses, gyro bias from the still poses, gyro gains from the rotations integrated \
      between poses (imu-calibrate --reference-free)";
-
-/// Gyro effects fitted from the integrated rotations (the rest from the still poses).
-pub(crate) const GYRO_GAIN_KINDS: [EffectKind; 5] = [
-    EffectKind::Misalignment,
-    EffectKind::Scale,
-    EffectKind::AsymmetricScale,
-    EffectKind::TempScale,
-    EffectKind::ScaleNonlinearity,
-];
 
 /// Accel misalignment entries held at 0 to fix the rotation gauge.
 pub(crate) const GAUGE: [&str; 3] = ["misalignment.xy", "misalignment.xz", "misalignment.yz"];
@@ -340,72 +331,70 @@ pub fn calibrate_reference_free(
     series: &ImuSeries,
     opts: &ReferenceFreeOptions,
 ) -> Result<ReferenceFreeFit, ReferenceFreeError> {
-    let mut opts = opts.clone();
-    let mut held: Vec<(Triad, Unobservable)> = Vec::new();
-    loop {
-        let mut fit = calibrate_reference_free_once(series, &opts)?;
-        let invalid = [Triad::Accel, Triad::Gyro].into_iter().find_map(|t| {
-            fit.calibration
-                .triad(t)
-                .validate(t)
-                .err()
-                .map(|e| (t, crate::calibrate::invalid_param_name(&e.key), e.message))
-        });
-        let Some((triad, name, message)) = invalid else {
-            for (t, u) in held {
-                fit.notes
-                    .push(format!("{t} {} not fitted: {}", u.name, u.reason));
-                let f = if t == Triad::Gyro {
-                    &mut fit.gyro
-                } else {
-                    &mut fit.accel
-                };
-                f.unobservable.push(u);
-            }
-            return Ok(fit);
-        };
-        let key = format!("{triad}.{name}");
-        let f = if triad == Triad::Gyro {
-            &fit.gyro
-        } else {
-            &fit.accel
-        };
-        let Some(i) = f.names.iter().position(|n| *n == name) else {
-            return Err(ReferenceFreeError::InvalidModel {
-                triad,
-                key: name,
-                message,
-            });
-        };
-        if opts.hold.contains(&key) {
-            return Err(ReferenceFreeError::InvalidModel {
-                triad,
-                key: name,
-                message,
-            });
+    // Each held parameter: its triad, index, key (`triad.param`) and why.
+    type Held = (Triad, usize, String, Unobservable);
+    let with_held = |held: &[Held]| {
+        let mut o = opts.clone();
+        for (triad, i, key, _) in held {
+            o.hold.push(key.clone());
+            let m = if *triad == Triad::Gyro {
+                &mut o.gyro
+            } else {
+                &mut o.accel
+            };
+            let mut p = m.params();
+            p[*i] = 0.0;
+            m.set_params(&p);
         }
-        let se = f.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
-        held.push((
-            triad,
-            Unobservable {
-                name,
-                reason: format!(
-                    "fitted to {:.3e}{se}, it makes the model invalid ({message}); held at 0 (no \
-                     such term)",
-                    f.params[i]
-                ),
-            },
-        ));
-        opts.hold.push(key);
-        let m = if triad == Triad::Gyro {
-            &mut opts.gyro
+        o
+    };
+    let (mut fit, held) = refit_holding(
+        |held: &[Held]| calibrate_reference_free_once(series, &with_held(held)),
+        |fit: &ReferenceFreeFit, held: &[Held]| {
+            let invalid = [Triad::Accel, Triad::Gyro].into_iter().find_map(|t| {
+                fit.calibration
+                    .triad(t)
+                    .validate(t)
+                    .err()
+                    .map(|e| (t, crate::calibrate::invalid_param_name(&e.key), e.message))
+            });
+            let Some((triad, name, message)) = invalid else {
+                return Ok(None);
+            };
+            let key = format!("{triad}.{name}");
+            let f = if triad == Triad::Gyro {
+                &fit.gyro
+            } else {
+                &fit.accel
+            };
+            let already = opts.hold.contains(&key) || held.iter().any(|h| h.2 == key);
+            let Some(i) = f.names.iter().position(|n| *n == name).filter(|_| !already) else {
+                return Err(ReferenceFreeError::InvalidModel {
+                    triad,
+                    key: name,
+                    message,
+                });
+            };
+            let se = f.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
+            let reason = format!(
+                "fitted to {:.3e}{se}, it makes the model invalid ({message}); held at 0 (no such \
+                 term)",
+                f.params[i]
+            );
+            Ok(Some((triad, i, key, Unobservable { name, reason })))
+        },
+    )?;
+    for (t, _, _, u) in held {
+        fit.notes
+            .push(format!("{t} {} not fitted: {}", u.name, u.reason));
+        let f = if t == Triad::Gyro {
+            &mut fit.gyro
         } else {
-            &mut opts.accel
+            &mut fit.accel
         };
-        let mut p = m.params();
-        p[i] = 0.0;
-        m.set_params(&p);
+        f.unobservable.push(u);
     }
+    Ok(fit)
 }
 
 /// One reference-free fit of the options as given (see [`calibrate_reference_free`]).
@@ -459,7 +448,7 @@ fn calibrate_reference_free_once(
     let mut offsets = TriadModel::default();
     let mut gains = TriadModel::default();
     for k in gyro_model.kinds() {
-        if GYRO_GAIN_KINDS.contains(&k) {
+        if k.is_gain() {
             gains.add(k);
         } else {
             offsets.add(k);
