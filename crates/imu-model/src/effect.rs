@@ -15,6 +15,8 @@ pub trait Effect: Debug + Send + Sync {
     fn kind(&self) -> EffectKind;
     /// Parameter names, parallel to [`Effect::params`] (e.g. `["x", "y", "z"]`).
     fn param_names(&self) -> Vec<String>;
+    /// What each parameter acts on, parallel to [`Effect::params`].
+    fn param_roles(&self) -> Vec<crate::ParamRole>;
     /// Parameter units for the given triad, parallel to [`Effect::params`].
     fn param_units(&self, triad: Triad) -> Vec<String>;
     /// The current parameter vector.

@@ -114,6 +114,7 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 pub type Mat3 = nalgebra::Matrix3<f64>;
 
 pub mod earth;
+mod param;
 pub mod units;
 
 mod calibration;
@@ -141,5 +142,6 @@ pub use error::{ModelError, did_you_mean, line_col, line_of_key};
 pub use noise::{
     BIAS_INSTABILITY_ADEV_FACTOR, DEFAULT_BIAS_INSTABILITY_TAU_MAX_S, NoiseGenerator, NoiseModel,
 };
+pub use param::{ParamId, ParamRole};
 pub use sample::{Conditions, Corrected, Measured, TrueMotion};
 pub use triad::Triad;

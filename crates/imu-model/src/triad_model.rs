@@ -97,6 +97,25 @@ impl TriadModel {
             .collect()
     }
 
+    /// Typed parameter identities parallel to [`TriadModel::params`] (names as in
+    /// [`TriadModel::param_names`]).
+    pub fn param_ids(&self) -> Vec<crate::ParamId> {
+        self.effects()
+            .iter()
+            .flat_map(|e| {
+                let kind = e.kind();
+                e.param_names()
+                    .into_iter()
+                    .zip(e.param_roles())
+                    .map(move |(n, role)| crate::ParamId {
+                        effect: kind,
+                        role,
+                        name: format!("{}.{n}", kind.id()),
+                    })
+            })
+            .collect()
+    }
+
     /// Parameter units for `triad`, parallel to [`TriadModel::params`].
     pub fn param_units(&self, triad: Triad) -> Vec<String> {
         self.effects()

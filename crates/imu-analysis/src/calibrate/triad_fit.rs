@@ -486,11 +486,12 @@ pub fn fit_triad_sessions(
         }
     };
     let drift = opts.bias_drift.filter(|_| opts.noise.is_none());
+    let ids = m.param_ids();
     for extra in [drift, opts.bias_input_uncertainty].into_iter().flatten() {
         for (c, &i) in free.iter().enumerate() {
-            let axis = ["bias.x", "bias.y", "bias.z"]
-                .iter()
-                .position(|n| *n == names[i]);
+            let axis = Some(&ids[i])
+                .filter(|id| id.effect == EffectKind::Bias)
+                .and_then(|id| id.role.axis());
             if let Some(axis) = axis {
                 cov[(c, c)] += extra[axis].powi(2);
             }

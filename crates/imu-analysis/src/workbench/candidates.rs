@@ -129,32 +129,38 @@ pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -
 }
 
 pub(super) fn effect_params(k: EffectKind, table: ParamTable<'_>) -> Vec<ParamValue> {
-    let prefix = format!("{}.", k.id());
-    (0..table.names.len())
-        .filter(|&i| table.names[i].starts_with(&prefix))
+    (0..table.ids.len())
+        .filter(|&i| table.ids[i].effect == k)
         .map(|i| ParamValue {
-            name: table.names[i].clone(),
+            name: table.ids[i].name.clone(),
             value: table.params[i],
             std_error: table.std_errors[i],
             unit: table.units[i].clone(),
+            id: table.ids[i].clone(),
         })
         .collect()
+}
+
+/// Whether the parameter named `name` (as in `TriadModel::param_names`) of a model with
+/// parameters `ids` belongs to effect `k`.
+pub(super) fn of_effect(ids: &[imu_model::ParamId], name: &str, k: EffectKind) -> bool {
+    ids.iter().any(|id| id.name == name && id.effect == k)
 }
 
 /// A fitted parameter vector with its names, units and standard errors (parallel slices).
 #[derive(Clone, Copy)]
 pub(super) struct ParamTable<'a> {
-    pub(super) names: &'a [String],
+    pub(super) ids: &'a [imu_model::ParamId],
     pub(super) units: &'a [String],
     pub(super) params: &'a [f64],
     pub(super) std_errors: &'a [Option<f64>],
 }
 
 impl<'a> ParamTable<'a> {
-    /// The parameters of a triad fit.
-    pub(super) fn of(r: &'a FitResult) -> ParamTable<'a> {
+    /// The parameters of a triad fit (`ids` of its model).
+    pub(super) fn of(r: &'a FitResult, ids: &'a [imu_model::ParamId]) -> ParamTable<'a> {
         ParamTable {
-            names: &r.names,
+            ids,
             units: &r.units,
             params: &r.params,
             std_errors: &r.std_errors,

@@ -107,7 +107,7 @@ impl<'a> Workbench<'a> {
                 let not_obs: Vec<String> = r
                     .unobservable
                     .iter()
-                    .filter(|u| u.name.starts_with(k.id()))
+                    .filter(|u| of_effect(&r.model.param_ids(), &u.name, k))
                     .map(|u| format!("{}: {}", u.name, u.reason))
                     .collect();
                 if new_params == 0 || r.dof == 0 {
@@ -137,7 +137,8 @@ impl<'a> Workbench<'a> {
                     .zip(&base_pattern)
                     .map(|(a, b)| b - a)
                     .collect();
-                let params = effect_params(k, ParamTable::of(&r));
+                let ids = r.model.param_ids();
+                let params = effect_params(k, ParamTable::of(&r, &ids));
                 let score = CandidateScore {
                     effect: k,
                     triad,

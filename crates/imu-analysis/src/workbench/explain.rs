@@ -5,54 +5,6 @@ use super::*;
 
 pub(super) const AXES: [&str; 3] = ["x", "y", "z"];
 
-/// What drives one parameter, in physical words.
-pub(super) fn driver(k: EffectKind, param: &str, triad: Triad) -> String {
-    let t = triad.name();
-    let rest = param.split_once('.').map_or("", |x| x.1);
-    let axis_of = |s: &str| s.chars().last().map(String::from).unwrap_or_default();
-    match k {
-        EffectKind::GSensitivity => {
-            let mut c = rest.chars();
-            let (row, col) = (c.next().unwrap_or('?'), c.next().unwrap_or('?'));
-            format!("the {row}-{t} residual follows the specific force along {col}")
-        }
-        EffectKind::Misalignment => {
-            let mut c = rest.chars();
-            let (row, col) = (c.next().unwrap_or('?'), c.next().unwrap_or('?'));
-            format!("the {row}-{t} residual follows the input along {col}")
-        }
-        EffectKind::ScaleNonlinearity => {
-            let power = if rest.starts_with("quadratic") {
-                "square"
-            } else {
-                "cube"
-            };
-            let a = axis_of(rest);
-            format!("the {a}-{t} residual follows the {power} of its input")
-        }
-        EffectKind::AsymmetricScale => {
-            let a = axis_of(rest);
-            format!("the {a}-{t} gain differs between positive and negative input")
-        }
-        EffectKind::Scale => format!(
-            "the {}-{t} residual is proportional to its input",
-            axis_of(rest)
-        ),
-        EffectKind::Bias => format!("a constant offset on {}-{t}", axis_of(rest)),
-        EffectKind::TempBias => format!("the {}-{t} residual follows temperature", axis_of(rest)),
-        EffectKind::TempScale => format!("the {}-{t} gain follows temperature", axis_of(rest)),
-        EffectKind::Warmup => format!(
-            "the {}-{t} residual decays with time since power-on",
-            axis_of(rest)
-        ),
-        EffectKind::LeverArm => format!(
-            "the {t} residual follows the square of the rotation rate (centripetal \
-             acceleration of a proof mass offset along {})",
-            axis_of(rest)
-        ),
-    }
-}
-
 /// The parameter with the largest |value / se| (a time constant never: it names no pattern):
 /// the one that names the candidate's pattern.
 pub(super) fn most_significant(params: &[ParamValue]) -> Option<&ParamValue> {
@@ -79,7 +31,7 @@ pub(super) fn explain(
         let _ = write!(
             s,
             ": {} ({} = {:.3e}{} {})",
-            driver(k, &p.name, triad),
+            p.id.driver(triad),
             p.name,
             p.value,
             p.std_error

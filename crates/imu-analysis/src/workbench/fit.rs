@@ -240,7 +240,7 @@ impl<'a> Workbench<'a> {
         family: Option<bool>,
     ) -> Result<Profiled, FitError> {
         let mut family = family;
-        use crate::calibrate::reference_free::{GAUGE, conditioning_warnings, store_std_errors};
+        use crate::calibrate::reference_free::{conditioning_warnings, gauge, store_std_errors};
         use imu_stats::lsq::{LsqError, LsqOptions, jacobian, least_squares};
         let triad = Triad::Accel;
         let points = &self.accel_points;
@@ -248,10 +248,7 @@ impl<'a> Workbench<'a> {
         let shared = self.shared(triad);
         let names = model.param_names(triad);
         let units = model.param_units(triad);
-        let gauge: Vec<usize> = GAUGE
-            .iter()
-            .filter_map(|g| names.iter().position(|x| x == g))
-            .collect();
+        let gauge = gauge(&model.param_ids());
         let mut p = model.params();
         let mut fixed = vec![false; names.len()];
         for &i in &gauge {

@@ -212,6 +212,9 @@ pub struct ParamValue {
     pub std_error: Option<f64>,
     /// Unit.
     pub unit: String,
+    /// Which effect and what it acts on.
+    #[serde(skip)]
+    pub id: imu_model::ParamId,
 }
 
 /// A library effect tried on top of the model.
@@ -476,6 +479,3 @@ pub struct Ladder {
     /// Conventions and decisions behind it (reference-free: gravity, Earth rate, gyro gains).
     pub notes: Vec<String>,
 }
-
-#[cfg(test)]
-mod tests;

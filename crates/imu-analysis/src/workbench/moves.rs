@@ -111,7 +111,7 @@ impl<'a> Workbench<'a> {
                 let not_obs: Vec<String> = sol
                     .unobservable
                     .iter()
-                    .filter(|u| u.name.starts_with(k.id()))
+                    .filter(|u| of_effect(&g.param_ids(), &u.name, k))
                     .map(|u| format!("{}: {}", u.name, u.reason))
                     .collect();
                 if new_params == 0 || sol.dof == 0 {
@@ -132,11 +132,11 @@ impl<'a> Workbench<'a> {
                 let rms = raw_rms(&g);
                 let mut spec = full.clone();
                 spec.add(k);
-                let (names, units) = (g.param_names(triad), g.param_units(triad));
+                let (ids, units) = (g.param_ids(), g.param_units(triad));
                 let params = effect_params(
                     k,
                     ParamTable {
-                        names: &names,
+                        ids: &ids,
                         units: &units,
                         params: &sol.params,
                         std_errors: &sol.std_errors,

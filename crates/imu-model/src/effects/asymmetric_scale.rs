@@ -3,7 +3,7 @@
 use crate::effect::{
     Effect, EffectDef, InvalidParam, arr3, check_finite, check_std_errors, fill, xyz_names,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Asymmetric scale. Forward: `y_i = x_i (1 + a_i sgn(x_i))`, so positive input sees scale
@@ -36,6 +36,9 @@ fn sgn(v: f64) -> f64 {
 impl Effect for AsymmetricScale {
     fn kind(&self) -> EffectKind {
         EffectKind::AsymmetricScale
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        ParamRole::axes()
     }
     fn param_names(&self) -> Vec<String> {
         xyz_names()

@@ -3,7 +3,7 @@
 use crate::effect::{
     Effect, EffectDef, InvalidParam, arr3, check_finite, check_std_errors, fill, xyz_names,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Constant bias. Forward: `y = x + b`.
@@ -22,6 +22,9 @@ pub struct Bias {
 impl Effect for Bias {
     fn kind(&self) -> EffectKind {
         EffectKind::Bias
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        ParamRole::axes()
     }
     fn param_names(&self) -> Vec<String> {
         xyz_names()

@@ -4,7 +4,7 @@
 use crate::effect::{
     AXES, Effect, EffectDef, InvalidParam, check_finite, check_std_errors, fill,
 };
-use crate::{Conditions, EffectKind, Mat3, Triad, Vec3};
+use crate::{Conditions, EffectKind, Mat3, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Gyro g-dependent bias. Forward: `w_meas = w + G f` with `f` the TRUE specific force at the
@@ -39,6 +39,11 @@ fn rows(p: &[f64]) -> [[f64; 3]; 3] {
 impl Effect for GSensitivity {
     fn kind(&self) -> EffectKind {
         EffectKind::GSensitivity
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        (0..3)
+            .flat_map(|row| (0..3).map(move |col| ParamRole::Coupling { row, col }))
+            .collect()
     }
     fn param_names(&self) -> Vec<String> {
         AXES.iter()

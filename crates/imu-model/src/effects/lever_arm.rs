@@ -4,7 +4,7 @@
 use crate::effect::{
     AXES, Effect, EffectDef, InvalidParam, arr3, check_finite, check_std_errors, fill, xyz_names,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Accelerometer lever arm. Forward: `f_meas = f + w x (w x r) + a x r` with `w` the true
@@ -34,6 +34,9 @@ impl LeverArm {
 impl Effect for LeverArm {
     fn kind(&self) -> EffectKind {
         EffectKind::LeverArm
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        ParamRole::axes()
     }
     fn param_names(&self) -> Vec<String> {
         xyz_names()

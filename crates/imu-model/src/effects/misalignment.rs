@@ -2,7 +2,7 @@
 //! fraction of the other two axes' input because the axes are not exactly orthogonal.
 
 use crate::effect::{Effect, EffectDef, InvalidParam, check_finite, check_std_errors, fill};
-use crate::{Conditions, EffectKind, Mat3, Triad, Vec3};
+use crate::{Conditions, EffectKind, Mat3, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Off-diagonal matrix entries by (row, column) name; absent entries are 0.
@@ -101,6 +101,19 @@ const NAMES: [&str; 6] = ["xy", "xz", "yx", "yz", "zx", "zy"];
 impl Effect for Misalignment {
     fn kind(&self) -> EffectKind {
         EffectKind::Misalignment
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        NAMES
+            .iter()
+            .map(|n| {
+                let b = n.as_bytes();
+                let axis = |c: u8| usize::from(c - b'x');
+                ParamRole::Coupling {
+                    row: axis(b[0]),
+                    col: axis(b[1]),
+                }
+            })
+            .collect()
     }
     fn param_names(&self) -> Vec<String> {
         NAMES.iter().map(|s| s.to_string()).collect()

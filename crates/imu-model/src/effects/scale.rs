@@ -3,7 +3,7 @@
 use crate::effect::{
     Effect, EffectDef, InvalidParam, arr3, check_finite, check_std_errors, fill, xyz_names,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Per-axis scale-factor error. Forward: `y_i = x_i (1 + s_i)`; `s = 0` is nominal.
@@ -23,6 +23,9 @@ pub struct Scale {
 impl Effect for Scale {
     fn kind(&self) -> EffectKind {
         EffectKind::Scale
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        ParamRole::axes()
     }
     fn param_names(&self) -> Vec<String> {
         xyz_names()

@@ -4,7 +4,7 @@ use crate::effect::{
     AXES, Effect, EffectDef, InvalidParam, arr3, check_finite, check_std_errors, fill,
     per_unit_pow, prefixed_xyz,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Scale nonlinearity. Forward per axis: `y = x + k2 x^2 + k3 x^3`.
@@ -143,6 +143,12 @@ pub(crate) fn solve(y: f64, k2: f64, k3: f64) -> f64 {
 impl Effect for ScaleNonlinearity {
     fn kind(&self) -> EffectKind {
         EffectKind::ScaleNonlinearity
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        [2, 3]
+            .into_iter()
+            .flat_map(|power| (0..3).map(move |axis| ParamRole::Power { power, axis }))
+            .collect()
     }
     fn param_names(&self) -> Vec<String> {
         let mut v = prefixed_xyz("quadratic");

@@ -5,7 +5,7 @@ use crate::effect::{
     unit_per_kelvin_pow,
 };
 use crate::effects::temp_scale::{default_t0_c, poly_names, rows_from, set_rows};
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Temperature-dependent bias. Forward: `y = x + sum_k c_k (T - T0)^k`, k = 1..n, per axis.
@@ -45,6 +45,11 @@ impl TempBias {
 impl Effect for TempBias {
     fn kind(&self) -> EffectKind {
         EffectKind::TempBias
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        (1..=self.coefficients.len())
+            .flat_map(|power| (0..3).map(move |axis| ParamRole::Power { power, axis }))
+            .collect()
     }
     fn param_names(&self) -> Vec<String> {
         poly_names(self.coefficients.len())

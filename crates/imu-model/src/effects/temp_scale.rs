@@ -4,7 +4,7 @@ use crate::effect::{
     AXES, Effect, EffectDef, InvalidParam, check_finite, check_poly_std_errors, fill, pow,
     poly_no_constant,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Temperature range (degC) over which validation requires a positive, sane scale.
@@ -68,6 +68,11 @@ pub(crate) fn rows_from(rows: usize, p: &[f64]) -> Vec<[f64; 3]> {
 impl Effect for TempScale {
     fn kind(&self) -> EffectKind {
         EffectKind::TempScale
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        (1..=self.coefficients.len())
+            .flat_map(|power| (0..3).map(move |axis| ParamRole::Power { power, axis }))
+            .collect()
     }
     fn param_names(&self) -> Vec<String> {
         poly_names(self.coefficients.len())

@@ -3,7 +3,7 @@
 use crate::effect::{
     Effect, EffectDef, InvalidParam, check_finite, check_std_errors, fill, prefixed_xyz,
 };
-use crate::{Conditions, EffectKind, Triad, Vec3};
+use crate::{Conditions, EffectKind, Triad, Vec3, ParamRole};
 use serde::{Deserialize, Serialize};
 
 /// Warm-up bias transient. Forward: `y = x + A exp(-t / tau)`, `t` = time since power-on.
@@ -49,6 +49,11 @@ impl Warmup {
 impl Effect for Warmup {
     fn kind(&self) -> EffectKind {
         EffectKind::Warmup
+    }
+    fn param_roles(&self) -> Vec<ParamRole> {
+        let mut v = ParamRole::axes();
+        v.push(ParamRole::Scalar);
+        v
     }
     fn param_names(&self) -> Vec<String> {
         let mut v = prefixed_xyz("amplitude");

@@ -21,10 +21,7 @@ pub(super) fn fit_accel(
     let names = model.param_names(triad);
     let units = model.param_units(triad);
     let mut p0 = model.params();
-    let gauge: Vec<usize> = GAUGE
-        .iter()
-        .filter_map(|g| names.iter().position(|n| n == g))
-        .collect();
+    let gauge = gauge(&model.param_ids());
     let mut fixed = held(triad, &names, &opts.hold);
     let requested = fixed.clone();
     for &i in &gauge {
@@ -87,13 +84,16 @@ pub(super) fn fit_accel(
             },
             source => ReferenceFreeError::Lsq { triad, source },
         })?;
+    let ids = model.param_ids();
+    let effect_of = |name: &str| ids.iter().find(|id| id.name == name).map(|id| id.effect);
     let primary: Vec<&Unobservable> = sol
         .unobservable
         .iter()
         .filter(|u| {
-            ["bias.", "scale.", "misalignment."]
-                .iter()
-                .any(|p| u.name.starts_with(p))
+            matches!(
+                effect_of(&u.name),
+                Some(EffectKind::Bias | EffectKind::Scale | EffectKind::Misalignment)
+            )
         })
         .collect();
     if !primary.is_empty() {
@@ -110,8 +110,9 @@ pub(super) fn fit_accel(
     model.set_params(&sol.params);
     let mut std_errors = sol.std_errors.clone();
     if let Some(drift) = opts.accel_bias_drift_m_s2 {
-        for (a, axis) in ["bias.x", "bias.y", "bias.z"].iter().enumerate() {
-            if let Some(i) = names.iter().position(|n| n == axis)
+        for (i, id) in ids.iter().enumerate() {
+            if id.effect == EffectKind::Bias
+                && let Some(a) = id.role.axis()
                 && let Some(se) = std_errors[i].as_mut()
             {
                 *se = (*se * *se + drift[a] * drift[a]).sqrt();

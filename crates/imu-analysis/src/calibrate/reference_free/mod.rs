@@ -60,8 +60,17 @@ pub const PROCEDURE: &str = "reference-free multi-pose: accelerometer from the g
      at still poses, gyro bias from the still poses, gyro gains from the rotations integrated \
      between poses (imu-calibrate --reference-free)";
 
-/// Accel misalignment entries held at 0 to fix the rotation gauge.
-pub(crate) const GAUGE: [&str; 3] = ["misalignment.xy", "misalignment.xz", "misalignment.yz"];
+/// The accel misalignment entries held at 0 to fix the rotation gauge (the upper triangle:
+/// `xy`, `xz`, `yz`): indices into `ids`.
+pub(crate) fn gauge(ids: &[imu_model::ParamId]) -> Vec<usize> {
+    use imu_model::ParamRole;
+    (0..ids.len())
+        .filter(|&i| {
+            ids[i].effect == EffectKind::Misalignment
+                && matches!(ids[i].role, ParamRole::Coupling { row, col } if row < col)
+        })
+        .collect()
+}
 
 /// Local gravity for a reference-free fit, m/s^2, and the note saying where it came from: the
 /// given value, else WGS-84 normal gravity at the latitude, else standard gravity.
