@@ -1,0 +1,282 @@
+//! Round trips and byte layouts of the CDR messages.
+
+use super::*;
+
+fn header(frame_id: &str) -> Header {
+    Header {
+        stamp: Time {
+            sec: 1_700_000_000,
+            nanosec: 123_456_789,
+        },
+        frame_id: frame_id.into(),
+    }
+}
+
+fn imu() -> Imu {
+    Imu {
+        header: header("imu_link"),
+        orientation: Quaternion::default(),
+        orientation_covariance: NOT_PROVIDED_COVARIANCE,
+        angular_velocity: [0.01, -0.02, 0.03].into(),
+        angular_velocity_covariance: diagonal_covariance([1e-6, 2e-6, 3e-6]),
+        linear_acceleration: [0.1, -0.2, -9.80665].into(),
+        linear_acceleration_covariance: [0.0; 9],
+    }
+}
+
+#[test]
+fn imu_golden_bytes() {
+    let bytes = imu().to_cdr();
+    // Hand-checked layout: 4 header bytes, then offsets relative to byte 4:
+    // 0 sec, 4 nanosec, 8 string length (9 = "imu_link" + NUL), 12..20 text, 20 NUL,
+    // 21..24 padding to 8, 24 orientation (4 x f64), 56 covariance (9 x f64), 128 angular
+    // velocity, 152 covariance, 224 linear acceleration, 248 covariance, 320 end.
+    assert_eq!(bytes.len(), 4 + 320);
+    let mut expected_head = vec![0x00, 0x01, 0x00, 0x00];
+    expected_head.extend_from_slice(&1_700_000_000i32.to_le_bytes());
+    expected_head.extend_from_slice(&123_456_789u32.to_le_bytes());
+    expected_head.extend_from_slice(&[9, 0, 0, 0]);
+    expected_head.extend_from_slice(b"imu_link\0");
+    expected_head.extend_from_slice(&[0, 0, 0]);
+    assert_eq!(&bytes[..28], &expected_head[..]);
+    assert_eq!(
+        &bytes[4..16],
+        &[
+            0x00, 0xF1, 0x53, 0x65, 0x15, 0xCD, 0x5B, 0x07, 0x09, 0x00, 0x00, 0x00
+        ]
+    );
+    let f64_at = |rel: usize| f64::from_le_bytes(bytes[4 + rel..12 + rel].try_into().unwrap());
+    assert_eq!(
+        [f64_at(24), f64_at(32), f64_at(40), f64_at(48)],
+        [0.0, 0.0, 0.0, 1.0]
+    );
+    assert_eq!(f64_at(56), -1.0);
+    assert_eq!(f64_at(128), 0.01);
+    assert_eq!(f64_at(152), 1e-6);
+    assert_eq!(f64_at(152 + 32), 2e-6);
+    assert_eq!(f64_at(224 + 16), -9.80665);
+    assert_eq!(f64_at(312), 0.0);
+}
+
+#[test]
+fn empty_frame_id_pads_to_the_next_eight() {
+    let mut m = imu();
+    m.header.frame_id.clear();
+    let bytes = m.to_cdr();
+    // 8 stamp, 4 length (1), 1 NUL, 3 padding: orientation at relative 16.
+    assert_eq!(&bytes[12..20], &[1, 0, 0, 0, 0, 0, 0, 0]);
+    assert_eq!(bytes.len(), 4 + 16 + 296);
+    assert_eq!(Imu::from_cdr(&bytes).unwrap(), m);
+}
+
+fn round_trip<M: RosMessage + PartialEq + std::fmt::Debug>(m: &M) {
+    let bytes = m.to_cdr();
+    assert_eq!(&M::from_cdr(&bytes).unwrap(), m);
+    // Every strict prefix is an error, never a panic (no message here ends in padding).
+    for n in 0..bytes.len() {
+        assert!(
+            M::from_cdr(&bytes[..n]).is_err(),
+            "{} decoded from {n} bytes",
+            M::DEFINITION.type_name
+        );
+    }
+}
+
+#[test]
+fn every_type_round_trips_and_rejects_truncation() {
+    round_trip(&imu());
+    round_trip(&Temperature {
+        header: header("imu_link"),
+        temperature: 24.5,
+        variance: 0.0,
+    });
+    round_trip(&MagneticField {
+        header: header("x"),
+        magnetic_field: [2.2e-5, -4.2e-5, 1e-6].into(),
+        magnetic_field_covariance: diagonal_covariance([1e-14, 2e-14, 3e-14]),
+    });
+    round_trip(&RawSampleMsg {
+        header: header("imu_link"),
+        sample: RawSample {
+            seq: 42,
+            t_device_ns: 1,
+            t_host_monotonic_ns: 2,
+            t_host_wall_ns: 3,
+            t_sample_ns: 4,
+            ticks_unwrapped: 70_000,
+            accel_counts: [32768, 1, -5],
+            gyro_counts: [65535, 0, 7],
+            mag_counts: [-32768, 2, 3],
+            temp_c: 25.25,
+            ticks: 4464,
+            command: 0x0C,
+            reserved: 0,
+            flags: raw_flags::SATURATED | raw_flags::GAP_BEFORE,
+        },
+    });
+    round_trip(&RawFrameMsg {
+        header: header("imu_link"),
+        t_host_monotonic_ns: 5,
+        stream_offset: 1234,
+        accepted: false,
+        reject_reason: "bad-checksum".into(),
+        data: vec![0x0C, 1, 2, 3, 0xFF],
+    });
+    round_trip(&DaemonStatusMsg {
+        header: header(""),
+        status: DaemonStatus {
+            t_host_monotonic_ns: 9,
+            frames: 1,
+            samples: 2,
+            checksum_failures: 3,
+            resyncs: 4,
+            garbage_bytes: 5,
+            truncated_frames: 6,
+            samples_lost: 7,
+            log_drops: 8,
+            publish_drops: 9,
+            reconnects: 10,
+            calibration_id: 0xDEAD_BEEF,
+            tick_period_est_s: 0.0065536,
+            clock_drift_ppm: -12.5,
+            temp_c: 30.0,
+            device_connected: 1,
+            logging: 1,
+            reserved: [0, 1, 2, 3, 4, 5],
+        },
+    });
+    round_trip(&CalibrationMsg {
+        header: header("imu_link"),
+        id: "abc123".into(),
+        toml: "format = \"imu-model/1\"\n# µ".into(),
+    });
+}
+
+#[test]
+fn nan_survives_the_round_trip() {
+    let m = RawSampleMsg {
+        sample: RawSample {
+            temp_c: f64::NAN,
+            ..RawSample::default()
+        },
+        ..RawSampleMsg::default()
+    };
+    let back = RawSampleMsg::from_cdr(&m.to_cdr()).unwrap();
+    assert!(back.sample.temp_c.is_nan());
+}
+
+#[test]
+fn bad_input_is_an_error_with_its_place() {
+    assert_eq!(
+        Imu::from_cdr(&[0x00, 0x00, 0x00, 0x00]).unwrap_err(),
+        CdrError::BadEncapsulation {
+            found: vec![0, 0, 0, 0]
+        }
+    );
+    let mut bytes = CalibrationMsg {
+        header: header("f"),
+        id: "id".into(),
+        toml: String::new(),
+    }
+    .to_cdr();
+    // Make the id's terminating NUL a letter.
+    let nul = bytes.iter().rposition(|&b| b == b'd').unwrap() + 1;
+    bytes[nul] = b'x';
+    let err = CalibrationMsg::from_cdr(&bytes).unwrap_err();
+    assert!(
+        matches!(err, CdrError::BadString { field: "id", .. }),
+        "{err}"
+    );
+    // A huge length never allocates or panics.
+    let mut bytes = RawFrameMsg::default().to_cdr();
+    let n = bytes.len();
+    bytes[n - 4..].copy_from_slice(&u32::MAX.to_le_bytes());
+    let err = RawFrameMsg::from_cdr(&bytes).unwrap_err();
+    assert!(
+        matches!(err, CdrError::Truncated { field: "data", .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("`data`"), "{err}");
+}
+
+#[test]
+fn time_conversions() {
+    let t = Time::from_ns(1_700_000_000_123_456_789);
+    assert_eq!((t.sec, t.nanosec), (1_700_000_000, 123_456_789));
+    assert_eq!(t.to_ns(), 1_700_000_000_123_456_789);
+    assert_eq!(Time::from_ns(u64::MAX).sec, i32::MAX);
+    assert_eq!(
+        Time {
+            sec: -1,
+            nanosec: 0
+        }
+        .to_ns(),
+        0
+    );
+}
+
+/// Every non-primitive field type named in a schema has its own `MSG:` section, each
+/// section appears once, and separators are exactly 80 `=`.
+fn check_schema(def: &MsgDefinition) {
+    const PRIMITIVES: &[&str] = &[
+        "bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
+        "uint64", "float32", "float64", "string", "wstring",
+    ];
+    let text = def.schema_text();
+    let sections: Vec<&str> = text.split(&format!("{DEFINITION_SEPARATOR}\n")).collect();
+    let mut names = vec![def.type_name.to_string()];
+    for s in &sections[1..] {
+        let first = s.lines().next().unwrap();
+        let name = first.strip_prefix("MSG: ").expect("MSG: line");
+        assert_eq!(name.split('/').count(), 3, "{name}");
+        assert!(!names.contains(&name.to_string()), "{name} twice");
+        names.push(name.to_string());
+    }
+    for line in text.lines() {
+        assert!(
+            !line.starts_with('=') || line == DEFINITION_SEPARATOR,
+            "bad separator {line:?}"
+        );
+        let line = line.split('#').next().unwrap().trim();
+        if line.is_empty() || line.starts_with("MSG:") || line.starts_with('=') {
+            continue;
+        }
+        let ty = line.split_whitespace().next().unwrap();
+        let base = ty.split('[').next().unwrap();
+        if PRIMITIVES.contains(&base) {
+            continue;
+        }
+        let (pkg, name) = base.split_once('/').expect("package-qualified type");
+        let full = format!("{pkg}/msg/{name}");
+        assert!(
+            names.contains(&full),
+            "{} uses {full} without MSG section",
+            def.type_name
+        );
+    }
+}
+
+#[test]
+fn schemas_are_complete_ros2msg_text() {
+    for def in [
+        &IMU_DEF,
+        &TEMPERATURE_DEF,
+        &MAGNETIC_FIELD_DEF,
+        &RAW_SAMPLE_DEF,
+        &RAW_FRAME_DEF,
+        &DAEMON_STATUS_DEF,
+        &CALIBRATION_DEF,
+    ] {
+        check_schema(def);
+    }
+    let imu = IMU_DEF.schema_text();
+    assert!(imu.starts_with("# If you have no estimate"));
+    assert!(imu.contains(&format!(
+        "\n{DEFINITION_SEPARATOR}\nMSG: std_msgs/msg/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+    )));
+    assert!(imu.contains(&format!(
+        "\n{DEFINITION_SEPARATOR}\nMSG: builtin_interfaces/msg/Time\nint32 sec\nuint32 nanosec\n"
+    )));
+    assert_eq!(imu.matches("MSG: ").count(), 4);
+    assert_eq!(DEFINITION_SEPARATOR.len(), 80);
+}

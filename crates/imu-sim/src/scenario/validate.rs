@@ -1,0 +1,192 @@
+//! Checking a parsed scenario: every value in range, every segment well formed, with errors
+//! that name the file, the segment and the key.
+
+use super::*;
+
+impl Scenario {
+    pub(super) fn validate(&self, file: &str) -> Result<(), ScenarioError> {
+        let invalid = |context: String, message: String| ScenarioError::Invalid {
+            file: file.to_string(),
+            context,
+            message,
+        };
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        for (i, d) in self.disturbances.iter().enumerate() {
+            if !positive(d.frequency_hz) || d.amplitude.iter().any(|a| !a.is_finite()) {
+                return Err(invalid(
+                    format!("disturbance[{i}]"),
+                    "frequency-hz must be positive and the amplitudes finite".into(),
+                ));
+            }
+        }
+        if !positive(self.rate_hz) || self.rate_hz > 100_000.0 {
+            return Err(invalid(
+                "rate-hz".into(),
+                format!(
+                    "{} Hz is not a usable data rate (0 < rate <= 100000)",
+                    self.rate_hz
+                ),
+            ));
+        }
+        if !(-90.0..=90.0).contains(&self.latitude_deg) {
+            return Err(invalid(
+                "latitude-deg".into(),
+                format!("{} is outside -90..90 degrees", self.latitude_deg),
+            ));
+        }
+        if !positive(self.gravity_m_s2) || !positive(self.transition_s) {
+            return Err(invalid(
+                "gravity-m-s2 / transition-s".into(),
+                "must be positive".into(),
+            ));
+        }
+        if !positive(self.device.tick_period_s) {
+            return Err(invalid(
+                "device.tick-period-s".into(),
+                "must be positive (6.5536e-3 on most units)".into(),
+            ));
+        }
+        if self.device.clock_drift_ppm.abs() >= 1e5 {
+            return Err(invalid(
+                "device.clock-drift-ppm".into(),
+                "must be well under 1e5 ppm".into(),
+            ));
+        }
+        let g = self.device.gain_scale;
+        if g.accel == 0 || g.gyro == 0 || g.mag == 0 {
+            return Err(invalid(
+                "device.gain-scale".into(),
+                "GainScale words must be non-zero".into(),
+            ));
+        }
+        match &self.temperature {
+            TemperatureProfile::Warmup { tau_s, .. } if !positive(*tau_s) => {
+                return Err(invalid(
+                    "temperature".into(),
+                    "tau-s must be positive".into(),
+                ));
+            }
+            TemperatureProfile::Cycle { period_s, .. } if !positive(*period_s) => {
+                return Err(invalid(
+                    "temperature".into(),
+                    "period-s must be positive".into(),
+                ));
+            }
+            TemperatureProfile::Points { points }
+                if points.is_empty() || points.windows(2).any(|w| w[1][0] <= w[0][0]) =>
+            {
+                return Err(invalid(
+                    "temperature".into(),
+                    "points need at least one [time-s, temp-c] pair, in strictly increasing time"
+                        .into(),
+                ));
+            }
+            _ => {}
+        }
+        if self.segments.is_empty() {
+            return Err(invalid(
+                "segment".into(),
+                "a scenario needs at least one [[segment]]".into(),
+            ));
+        }
+        let last = self.segments.len() - 1;
+        for (i, seg) in self.segments.iter().enumerate() {
+            let ctx = format!("segment {} ({})", i + 1, seg.kind_name());
+            let bad = |m: &str| Err(invalid(ctx.clone(), m.to_string()));
+            match seg {
+                SegmentSpec::Static {
+                    orientation,
+                    duration_s,
+                    move_s,
+                    ..
+                } => {
+                    if let Some(o) = orientation {
+                        o.enu_from_sensor().map_err(|m| invalid(ctx.clone(), m))?;
+                    }
+                    match duration_s {
+                        None if i != last => {
+                            return bad(
+                                "only the last segment may omit duration-s (it then runs forever)",
+                            );
+                        }
+                        Some(d) if !positive(*d) => return bad("duration-s must be positive"),
+                        _ => {}
+                    }
+                    if move_s.is_some_and(|m| !positive(m)) {
+                        return bad("move-s must be positive");
+                    }
+                }
+                SegmentSpec::IndexTable {
+                    step_deg,
+                    positions,
+                    dwell_s,
+                    move_s,
+                    ..
+                } => {
+                    if *positions == 0
+                        || !positive(*dwell_s)
+                        || !positive(*move_s)
+                        || !step_deg.is_finite()
+                    {
+                        return bad(
+                            "positions, dwell-s and move-s must be positive and step-deg finite",
+                        );
+                    }
+                }
+                SegmentSpec::RateSteps {
+                    rates_deg_s,
+                    dwell_s,
+                    accel_deg_s2,
+                    ..
+                } => {
+                    if rates_deg_s.is_empty()
+                        || !positive(*dwell_s)
+                        || !positive(*accel_deg_s2)
+                        || rates_deg_s.iter().any(|r| !r.is_finite())
+                    {
+                        return bad(
+                            "rates-deg-s must be a non-empty list; dwell-s and accel-deg-s2 positive",
+                        );
+                    }
+                }
+                SegmentSpec::Rotate {
+                    angle_deg,
+                    duration_s,
+                    ..
+                } => {
+                    if !angle_deg.is_finite() || !positive(*duration_s) {
+                        return bad("angle-deg must be finite and duration-s positive");
+                    }
+                }
+                SegmentSpec::Impacts {
+                    count,
+                    period_s,
+                    peak_g,
+                    width_ms,
+                    ..
+                } => {
+                    if *count == 0
+                        || !positive(*period_s)
+                        || !peak_g.is_finite()
+                        || !positive(*width_ms)
+                        || width_ms * 1e-3 >= *period_s
+                    {
+                        return bad(
+                            "count, period-s and width-ms must be positive, and each shock shorter than the period",
+                        );
+                    }
+                }
+                SegmentSpec::RandomPoses {
+                    count,
+                    dwell_s,
+                    move_s,
+                } => {
+                    if *count == 0 || !positive(*dwell_s) || !positive(*move_s) {
+                        return bad("count, dwell-s and move-s must be positive");
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
