@@ -115,6 +115,7 @@ pub type Mat3 = nalgebra::Matrix3<f64>;
 
 pub mod units;
 
+mod affine;
 mod calibration;
 mod effect;
 pub mod effects;
