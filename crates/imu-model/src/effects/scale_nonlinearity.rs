@@ -56,21 +56,23 @@ fn gain(x: f64, k2: f64, k3: f64) -> f64 {
 
 /// The open interval around 0 on which the curve is increasing (ends may be infinite).
 fn monotone_interval(k2: f64, k3: f64) -> (f64, f64) {
-    // Roots of the gain 3 k3 x^2 + 2 k2 x + 1; none of them is 0 because gain(0) = 1.
-    let roots: Vec<f64> = if k3 == 0.0 {
+    // Roots of the gain 3 k3 x^2 + 2 k2 x + 1; none of them is 0 because gain(0) = 1. NaN marks
+    // a missing root (it passes neither filter below). An array, not a Vec: this runs for every
+    // sample in the daemon, which must not allocate.
+    let roots: [f64; 2] = if k3 == 0.0 {
         if k2 == 0.0 {
-            vec![]
+            [f64::NAN; 2]
         } else {
-            vec![-1.0 / (2.0 * k2)]
+            [-1.0 / (2.0 * k2), f64::NAN]
         }
     } else {
         let disc = k2 * k2 - 3.0 * k3;
         if disc < 0.0 {
-            vec![]
+            [f64::NAN; 2]
         } else {
             // Stable quadratic formula: q = -(b + sgn(b) sqrt(b^2 - 4ac)) / 2 with b = 2 k2.
             let q = -(k2 + k2.signum() * disc.sqrt());
-            vec![q / (3.0 * k3), 1.0 / q]
+            [q / (3.0 * k3), 1.0 / q]
         }
     };
     let lo = roots
