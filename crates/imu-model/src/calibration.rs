@@ -1,9 +1,9 @@
 //! A whole-IMU calibration (accel, gyro and mag models plus provenance): the TOML file format,
 //! the forward model for a sample, and the exact correction the daemon applies.
 
-use crate::affine::AffineInverse;
 use crate::effect::InvalidParam;
 use crate::error::{ModelError, Seg, line_of_path, parse_error, parse_path};
+use crate::prepared::{InversePath, PreparedInverse};
 use crate::{Conditions, Corrected, EffectKind, Measured, Triad, TriadModel, TrueMotion, Vec3};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -90,19 +90,20 @@ pub struct Calibration {
     /// Magnetometer model (unit gauss).
     #[serde(default, skip_serializing_if = "TriadModel::is_empty")]
     pub mag: TriadModel,
-    /// The closed-form inverse, built on first use (or when parsed) if every effect is linear.
+    /// The prepared inverse, built when parsed or on first use.
     #[serde(skip)]
     inverse: InverseCache,
 }
 
-/// A lazily built [`AffineInverse`] (`None` inside: the calibration is not linear). Not part of
+/// A lazily built [`PreparedInverse`] (`None` inside: a model it does not cover). Not part of
 /// the calibration's value: equality ignores it and a clone starts empty, so a clone of a
-/// changed calibration builds its own. A stale map is never used ([`AffineInverse::matches`]);
-/// a calibration changed in place through its public fields after the cache was filled keeps
-/// the iteration (always correct, only slower) until it is cloned or changed through
-/// [`Calibration::triad_mut`], which empties the cache. Loaded calibrations fill it when parsed.
+/// changed calibration builds its own. A stale one is never used ([`PreparedInverse::matches`]);
+/// a calibration changed in place through its public fields after the cache was filled takes
+/// [`Calibration::correct_iterative`] (always correct, only slower) until it is cloned or
+/// changed through [`Calibration::triad_mut`], which empties the cache. Loaded calibrations
+/// fill it when parsed, so the daemon's first sample does not allocate.
 #[derive(Default)]
-struct InverseCache(OnceLock<Option<AffineInverse>>);
+struct InverseCache(OnceLock<Option<PreparedInverse>>);
 
 impl Clone for InverseCache {
     fn clone(&self) -> Self {
@@ -120,8 +121,8 @@ impl fmt::Debug for InverseCache {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.0.get() {
             None => f.write_str("not built"),
-            Some(None) => f.write_str("iterative"),
-            Some(Some(_)) => f.write_str("affine"),
+            Some(None) => f.write_str("not covered"),
+            Some(Some(p)) => write!(f, "{:?}", p.path()),
         }
     }
 }
@@ -188,8 +189,8 @@ impl Calibration {
                 message: e.message,
             }
         })?;
-        // Build the closed-form inverse now, so that the daemon's first sample does not.
-        cal.affine_inverse();
+        // Build the prepared inverse now, so that the daemon's first sample does not.
+        cal.prepared_inverse();
         Ok(cal)
     }
 
@@ -299,12 +300,14 @@ impl Calibration {
     /// acceleration. The accel inverse needs the true angular rate (lever arm) and the gyro
     /// inverse the true specific force (g-sensitivity).
     ///
-    /// When every effect is linear (lever arm, misalignment, scale, bias, temp-bias, warm-up,
-    /// g-sensitivity) and the lever arm and g-sensitivity are not both present, the inverse is a
-    /// closed form (a precomputed affine map per triad; the crate docs say exactly when) and is
-    /// evaluated directly; it agrees with [`Calibration::correct_iterative`] to rounding, and
-    /// `converged` follows the same rule. Otherwise this is
-    /// [`Calibration::correct_iterative`]. [`Calibration::uses_affine_inverse`] tells which.
+    /// Evaluates the calibration's prepared inverse (gain inverses precomputed once per
+    /// calibration; see [`InversePath`]): when every effect is linear and the lever arm and
+    /// g-sensitivity are not both present that is one affine map per triad and no iteration;
+    /// otherwise the nonlinear per-axis stages are undone with the effects' own code, and the
+    /// accel/gyro coupling is iterated only if lever arm and g-sensitivity are both present. It
+    /// agrees with [`Calibration::correct_iterative`] to rounding (tests check 1e-12 relative),
+    /// and `converged` follows the same rule. Models the prepared form does not cover take
+    /// [`Calibration::correct_iterative`]. [`Calibration::inverse_path`] tells which path.
     pub fn correct(
         &self,
         m: &Measured,
@@ -312,24 +315,25 @@ impl Calibration {
         time_since_power_on_s: f64,
         angular_accel_rad_s2: Vec3,
     ) -> Corrected {
-        match self.affine_inverse() {
-            Some(a) => a.correct(m, temp_c, time_since_power_on_s, angular_accel_rad_s2),
+        match self.prepared_inverse() {
+            Some(p) => p.correct(m, temp_c, time_since_power_on_s, angular_accel_rad_s2),
             None => self.correct_iterative(m, temp_c, time_since_power_on_s, angular_accel_rad_s2),
         }
     }
 
-    /// True if [`Calibration::correct`] takes the closed-form (affine) path for this calibration.
-    pub fn uses_affine_inverse(&self) -> bool {
-        self.affine_inverse().is_some()
+    /// Which path [`Calibration::correct`] takes for this calibration, as it is now.
+    pub fn inverse_path(&self) -> InversePath {
+        self.prepared_inverse()
+            .map_or(InversePath::Iterative, PreparedInverse::path)
     }
 
-    /// The closed-form inverse if the calibration is linear and the map still matches it.
-    fn affine_inverse(&self) -> Option<&AffineInverse> {
+    /// The prepared inverse if the model is covered and it still matches the model.
+    fn prepared_inverse(&self) -> Option<&PreparedInverse> {
         self.inverse
             .0
-            .get_or_init(|| AffineInverse::new(self))
+            .get_or_init(|| PreparedInverse::new(self))
             .as_ref()
-            .filter(|a| a.matches(self))
+            .filter(|p| p.matches(self))
     }
 
     /// The general inverse, for any calibration (what [`Calibration::correct`] does when the

@@ -1,54 +1,78 @@
-//! The closed-form inverse of a calibration whose effects are all linear: the fast path that
-//! [`Calibration::correct`](crate::Calibration::correct) takes instead of the effect chains and
-//! the accel/gyro fixed-point iteration.
+//! The prepared inverse of a calibration: what [`Calibration::correct`] evaluates per sample
+//! instead of the effect chains, with the gain inverse precomputed and, for a calibration whose
+//! effects are all linear, no iteration at all (one affine map per triad).
 //!
-//! # When the inverse is affine
+//! # Structure of every triad's inverse
 //!
-//! With only linear effects a triad's forward model (canonical order) is
+//! Undoing the canonical order in reverse, every triad's inverse has the same shape:
 //!
-//! `y = D (I + M) (x + l) + b + b_T(T) + w(t) + G f`
+//! `x = A P(y - G f - w(t) - b_T(T) - b) - l`, with `A = (I + M)^-1 D^-1`
 //!
-//! (`D = diag(1 + s)` scale, `M` misalignment, `l` the accel lever-arm term, `b` bias, `b_T` the
-//! temperature bias, `w` the warm-up transient, `G f` the gyro g-sensitivity at the true specific
-//! force `f`), so its inverse is
+//! (`G f` gyro g-sensitivity at the true specific force `f`, `w` warm-up, `b_T` temperature
+//! bias, `b` bias, `P` the per-axis nonlinear stages undone in order: scale nonlinearity,
+//! temperature scale, asymmetric scale; `D = diag(1 + s)` scale, `M` misalignment, `l` the accel
+//! lever-arm term). `A` is computed once here instead of an LU factorisation per stage call; the
+//! offsets are subtracted and `P` is evaluated exactly as the effect chain does, with the
+//! effects' own code.
 //!
-//! `x = A (y - G f - w(t) - b_T(T) - b) - l`, with `A = (I + M)^-1 D^-1` precomputed.
+//! # When the joint inverse is affine
 //!
-//! For one frame the temperature `T` and the time `t` are known, so `b_T` and `w` are constants
-//! (evaluated per frame with the effects' own formulas) and the map is affine in `y`. For the joint
-//! accel/gyro inverse:
+//! For one frame the temperature `T`, the time `t` and the angular-acceleration estimate `a` are
+//! known, so `w(t)` and `b_T(T)` are constants. With `P` the identity (no scale nonlinearity,
+//! asymmetric scale or temperature scale) each triad's map is affine in `y`, and jointly:
 //!
 //! - **g-sensitivity, no lever arm**: `f` comes from the accel map alone, then
-//!   `w = A_g (w_m - G f - ...)`: affine in the measured `(accel, gyro)`, no iteration.
-//! - **lever arm, no g-sensitivity**: `l = w x (w x r) + a x r`. With the frame's angular
-//!   acceleration `a` (the daemon's estimate) `a x r` is a constant; `w x (w x r)` is quadratic
-//!   in the true rate `w`, but `w` comes from the gyro map alone, so the term is evaluated once at
-//!   the corrected rate ([`LeverArm::term_m_s2`], exactly what the iteration evaluates): closed
-//!   form, but not affine in the measured gyro.
-//! - **both**: `w` depends on `f` through `G` and `f` on `w` through `w x (w x r)`, a quadratic
-//!   implicit system: the iteration.
-//! - **temp-scale**: its factor multiplies the gain matrix by a polynomial of `T`; affine per
-//!   frame, but `A` would have to be rebuilt whenever the temperature changes. Not in the fast
-//!   path (the iteration handles it); with the 3DM-GX1 class (no temperature scale error seen)
-//!   this costs nothing.
-//! - **asymmetric scale, scale nonlinearity**: nonlinear in `y`: the iteration.
+//!   `w = A_g (w_m - G f - ...)`: affine in the measured `(accel, gyro)`, no iteration
+//!   ([`InversePath::Affine`]).
+//! - **lever arm, no g-sensitivity**: `l = w x (w x r) + a x r`; `a x r` is a constant,
+//!   `w x (w x r)` is quadratic in the rate, but the rate comes from the gyro map alone, so the
+//!   term is evaluated once at the corrected rate with [`LeverArm::term_m_s2`], exactly as the
+//!   iteration evaluates it. Closed form, no iteration; affine up to that explicit term (also
+//!   reported as [`InversePath::Affine`]).
+//! - **lever arm and g-sensitivity**: the rate depends on `f` through `G` and `f` on the rate
+//!   through `w x (w x r)`, a quadratic implicit system: the fixed-point iteration of
+//!   [`Calibration::correct_iterative`] (same start, same settling rule, same budget), but each
+//!   round costs two small matrix products instead of two effect chains.
+//! - **temp-scale**: affine per frame, but its factor changes `A` whenever the temperature
+//!   changes. Chosen: not folded into `A` (no per-temperature rebuild); it is evaluated as a
+//!   per-axis stage inside `P` like the nonlinear ones ([`InversePath::Prepared`]).
+//! - **scale nonlinearity, asymmetric scale**: nonlinear in `y`; inside `P`
+//!   ([`InversePath::Prepared`]).
 //!
 //! # Staleness
 //!
-//! `Calibration`'s fields are public and mutated in place across the workspace, so the map keeps
-//! a copy of the effect parameters it was built from and is used only while the calibration
-//! holds exactly those effects ([`AffineInverse::matches`], a comparison of a few dozen numbers
-//! per sample, no allocation). A calibration changed after its map was built falls back to the
-//! iteration, which is always correct.
+//! `Calibration`'s fields are public and mutated in place across the workspace, so the prepared
+//! inverse keeps a copy of the effects it was built from, evaluates only that copy, and is used
+//! only while the calibration holds exactly those effects ([`PreparedInverse::matches`]: a
+//! comparison of a few dozen numbers per sample, no allocation).
 
 use crate::calibration::small_change;
 use crate::{
-    Bias, Calibration, Conditions, Corrected, EffectKind, GSensitivity, LeverArm, Mat3, Measured,
-    Misalignment, Scale, TempBias, Triad, TriadModel, Vec3, Warmup,
+    AsymmetricScale, Bias, Calibration, Conditions, Corrected, Effect, EffectKind, GSensitivity,
+    LeverArm, MAX_COUPLING_ITERATIONS, Mat3, Measured, Misalignment, Scale, ScaleNonlinearity,
+    TempBias, TempScale, Triad, TriadModel, Vec3, Warmup,
 };
 
-/// Whether effect `k` is linear (affine per frame) and so allowed in the fast path. Exhaustive on
-/// purpose: a new effect does not compile until it is classified here.
+/// How [`Calibration::correct`] inverts a calibration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InversePath {
+    /// Every effect linear (lever arm, misalignment, scale, bias, temp-bias, warm-up,
+    /// g-sensitivity), not lever arm and g-sensitivity together: one precomputed affine map per
+    /// triad (plus the lever-arm term at the corrected rate), no iteration.
+    Affine,
+    /// Precomputed gain inverses around the per-axis nonlinear stages (scale nonlinearity,
+    /// asymmetric scale, temperature scale); the accel/gyro coupling iterated only when lever
+    /// arm and g-sensitivity are both present.
+    Prepared,
+    /// The effect chains and the fixed-point iteration ([`Calibration::correct_iterative`]):
+    /// models the prepared form does not cover (an effect on a triad it does not apply to, a
+    /// singular gain) or changed in place after the prepared inverse was built.
+    Iterative,
+}
+
+/// Whether effect `k` is linear (affine per frame, no change of gain with temperature).
+/// Exhaustive on purpose: a new effect does not compile until it is classified here (and placed
+/// in [`TriadInverse::undo_offsets_and_gain`]).
 pub(crate) fn is_linear(k: EffectKind) -> bool {
     match k {
         EffectKind::LeverArm
@@ -64,24 +88,31 @@ pub(crate) fn is_linear(k: EffectKind) -> bool {
     }
 }
 
-/// The linear effects of one triad as they were when the map was built.
+/// The effects of one triad as they were when the inverse was built (noise and residual
+/// statistics are not part of the inverse and are not copied).
 #[derive(Clone, Debug, PartialEq)]
-struct LinearEffects {
+struct Effects {
     lever_arm: Option<LeverArm>,
     misalignment: Option<Misalignment>,
     scale: Option<Scale>,
+    asymmetric_scale: Option<AsymmetricScale>,
+    temp_scale: Option<TempScale>,
+    scale_nonlinearity: Option<ScaleNonlinearity>,
     bias: Option<Bias>,
     temp_bias: Option<TempBias>,
     warmup: Option<Warmup>,
     g_sensitivity: Option<GSensitivity>,
 }
 
-impl LinearEffects {
+impl Effects {
     fn of(m: &TriadModel) -> Self {
-        LinearEffects {
+        Effects {
             lever_arm: m.lever_arm.clone(),
             misalignment: m.misalignment.clone(),
             scale: m.scale.clone(),
+            asymmetric_scale: m.asymmetric_scale.clone(),
+            temp_scale: m.temp_scale.clone(),
+            scale_nonlinearity: m.scale_nonlinearity.clone(),
             bias: m.bias.clone(),
             temp_bias: m.temp_bias.clone(),
             warmup: m.warmup.clone(),
@@ -89,14 +120,14 @@ impl LinearEffects {
         }
     }
 
-    /// True if `m` has exactly these effects (and so no nonlinear one). Allocation-free.
+    /// True if `m` has exactly these effects. Allocation-free.
     fn matches(&self, m: &TriadModel) -> bool {
-        m.asymmetric_scale.is_none()
-            && m.temp_scale.is_none()
-            && m.scale_nonlinearity.is_none()
-            && self.lever_arm == m.lever_arm
+        self.lever_arm == m.lever_arm
             && self.misalignment == m.misalignment
             && self.scale == m.scale
+            && self.asymmetric_scale == m.asymmetric_scale
+            && self.temp_scale == m.temp_scale
+            && self.scale_nonlinearity == m.scale_nonlinearity
             && self.bias == m.bias
             && self.temp_bias == m.temp_bias
             && self.warmup == m.warmup
@@ -104,26 +135,26 @@ impl LinearEffects {
     }
 }
 
-/// The precomputed inverse of one triad's linear stages.
+/// The prepared inverse of one triad.
 #[derive(Clone, Debug)]
-struct TriadAffine {
-    source: LinearEffects,
+struct TriadInverse {
+    source: Effects,
     /// `(I + M)^-1 D^-1` (1/1), `None` without misalignment and scale.
     gain_inverse: Option<Mat3>,
     /// Bias, in the triad's unit.
     bias: Option<Vec3>,
     /// g-sensitivity `G`, (rad/s)/(m/s^2) (gyro only).
     g_matrix: Option<Mat3>,
+    /// True if every effect is linear (`P` is the identity).
+    linear: bool,
 }
 
-impl TriadAffine {
-    /// `None` if the triad has a nonlinear effect, an effect that does not apply to it, or a
-    /// gain matrix that is singular or not finite (left to the iteration, which reports NaN).
+impl TriadInverse {
+    /// `None` if the triad has an effect that does not apply to it (only an unvalidated model
+    /// can), or a gain that is singular or not finite (left to the chain, which reports NaN).
     fn new(m: &TriadModel, triad: Triad) -> Option<Self> {
-        if m.effects()
-            .iter()
-            .any(|e| !is_linear(e.kind()) || !e.kind().applies_to(triad))
-        {
+        let kinds = m.effects().iter().map(|e| e.kind()).collect::<Vec<_>>();
+        if kinds.iter().any(|k| !k.applies_to(triad)) {
             return None;
         }
         let mut gain_inverse = None;
@@ -137,29 +168,40 @@ impl TriadAffine {
         if gain_inverse.is_some_and(|a| !a.iter().all(|v| v.is_finite())) {
             return None;
         }
-        Some(TriadAffine {
-            source: LinearEffects::of(m),
+        Some(TriadInverse {
+            source: Effects::of(m),
             gain_inverse,
             bias: m.bias.as_ref().map(|b| Vec3::from(b.value)),
             g_matrix: m.g_sensitivity.as_ref().map(GSensitivity::g_matrix),
+            linear: kinds.into_iter().all(is_linear),
         })
     }
 
-    /// Undo every stage but the lever arm: `A (y - G f - w(t) - b_T(T) - b)`, the offsets
-    /// subtracted in the effect chain's order so that they round as they do there.
+    /// Undo every stage but the lever arm: `A P(y - G f - w(t) - b_T(T) - b)`, the offsets and
+    /// `P` in the effect chain's order and with its code, so they round as they do there.
     fn undo_offsets_and_gain(&self, y: Vec3, c: &Conditions) -> Vec3 {
+        let e = &self.source;
         let mut v = y;
         if let Some(g) = &self.g_matrix {
             v -= g * c.specific_force_m_s2;
         }
-        if let Some(w) = &self.source.warmup {
+        if let Some(w) = &e.warmup {
             v -= w.offset(c.time_since_power_on_s);
         }
-        if let Some(tb) = &self.source.temp_bias {
+        if let Some(tb) = &e.temp_bias {
             v -= tb.offset(c.temp_c);
         }
         if let Some(b) = &self.bias {
             v -= b;
+        }
+        if let Some(nl) = &e.scale_nonlinearity {
+            v = nl.inverse(v, c);
+        }
+        if let Some(ts) = &e.temp_scale {
+            v = ts.inverse(v, c);
+        }
+        if let Some(a) = &e.asymmetric_scale {
+            v = a.inverse(v, c);
         }
         match &self.gain_inverse {
             Some(a) => a * v,
@@ -168,41 +210,49 @@ impl TriadAffine {
     }
 }
 
-/// The closed-form inverse of a calibration whose effects are all linear (see the module docs
-/// for exactly which). Built by [`AffineInverse::new`]; used by `Calibration::correct` while
-/// [`AffineInverse::matches`] holds.
+/// The prepared inverse of a whole calibration (see the module docs). Built by
+/// [`PreparedInverse::new`]; used by `Calibration::correct` while [`PreparedInverse::matches`]
+/// holds.
 #[derive(Clone, Debug)]
-pub(crate) struct AffineInverse {
-    accel: TriadAffine,
-    gyro: TriadAffine,
-    mag: TriadAffine,
+pub(crate) struct PreparedInverse {
+    accel: TriadInverse,
+    gyro: TriadInverse,
+    mag: TriadInverse,
 }
 
-impl AffineInverse {
-    /// The map for `cal`, or `None` if some effect is nonlinear, temperature-scaled, misplaced,
-    /// or the lever arm and g-sensitivity are both present (a quadratic coupling).
+impl PreparedInverse {
+    /// The prepared inverse of `cal`, or `None` for a model it does not cover (an effect on a
+    /// triad it does not apply to, a singular or non-finite gain).
     pub(crate) fn new(cal: &Calibration) -> Option<Self> {
-        let inv = AffineInverse {
-            accel: TriadAffine::new(&cal.accel, Triad::Accel)?,
-            gyro: TriadAffine::new(&cal.gyro, Triad::Gyro)?,
-            mag: TriadAffine::new(&cal.mag, Triad::Mag)?,
-        };
-        let quadratic_coupling =
-            inv.accel.source.lever_arm.is_some() && inv.gyro.g_matrix.is_some();
-        (!quadratic_coupling).then_some(inv)
+        Some(PreparedInverse {
+            accel: TriadInverse::new(&cal.accel, Triad::Accel)?,
+            gyro: TriadInverse::new(&cal.gyro, Triad::Gyro)?,
+            mag: TriadInverse::new(&cal.mag, Triad::Mag)?,
+        })
     }
 
-    /// True while `cal` holds exactly the effects the map was built from.
+    /// True while `cal` holds exactly the effects this was built from.
     pub(crate) fn matches(&self, cal: &Calibration) -> bool {
         self.accel.source.matches(&cal.accel)
             && self.gyro.source.matches(&cal.gyro)
             && self.mag.source.matches(&cal.mag)
     }
 
-    /// The same result as `Calibration::correct_iterative` (to rounding), in closed form. The
-    /// `converged` flag follows the iteration's rule: always true without coupling, otherwise
-    /// true when the iteration's settling test would pass on the result (it fails only on
-    /// non-finite values).
+    /// [`InversePath::Affine`] or [`InversePath::Prepared`].
+    pub(crate) fn path(&self) -> InversePath {
+        let quadratic_coupling =
+            self.accel.source.lever_arm.is_some() && self.gyro.g_matrix.is_some();
+        if self.accel.linear && self.gyro.linear && self.mag.linear && !quadratic_coupling {
+            InversePath::Affine
+        } else {
+            InversePath::Prepared
+        }
+    }
+
+    /// The result of `Calibration::correct_iterative` (to rounding). `converged` follows the
+    /// iteration's rule: without coupling always true; with one coupling effect true when the
+    /// iteration's settling test passes on the result (it fails only on non-finite values);
+    /// with both, the same iteration (start, settling test, budget) on the prepared stages.
     pub(crate) fn correct(
         &self,
         m: &Measured,
@@ -217,30 +267,66 @@ impl AffineInverse {
             angular_rate_rad_s: m.gyro_rad_s,
             angular_accel_rad_s2,
         };
+        // Accel has no g-sensitivity (`TriadInverse::new`): this reads only T and t.
         let accel_partial = self.accel.undo_offsets_and_gain(m.accel_m_s2, &c);
-        let (accel, gyro) = match &self.accel.source.lever_arm {
-            // No g-sensitivity here (`new`): the rate does not depend on the specific force.
-            Some(lever) => {
-                let gyro = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, &c);
-                c.angular_rate_rad_s = gyro;
-                (accel_partial - lever.term_m_s2(&c), gyro)
-            }
+        let lever_arm = self.accel.source.lever_arm.as_ref();
+        let g_sensitivity = self.gyro.g_matrix.is_some();
+        let (accel, gyro, converged) = match lever_arm {
             None => {
                 c.specific_force_m_s2 = accel_partial;
                 let gyro = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, &c);
-                (accel_partial, gyro)
+                let settled =
+                    small_change(accel_partial, accel_partial) && small_change(gyro, gyro);
+                (accel_partial, gyro, !g_sensitivity || settled)
             }
+            // The rate does not depend on the specific force: one pass.
+            Some(lever) if !g_sensitivity => {
+                let gyro = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, &c);
+                c.angular_rate_rad_s = gyro;
+                let accel = accel_partial - lever.term_m_s2(&c);
+                (
+                    accel,
+                    gyro,
+                    small_change(accel, accel) && small_change(gyro, gyro),
+                )
+            }
+            Some(lever) => self.iterate(m, accel_partial, lever, &mut c),
         };
         c.specific_force_m_s2 = accel;
         c.angular_rate_rad_s = gyro;
         let mag = self.mag.undo_offsets_and_gain(m.mag_gauss, &c);
-        let coupled = self.accel.source.lever_arm.is_some() || self.gyro.g_matrix.is_some();
         Corrected {
             accel_m_s2: accel,
             gyro_rad_s: gyro,
             mag_gauss: mag,
-            converged: !coupled || (small_change(accel, accel) && small_change(gyro, gyro)),
+            converged,
         }
+    }
+
+    /// The coupling iteration of `Calibration::correct_iterative` (lever arm and
+    /// g-sensitivity), on the prepared stages: `(accel, gyro, converged)`.
+    fn iterate(
+        &self,
+        m: &Measured,
+        accel_partial: Vec3,
+        lever: &LeverArm,
+        c: &mut Conditions,
+    ) -> (Vec3, Vec3, bool) {
+        let mut gyro = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, c);
+        let mut accel = m.accel_m_s2;
+        for round in 0..MAX_COUPLING_ITERATIONS {
+            c.angular_rate_rad_s = gyro;
+            let accel_next = accel_partial - lever.term_m_s2(c);
+            c.specific_force_m_s2 = accel_next;
+            let gyro_next = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, c);
+            let settled = small_change(accel_next, accel) && small_change(gyro_next, gyro);
+            accel = accel_next;
+            gyro = gyro_next;
+            if round > 0 && settled {
+                return (accel, gyro, true);
+            }
+        }
+        (accel, gyro, false)
     }
 }
 
@@ -249,46 +335,51 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_nonlinear_effect_disables_the_map_and_breaks_the_match() {
-        let linear = Calibration::identity();
-        let inv = AffineInverse::new(&linear).expect("identity is linear");
+    fn every_effect_is_classified_and_any_change_breaks_the_match() {
+        let identity = Calibration::identity();
+        let inv = PreparedInverse::new(&identity).expect("identity is covered");
+        assert_eq!(inv.path(), InversePath::Affine);
         for k in EffectKind::ALL {
             for t in Triad::ALL.into_iter().filter(|t| k.applies_to(*t)) {
                 let mut cal = Calibration::identity();
                 cal.triad_mut(t).add(k);
-                assert_eq!(
-                    AffineInverse::new(&cal).is_some(),
-                    is_linear(k),
-                    "{k} on {t}"
-                );
-                // Any added effect (even a neutral one) makes a map built without it stale.
+                let built = PreparedInverse::new(&cal).expect("covered");
+                let expected = if is_linear(k) {
+                    InversePath::Affine
+                } else {
+                    InversePath::Prepared
+                };
+                assert_eq!(built.path(), expected, "{k} on {t}");
+                // Any added effect (even a neutral one) makes an inverse built without it stale.
                 assert!(!inv.matches(&cal), "{k} on {t}");
+                assert!(built.matches(&cal), "{k} on {t}");
             }
         }
     }
 
     #[test]
-    fn misplaced_effects_and_the_quadratic_coupling_take_the_iteration() {
+    fn misplaced_effects_are_not_covered_and_the_quadratic_coupling_is_not_affine() {
         let mut cal = Calibration::identity();
         cal.mag.add(EffectKind::GSensitivity);
-        assert!(AffineInverse::new(&cal).is_none());
+        assert!(PreparedInverse::new(&cal).is_none());
         let mut cal = Calibration::identity();
         cal.accel.add(EffectKind::LeverArm);
-        assert!(AffineInverse::new(&cal).is_some());
+        let path = |cal: &Calibration| PreparedInverse::new(cal).expect("covered").path();
+        assert_eq!(path(&cal), InversePath::Affine);
         cal.gyro.add(EffectKind::GSensitivity);
-        assert!(AffineInverse::new(&cal).is_none());
+        assert_eq!(path(&cal), InversePath::Prepared);
     }
 
     #[test]
-    fn a_singular_gain_is_left_to_the_iteration() {
+    fn a_singular_gain_is_left_to_the_chain() {
         let mut cal = Calibration::identity();
         cal.accel.add(EffectKind::Scale);
         cal.accel.scale.as_mut().expect("added").value = [-1.0, 0.0, 0.0];
-        assert!(AffineInverse::new(&cal).is_none());
+        assert!(PreparedInverse::new(&cal).is_none());
         let mut cal = Calibration::identity();
         cal.gyro.add(EffectKind::Misalignment);
         let m = cal.gyro.misalignment.as_mut().expect("added");
         (m.xy, m.yx) = (1.0, 1.0);
-        assert!(AffineInverse::new(&cal).is_none());
+        assert!(PreparedInverse::new(&cal).is_none());
     }
 }

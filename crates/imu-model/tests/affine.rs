@@ -1,14 +1,15 @@
-//! The closed-form (affine) inverse against the iteration: both paths of
-//! `Calibration::correct` agree on random linear calibrations, nonlinear calibrations take the
-//! iteration, a changed calibration never uses a stale map, and the iteration with its
-//! loop-invariant stages hoisted gives bit for bit what the plain loop gave.
+//! The prepared inverse of `Calibration::correct` against the iteration
+//! (`Calibration::correct_iterative`): the affine path on random linear calibrations and the
+//! prepared path on random calibrations with any effects agree with it to 1e-12, the path is
+//! chosen by the effects present, a changed calibration never uses a stale inverse, and the
+//! iteration with its loop-invariant stages hoisted gives bit for bit what the plain loop gave.
 
 mod common;
 
 use common::*;
 use imu_model::{
-    COUPLING_TOLERANCE, Calibration, Conditions, Corrected, EffectKind, MAX_COUPLING_ITERATIONS,
-    Measured, Triad, TrueMotion, Vec3,
+    COUPLING_TOLERANCE, Calibration, Conditions, Corrected, EffectKind, InversePath,
+    MAX_COUPLING_ITERATIONS, Measured, TempScale, Triad, TrueMotion, Vec3,
 };
 use proptest::prelude::*;
 
@@ -76,9 +77,7 @@ fn random_truth(rng: &mut rand_chacha::ChaCha8Rng) -> (TrueMotion, Conditions) {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(512))]
 
-    /// On any linear calibration `correct` takes the closed form, and it agrees with the
-    /// iteration to 1e-12 relative (and on `converged`), for measurements of random motion and
-    /// for arbitrary measured vectors.
+    /// On any linear calibration `correct` takes the affine path and agrees with the iteration.
     #[test]
     fn affine_path_agrees_with_the_iteration(
         seed in any::<u64>(),
@@ -86,35 +85,63 @@ proptest! {
         keep_lever_arm in any::<bool>(),
     ) {
         let cal = linear_calibration(seed, mask, keep_lever_arm);
-        prop_assert!(cal.uses_affine_inverse(), "{cal:?}");
-        let mut rng = rng(seed ^ 0x5eed);
-        for _ in 0..8 {
-            let (truth, c) = random_truth(&mut rng);
-            let forward = cal.forward(&truth, &c);
-            let arbitrary = Measured {
-                accel_m_s2: random_input(Triad::Accel, &mut rng),
-                gyro_rad_s: random_input(Triad::Gyro, &mut rng),
-                mag_gauss: random_input(Triad::Mag, &mut rng),
-            };
-            for m in [forward, arbitrary] {
-                let a = cal.correct(&m, c.temp_c, c.time_since_power_on_s, c.angular_accel_rad_s2);
-                let i = cal.correct_iterative(
-                    &m, c.temp_c, c.time_since_power_on_s, c.angular_accel_rad_s2,
-                );
-                prop_assert!(a.converged && i.converged);
-                let d = worst_rel_diff(&a, &i, &m);
-                prop_assert!(d <= 1e-12, "relative difference {d:e}: {a:?} vs {i:?}");
-            }
-            // And the closed form inverts the forward model like the iteration does.
-            let a = cal.correct(&forward, c.temp_c, c.time_since_power_on_s, c.angular_accel_rad_s2);
-            let err = (a.gyro_rad_s - truth.angular_rate_rad_s).amax();
-            prop_assert!(err <= 1e-12 * truth.angular_rate_rad_s.amax().max(1.0), "{err:e}");
+        prop_assert_eq!(cal.inverse_path(), InversePath::Affine, "{:?}", cal);
+        check_against_iteration(&cal, seed)?;
+    }
+
+    /// On any calibration with a random subset of all effects (nonlinear, temperature-scaled,
+    /// both couplings) `correct` takes the prepared path and agrees with the iteration.
+    #[test]
+    fn prepared_path_agrees_with_the_iteration(seed in any::<u64>(), mask in any::<u32>()) {
+        let mut rng = rng(seed);
+        let mut cal = Calibration::identity();
+        for (i, t) in Triad::ALL.into_iter().enumerate() {
+            let kinds: Vec<EffectKind> = EffectKind::ALL
+                .into_iter()
+                .enumerate()
+                .filter(|(j, k)| k.applies_to(t) && mask & (1 << (10 * i + j)) != 0)
+                .map(|(_, k)| k)
+                .collect();
+            *cal.triad_mut(t) = random_model(&kinds, t, &mut rng);
         }
+        cal.validate().expect("realistic random model is valid");
+        prop_assert_ne!(cal.inverse_path(), InversePath::Iterative);
+        check_against_iteration(&cal, seed)?;
     }
 }
 
+/// `correct` against `correct_iterative` on measurements of random motion and on arbitrary
+/// measured vectors: 1e-12 relative and the same `converged`; and `correct` recovers the truth.
+fn check_against_iteration(cal: &Calibration, seed: u64) -> Result<(), TestCaseError> {
+    let mut rng = rng(seed ^ 0x5eed);
+    for _ in 0..8 {
+        let (truth, c) = random_truth(&mut rng);
+        let args = (c.temp_c, c.time_since_power_on_s, c.angular_accel_rad_s2);
+        let forward = cal.forward(&truth, &c);
+        let arbitrary = Measured {
+            accel_m_s2: random_input(Triad::Accel, &mut rng),
+            gyro_rad_s: random_input(Triad::Gyro, &mut rng),
+            mag_gauss: random_input(Triad::Mag, &mut rng),
+        };
+        for m in [forward, arbitrary] {
+            let a = cal.correct(&m, args.0, args.1, args.2);
+            let i = cal.correct_iterative(&m, args.0, args.1, args.2);
+            prop_assert!(a.converged && i.converged);
+            let d = worst_rel_diff(&a, &i, &m);
+            prop_assert!(d <= 1e-12, "relative difference {d:e}: {a:?} vs {i:?}");
+        }
+        let a = cal.correct(&forward, args.0, args.1, args.2);
+        let err = (a.gyro_rad_s - truth.angular_rate_rad_s).amax();
+        prop_assert!(
+            err <= 1e-11 * truth.angular_rate_rad_s.amax().max(1.0),
+            "{err:e}"
+        );
+    }
+    Ok(())
+}
+
 #[test]
-fn nonlinear_and_temperature_scaled_calibrations_take_the_iteration() {
+fn nonlinear_and_temperature_scaled_calibrations_are_not_affine() {
     let mut rng = rng(7);
     for extra in [
         EffectKind::ScaleNonlinearity,
@@ -124,37 +151,37 @@ fn nonlinear_and_temperature_scaled_calibrations_take_the_iteration() {
         for t in Triad::ALL {
             let mut cal = linear_calibration(11, 0x3fff_ffff, true);
             cal.triad_mut(t).add(extra);
-            let p = random_params(extra, t, &mut rng);
             if extra == EffectKind::TempScale {
-                cal.triad_mut(t).temp_scale = Some(imu_model::TempScale::with_degree(2));
+                cal.triad_mut(t).temp_scale = Some(TempScale::with_degree(2));
             }
+            let p = random_params(extra, t, &mut rng);
             cal.triad_mut(t)
                 .get_mut(extra)
                 .expect("added")
                 .set_params(&p);
             cal.validate().expect("valid");
-            assert!(!cal.uses_affine_inverse(), "{extra} on {t}");
+            assert_eq!(cal.inverse_path(), InversePath::Prepared, "{extra} on {t}");
             let (truth, c) = random_truth(&mut rng);
             let m = cal.forward(&truth, &c);
             let args = (c.temp_c, c.time_since_power_on_s, c.angular_accel_rad_s2);
-            assert_eq!(
-                cal.correct(&m, args.0, args.1, args.2),
-                cal.correct_iterative(&m, args.0, args.1, args.2),
-                "{extra} on {t}"
-            );
+            let a = cal.correct(&m, args.0, args.1, args.2);
+            let i = cal.correct_iterative(&m, args.0, args.1, args.2);
+            assert!(a.converged && i.converged);
+            let d = worst_rel_diff(&a, &i, &m);
+            assert!(d <= 1e-12, "{extra} on {t}: {a:?} vs {i:?}");
         }
     }
 }
 
 #[test]
-fn lever_arm_with_g_sensitivity_takes_the_iteration() {
+fn lever_arm_with_g_sensitivity_is_not_affine() {
     let cal = linear_calibration(3, 0x3fff_ffff, true);
-    assert!(cal.uses_affine_inverse());
+    assert_eq!(cal.inverse_path(), InversePath::Affine);
     let mut both = cal.clone();
     both.gyro.add(EffectKind::GSensitivity);
     both.gyro.g_sensitivity.as_mut().expect("added").matrix[0][0] = 1e-4;
     assert!(both.accel.has(EffectKind::LeverArm));
-    assert!(!both.uses_affine_inverse());
+    assert_eq!(both.inverse_path(), InversePath::Prepared);
 }
 
 #[test]
@@ -165,51 +192,56 @@ fn the_example_model_is_not_linear_but_its_linear_part_is() {
     );
     let cal = Calibration::load(std::path::Path::new(path)).expect("example model");
     // Accel scale nonlinearity, and lever arm together with gyro g-sensitivity.
-    assert!(!cal.uses_affine_inverse());
+    assert_eq!(cal.inverse_path(), InversePath::Prepared);
     let mut linear = cal.clone();
     linear.accel.remove(EffectKind::ScaleNonlinearity);
-    assert!(!linear.uses_affine_inverse(), "lever arm + g-sensitivity");
+    assert_eq!(
+        linear.inverse_path(),
+        InversePath::Prepared,
+        "lever arm + g-sensitivity"
+    );
     linear.accel.remove(EffectKind::LeverArm);
-    // The verdict "not linear" was cached before this in-place change: still the iteration
-    // (correct, only slower) until the calibration is cloned or changed through triad_mut.
-    assert!(!linear.uses_affine_inverse());
-    assert!(linear.clone().uses_affine_inverse());
+    // Prepared before this in-place change: the iteration (correct, only slower) until the
+    // calibration is cloned or changed through triad_mut.
+    assert_eq!(linear.inverse_path(), InversePath::Iterative);
+    assert_eq!(linear.clone().inverse_path(), InversePath::Affine);
     linear.triad_mut(Triad::Accel);
-    assert!(linear.uses_affine_inverse());
+    assert_eq!(linear.inverse_path(), InversePath::Affine);
 }
 
 #[test]
-fn a_changed_calibration_never_uses_a_stale_map() {
+fn a_changed_calibration_never_uses_a_stale_inverse() {
     let mut cal = linear_calibration(5, 0x3fff_ffff, false);
     let mut rng = rng(9);
     let (truth, c) = random_truth(&mut rng);
     let args = (c.temp_c, c.time_since_power_on_s, c.angular_accel_rad_s2);
     let m = cal.forward(&truth, &c);
-    assert!(cal.uses_affine_inverse());
+    assert_eq!(cal.inverse_path(), InversePath::Affine);
     let before = cal.correct(&m, args.0, args.1, args.2);
     // Change a parameter through the public field (not through triad_mut).
     cal.gyro.bias.as_mut().expect("present").value[1] += 0.01;
-    assert!(
-        !cal.uses_affine_inverse(),
-        "map built before the change must not be used"
+    assert_eq!(
+        cal.inverse_path(),
+        InversePath::Iterative,
+        "built before the change"
     );
     let after = cal.correct(&m, args.0, args.1, args.2);
     assert_eq!(after, cal.correct_iterative(&m, args.0, args.1, args.2));
     assert!((after.gyro_rad_s - before.gyro_rad_s).amax() > 1e-3);
-    // A clone builds its own map; so does a change through triad_mut.
-    assert!(cal.clone().uses_affine_inverse());
+    // A clone prepares its own; so does a change through triad_mut.
+    assert_eq!(cal.clone().inverse_path(), InversePath::Affine);
     cal.triad_mut(Triad::Mag);
-    assert!(cal.uses_affine_inverse());
-    // A nonlinear effect added in place is seen too.
+    assert_eq!(cal.inverse_path(), InversePath::Affine);
+    // An effect added in place is seen too.
     cal.accel.add(EffectKind::ScaleNonlinearity);
-    assert!(!cal.uses_affine_inverse());
+    assert_eq!(cal.inverse_path(), InversePath::Iterative);
 }
 
 #[test]
 fn converged_flag_matches_the_iteration_on_non_finite_input() {
     for keep_lever_arm in [false, true] {
         let cal = linear_calibration(13, 0x3fff_ffff, keep_lever_arm);
-        assert!(cal.uses_affine_inverse());
+        assert_eq!(cal.inverse_path(), InversePath::Affine);
         for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
             for axis in 0..3 {
                 let mut m = Measured {
