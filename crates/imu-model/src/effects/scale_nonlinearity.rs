@@ -93,6 +93,18 @@ pub(crate) fn solve(y: f64, k2: f64, k3: f64) -> f64 {
     if k2 == 0.0 && k3 == 0.0 {
         return y;
     }
+    if k3 == 0.0 {
+        // Quadratic only (the common case): the root on the increasing branch in closed form,
+        // 2 y / (1 + sqrt(1 + 4 k2 y)) (no cancellation: the square root is the local gain
+        // 1 + 2 k2 x, which is positive there). Past the turning point -1 / (2 k2) no input
+        // produces y: saturate there, as below. A NaN measurement stays NaN.
+        let d = 1.0 + 4.0 * k2 * y;
+        return if d < 0.0 {
+            -1.0 / (2.0 * k2)
+        } else {
+            2.0 * y / (1.0 + d.sqrt())
+        };
+    }
     let (a, b) = monotone_interval(k2, k3);
     let start = y.abs().max(1.0) * 2.0;
     // Bracket: curve(lo) <= y <= curve(hi), expanding geometrically towards the interval ends.
