@@ -53,7 +53,7 @@
 //!
 //! [`TriadModel::inverse`] undoes the stages in reverse order; each stage inverse is exact
 //! (closed form, a 3x3 LU solve for misalignment, a bracketed Newton iteration for the
-//! nonlinearity). [`Calibration::correct_iterative`] additionally solves the accel/gyro coupling
+//! nonlinearity, closed form when it has no cubic term). [`Calibration::correct_iterative`] additionally solves the accel/gyro coupling
 //! (the lever arm needs the true rate, g-sensitivity the true specific force) by fixed-point
 //! iteration. [`Calibration::correct`], what the daemon runs per sample, evaluates the same
 //! inverse prepared once per calibration (`src/prepared.rs`): the gain inverse

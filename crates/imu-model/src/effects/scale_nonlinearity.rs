@@ -15,9 +15,10 @@ use serde::{Deserialize, Serialize};
 /// Invertibility domain: validation requires the local gain `dy/dx = 1 + 2 k2 x + 3 k3 x^2` to
 /// stay >= [`MIN_GAIN`] for `|x| <= Triad::validation_range()` (accel 20 g, gyro 35 rad/s,
 /// mag 8 gauss), so the curve is strictly increasing there and the inverse is unique. The
-/// inverse is exact (safeguarded Newton, machine precision) on the whole interval around 0 where
-/// the curve is increasing; beyond the turning point of a curve that folds back, the output
-/// saturates at the turning point (no input can produce such a measurement).
+/// inverse is exact (closed form without a cubic term, else safeguarded Newton; machine
+/// precision) on the whole interval around 0 where the curve is increasing; beyond the turning
+/// point of a curve that folds back, the output saturates at the turning point (no input can
+/// produce such a measurement).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 pub struct ScaleNonlinearity {
@@ -88,7 +89,8 @@ fn monotone_interval(k2: f64, k3: f64) -> (f64, f64) {
     (lo, hi)
 }
 
-/// Solve `curve(x) = y` for x in the monotone interval around 0 (safeguarded Newton).
+/// Solve `curve(x) = y` for x in the monotone interval around 0 (closed form when `k3 = 0`, else
+/// safeguarded Newton).
 pub(crate) fn solve(y: f64, k2: f64, k3: f64) -> f64 {
     if k2 == 0.0 && k3 == 0.0 {
         return y;
