@@ -166,8 +166,8 @@ impl Calibration {
         }
     }
 
-    /// The model of one triad, mutable. (Also forgets the closed-form inverse, which is rebuilt
-    /// on the next [`Calibration::correct`].)
+    /// The model of one triad, mutable. (Also forgets the prepared inverse, which is rebuilt on
+    /// the next [`Calibration::correct`].)
     pub fn triad_mut(&mut self, t: Triad) -> &mut TriadModel {
         self.inverse = InverseCache::default();
         match t {
@@ -336,8 +336,8 @@ impl Calibration {
             .filter(|p| p.matches(self))
     }
 
-    /// The general inverse, for any calibration (what [`Calibration::correct`] does when the
-    /// closed form does not apply): each triad's effect chain undone stage by stage, and the
+    /// The general inverse, for any calibration (what [`Calibration::correct`] does for a model
+    /// the prepared inverse does not cover): each triad's effect chain undone stage by stage, the
     /// accel/gyro coupling solved by fixed-point iteration until both change by less than 1e-13
     /// relative, at most [`MAX_COUPLING_ITERATIONS`] rounds (`converged` reports the outcome).
     /// Without lever arm or g-sensitivity one round suffices.
