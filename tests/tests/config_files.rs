@@ -124,7 +124,7 @@ fn earth_rate_scenario_matches_table_1() {
 
 #[test]
 fn every_plan_parses_and_describes_its_scenario() {
-    use imu_analysis::plan::Plan;
+    use imu_analysis::reference::plan::Plan;
     use imu_analysis::segment::SegmentKind;
     let files = config_files("plans", "toml");
     let names: Vec<String> = files

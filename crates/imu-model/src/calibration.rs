@@ -3,9 +3,12 @@
 
 use crate::effect::InvalidParam;
 use crate::error::{ModelError, Seg, line_of_path, parse_error, parse_path};
+use crate::prepared::{InversePath, PreparedInverse};
 use crate::{Conditions, Corrected, EffectKind, Measured, Triad, TriadModel, TrueMotion, Vec3};
 use serde::{Deserialize, Serialize};
+use std::fmt;
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// The value of `format` this crate reads and writes.
 pub const CALIBRATION_FORMAT: &str = "imud-calibration/1";
@@ -87,6 +90,41 @@ pub struct Calibration {
     /// Magnetometer model (unit gauss).
     #[serde(default, skip_serializing_if = "TriadModel::is_empty")]
     pub mag: TriadModel,
+    /// The prepared inverse, built when parsed or on first use.
+    #[serde(skip)]
+    inverse: InverseCache,
+}
+
+/// A lazily built [`PreparedInverse`] (`None` inside: a model it does not cover). Not part of
+/// the calibration's value: equality ignores it and a clone starts empty, so a clone of a
+/// changed calibration builds its own. A stale one is never used ([`PreparedInverse::matches`]);
+/// a calibration changed in place through its public fields after the cache was filled takes
+/// [`Calibration::correct_iterative`] (always correct, only slower) until it is cloned or
+/// changed through [`Calibration::triad_mut`], which empties the cache. Loaded calibrations
+/// fill it when parsed, so the daemon's first sample does not allocate.
+#[derive(Default)]
+struct InverseCache(OnceLock<Option<PreparedInverse>>);
+
+impl Clone for InverseCache {
+    fn clone(&self) -> Self {
+        InverseCache::default()
+    }
+}
+
+impl PartialEq for InverseCache {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
+}
+
+impl fmt::Debug for InverseCache {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0.get() {
+            None => f.write_str("not built"),
+            Some(None) => f.write_str("not covered"),
+            Some(Some(p)) => write!(f, "{:?}", p.path()),
+        }
+    }
 }
 
 /// The part of a calibration that determines its numbers (hashed by `content_id`).
@@ -115,6 +153,7 @@ impl Calibration {
             accel: TriadModel::default(),
             gyro: TriadModel::default(),
             mag: TriadModel::default(),
+            inverse: InverseCache::default(),
         }
     }
 
@@ -127,8 +166,10 @@ impl Calibration {
         }
     }
 
-    /// The model of one triad, mutable.
+    /// The model of one triad, mutable. (Also forgets the prepared inverse, which is rebuilt on
+    /// the next [`Calibration::correct`].)
     pub fn triad_mut(&mut self, t: Triad) -> &mut TriadModel {
+        self.inverse = InverseCache::default();
         match t {
             Triad::Accel => &mut self.accel,
             Triad::Gyro => &mut self.gyro,
@@ -148,6 +189,8 @@ impl Calibration {
                 message: e.message,
             }
         })?;
+        // Build the prepared inverse now, so that the daemon's first sample does not.
+        cal.prepared_inverse();
         Ok(cal)
     }
 
@@ -255,11 +298,50 @@ impl Calibration {
     /// Exact inverse of [`Calibration::forward`] for the daemon, which knows only the
     /// measurement, the temperature, the time since power-on and an estimate of the angular
     /// acceleration. The accel inverse needs the true angular rate (lever arm) and the gyro
-    /// inverse the true specific force (g-sensitivity); the coupling is solved by fixed-point
-    /// iteration until both change by less than 1e-13 relative, at most
-    /// [`MAX_COUPLING_ITERATIONS`] rounds (`converged` reports the outcome). Without lever arm
-    /// or g-sensitivity one round suffices.
+    /// inverse the true specific force (g-sensitivity).
+    ///
+    /// Evaluates the calibration's prepared inverse (gain inverses precomputed once per
+    /// calibration; see [`InversePath`]): when every effect is linear and the lever arm and
+    /// g-sensitivity are not both present that is one affine map per triad and no iteration;
+    /// otherwise the nonlinear per-axis stages are undone with the effects' own code, and the
+    /// accel/gyro coupling is iterated only if lever arm and g-sensitivity are both present. It
+    /// agrees with [`Calibration::correct_iterative`] to rounding (tests check 1e-12 relative),
+    /// and `converged` follows the same rule. Models the prepared form does not cover take
+    /// [`Calibration::correct_iterative`]. [`Calibration::inverse_path`] tells which path.
     pub fn correct(
+        &self,
+        m: &Measured,
+        temp_c: f64,
+        time_since_power_on_s: f64,
+        angular_accel_rad_s2: Vec3,
+    ) -> Corrected {
+        match self.prepared_inverse() {
+            Some(p) => p.correct(m, temp_c, time_since_power_on_s, angular_accel_rad_s2),
+            None => self.correct_iterative(m, temp_c, time_since_power_on_s, angular_accel_rad_s2),
+        }
+    }
+
+    /// Which path [`Calibration::correct`] takes for this calibration, as it is now.
+    pub fn inverse_path(&self) -> InversePath {
+        self.prepared_inverse()
+            .map_or(InversePath::Iterative, PreparedInverse::path)
+    }
+
+    /// The prepared inverse if the model is covered and it still matches the model.
+    fn prepared_inverse(&self) -> Option<&PreparedInverse> {
+        self.inverse
+            .0
+            .get_or_init(|| PreparedInverse::new(self))
+            .as_ref()
+            .filter(|p| p.matches(self))
+    }
+
+    /// The general inverse, for any calibration (what [`Calibration::correct`] does for a model
+    /// the prepared inverse does not cover): each triad's effect chain undone stage by stage, the
+    /// accel/gyro coupling solved by fixed-point iteration until both change by less than 1e-13
+    /// relative, at most [`MAX_COUPLING_ITERATIONS`] rounds (`converged` reports the outcome).
+    /// Without lever arm or g-sensitivity one round suffices.
+    pub fn correct_iterative(
         &self,
         m: &Measured,
         temp_c: f64,
@@ -275,12 +357,30 @@ impl Calibration {
         };
         let coupled =
             self.accel.has(EffectKind::LeverArm) || self.gyro.has(EffectKind::GSensitivity);
+        // The lever arm is the first accel stage, so it is undone last; every other accel stage
+        // reads only the temperature and the time (a g-sensitivity, which reads the specific
+        // force, does not apply to accel, but an unvalidated model may have one). Those stages
+        // are undone once, outside the loop: the same operations in the same order as
+        // `TriadModel::inverse`, so the iterates are bit for bit those of the plain loop.
+        let [lever_arm, accel_rest @ ..] = self.accel.effect_slots();
+        debug_assert_eq!(EffectKind::ALL[0], EffectKind::LeverArm);
+        let accel_rest = self.accel.g_sensitivity.is_none().then(|| {
+            accel_rest
+                .iter()
+                .rev()
+                .flatten()
+                .fold(m.accel_m_s2, |v, e| e.inverse(v, &c))
+        });
         let mut gyro = self.gyro.inverse(m.gyro_rad_s, &c);
         let mut accel = m.accel_m_s2;
         let mut converged = false;
         for round in 0..MAX_COUPLING_ITERATIONS {
             c.angular_rate_rad_s = gyro;
-            let accel_next = self.accel.inverse(m.accel_m_s2, &c);
+            let accel_next = match (accel_rest, lever_arm) {
+                (Some(y), Some(l)) => l.inverse(y, &c),
+                (Some(y), None) => y,
+                (None, _) => self.accel.inverse(m.accel_m_s2, &c),
+            };
             c.specific_force_m_s2 = accel_next;
             let gyro_next = self.gyro.inverse(m.gyro_rad_s, &c);
             let settled = small_change(accel_next, accel) && small_change(gyro_next, gyro);
@@ -304,7 +404,7 @@ impl Calibration {
 /// max|next - prev| <= tol * max|next| (component-wise maxima: a Euclidean norm would overflow
 /// to inf on a diverging iteration and make inf <= inf look converged), with a tiny absolute
 /// floor so that zero vectors converge.
-fn small_change(next: Vec3, prev: Vec3) -> bool {
+pub(crate) fn small_change(next: Vec3, prev: Vec3) -> bool {
     let d = (next - prev).amax();
     d.is_finite() && d <= COUPLING_TOLERANCE * next.amax().max(1e-9)
 }

@@ -53,9 +53,13 @@
 //!
 //! [`TriadModel::inverse`] undoes the stages in reverse order; each stage inverse is exact
 //! (closed form, a 3x3 LU solve for misalignment, a bracketed Newton iteration for the
-//! nonlinearity). [`Calibration::correct`] additionally solves the accel/gyro coupling (the
-//! lever arm needs the true rate, g-sensitivity the true specific force) by fixed-point
-//! iteration. Validation guarantees invertibility over [`Triad::validation_range`]: accel
+//! nonlinearity, closed form when it has no cubic term). [`Calibration::correct_iterative`] additionally solves the accel/gyro coupling
+//! (the lever arm needs the true rate, g-sensitivity the true specific force) by fixed-point
+//! iteration. [`Calibration::correct`], what the daemon runs per sample, evaluates the same
+//! inverse prepared once per calibration (`src/prepared.rs`): the gain inverse
+//! `(I + M)^-1 D^-1` precomputed, and when every effect is linear and lever arm and
+//! g-sensitivity are not both present, one affine map per triad with no iteration at all
+//! ([`InversePath`]). Validation guarantees invertibility over [`Triad::validation_range`]: accel
 //! +/-20 g, gyro +/-35 rad/s, mag +/-8 gauss (nonlinearity gain >= 0.5, misalignment entries
 //! < 0.25 rad, `abs(s) < 1`, temperature scale within (0.5, 2) over -40..85 degC).
 //!
@@ -122,6 +126,7 @@ mod effect;
 pub mod effects;
 mod error;
 mod noise;
+mod prepared;
 mod sample;
 mod triad;
 mod triad_model;
@@ -143,5 +148,6 @@ pub use noise::{
     BIAS_INSTABILITY_ADEV_FACTOR, DEFAULT_BIAS_INSTABILITY_TAU_MAX_S, NoiseGenerator, NoiseModel,
 };
 pub use param::{ParamId, ParamRole};
+pub use prepared::InversePath;
 pub use sample::{Conditions, Corrected, Measured, TrueMotion};
 pub use triad::Triad;

@@ -15,9 +15,10 @@ use serde::{Deserialize, Serialize};
 /// Invertibility domain: validation requires the local gain `dy/dx = 1 + 2 k2 x + 3 k3 x^2` to
 /// stay >= [`MIN_GAIN`] for `|x| <= Triad::validation_range()` (accel 20 g, gyro 35 rad/s,
 /// mag 8 gauss), so the curve is strictly increasing there and the inverse is unique. The
-/// inverse is exact (safeguarded Newton, machine precision) on the whole interval around 0 where
-/// the curve is increasing; beyond the turning point of a curve that folds back, the output
-/// saturates at the turning point (no input can produce such a measurement).
+/// inverse is exact (closed form without a cubic term, else safeguarded Newton; machine
+/// precision) on the whole interval around 0 where the curve is increasing; beyond the turning
+/// point of a curve that folds back, the output saturates at the turning point (no input can
+/// produce such a measurement).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 pub struct ScaleNonlinearity {
@@ -56,21 +57,23 @@ fn gain(x: f64, k2: f64, k3: f64) -> f64 {
 
 /// The open interval around 0 on which the curve is increasing (ends may be infinite).
 fn monotone_interval(k2: f64, k3: f64) -> (f64, f64) {
-    // Roots of the gain 3 k3 x^2 + 2 k2 x + 1; none of them is 0 because gain(0) = 1.
-    let roots: Vec<f64> = if k3 == 0.0 {
+    // Roots of the gain 3 k3 x^2 + 2 k2 x + 1; none of them is 0 because gain(0) = 1. NaN marks
+    // a missing root (it passes neither filter below). An array, not a Vec: this runs for every
+    // sample in the daemon, which must not allocate.
+    let roots: [f64; 2] = if k3 == 0.0 {
         if k2 == 0.0 {
-            vec![]
+            [f64::NAN; 2]
         } else {
-            vec![-1.0 / (2.0 * k2)]
+            [-1.0 / (2.0 * k2), f64::NAN]
         }
     } else {
         let disc = k2 * k2 - 3.0 * k3;
         if disc < 0.0 {
-            vec![]
+            [f64::NAN; 2]
         } else {
             // Stable quadratic formula: q = -(b + sgn(b) sqrt(b^2 - 4ac)) / 2 with b = 2 k2.
             let q = -(k2 + k2.signum() * disc.sqrt());
-            vec![q / (3.0 * k3), 1.0 / q]
+            [q / (3.0 * k3), 1.0 / q]
         }
     };
     let lo = roots
@@ -86,10 +89,23 @@ fn monotone_interval(k2: f64, k3: f64) -> (f64, f64) {
     (lo, hi)
 }
 
-/// Solve `curve(x) = y` for x in the monotone interval around 0 (safeguarded Newton).
+/// Solve `curve(x) = y` for x in the monotone interval around 0 (closed form when `k3 = 0`, else
+/// safeguarded Newton).
 pub(crate) fn solve(y: f64, k2: f64, k3: f64) -> f64 {
     if k2 == 0.0 && k3 == 0.0 {
         return y;
+    }
+    if k3 == 0.0 {
+        // Quadratic only (the common case): the root on the increasing branch in closed form,
+        // 2 y / (1 + sqrt(1 + 4 k2 y)) (no cancellation: the square root is the local gain
+        // 1 + 2 k2 x, which is positive there). Past the turning point -1 / (2 k2) no input
+        // produces y: saturate there, as below. A NaN measurement stays NaN.
+        let d = 1.0 + 4.0 * k2 * y;
+        return if d < 0.0 {
+            -1.0 / (2.0 * k2)
+        } else {
+            2.0 * y / (1.0 + d.sqrt())
+        };
     }
     let (a, b) = monotone_interval(k2, k3);
     let start = y.abs().max(1.0) * 2.0;
