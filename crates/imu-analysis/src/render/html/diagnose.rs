@@ -7,7 +7,7 @@ use maud::{Markup, html};
 
 use super::{AXIS_NAMES, Section, figures, g, strong, table, text};
 use crate::render::svg::{Chart, Series, Style};
-use crate::workbench::{Candidate, TriadDiagnosis};
+use crate::workbench::{Ambiguity, Candidate, TriadDiagnosis};
 
 /// One triad's diagnosis: verdict, residual RMS against the noise floor per axis, the worst
 /// segments, residual charts (against time and against the signal each axis correlates with
@@ -35,7 +35,7 @@ pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> S
         }
         (spectral_lines(d))
         (candidates(d))
-        (ambiguities(d))
+        (ambiguities(&d.ambiguities))
         @if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
             h3 { "Model change" }
             p { "Add to the model file:" }
@@ -320,9 +320,9 @@ fn candidate_row(c: &Candidate) -> Vec<Markup> {
 }
 
 /// Pairs of effects that explain the residual alike, and the recording that separates them.
-fn ambiguities(d: &TriadDiagnosis) -> Markup {
+fn ambiguities(ambiguities: &[Ambiguity]) -> Markup {
     html! {
-        @for a in &d.ambiguities {
+        @for a in ambiguities {
             p {
                 "Ambiguous: " (a.effects[0].id()) " and " (a.effects[1].id())
                 (format!(
@@ -332,5 +332,28 @@ fn ambiguities(d: &TriadDiagnosis) -> Markup {
                 (a.separating_recording) "."
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use imu_model::{EffectKind, Triad};
+
+    #[test]
+    fn the_separating_recording_is_escaped() {
+        let a = Ambiguity {
+            triad: Triad::Gyro,
+            effects: [EffectKind::GSensitivity, EffectKind::Scale],
+            correlation: 0.95,
+            separating_recording: "<script>alert(1)</script> & a turn".into(),
+        };
+        let h = ambiguities(&[a]).into_string();
+        assert_eq!(
+            h,
+            "<p>Ambiguous: g-sensitivity and scale explain the residual alike (pattern \
+             correlation 0.95); separate them with &lt;script&gt;alert(1)&lt;/script&gt; &amp; \
+             a turn.</p>"
+        );
     }
 }
