@@ -8,8 +8,7 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use imu_model::{
-    COUPLING_TOLERANCE, Calibration, Conditions, Corrected, EffectKind, InversePath,
-    MAX_COUPLING_ITERATIONS, Measured, TrueMotion, Vec3,
+    Calibration, Conditions, Corrected, EffectKind, InversePath, Measured, TrueMotion, Vec3,
 };
 
 const BATCH: usize = 1000;
@@ -34,45 +33,6 @@ fn samples(cal: &Calibration) -> Vec<(Measured, Vec3)> {
             (cal.forward(&truth, &c), truth.angular_accel_rad_s2)
         })
         .collect()
-}
-
-/// The loop `correct_iterative` had before its loop-invariant accel stages were hoisted.
-fn plain_loop(cal: &Calibration, m: &Measured, temp_c: f64, t_s: f64, a: Vec3) -> Corrected {
-    let mut c = Conditions {
-        temp_c,
-        time_since_power_on_s: t_s,
-        specific_force_m_s2: m.accel_m_s2,
-        angular_rate_rad_s: m.gyro_rad_s,
-        angular_accel_rad_s2: a,
-    };
-    let small = |n: Vec3, p: Vec3| {
-        let d = (n - p).amax();
-        d.is_finite() && d <= COUPLING_TOLERANCE * n.amax().max(1e-9)
-    };
-    let coupled = cal.accel.has(EffectKind::LeverArm) || cal.gyro.has(EffectKind::GSensitivity);
-    let mut gyro = cal.gyro.inverse(m.gyro_rad_s, &c);
-    let mut accel = m.accel_m_s2;
-    let mut converged = false;
-    for round in 0..MAX_COUPLING_ITERATIONS {
-        c.angular_rate_rad_s = gyro;
-        let accel_next = cal.accel.inverse(m.accel_m_s2, &c);
-        c.specific_force_m_s2 = accel_next;
-        let gyro_next = cal.gyro.inverse(m.gyro_rad_s, &c);
-        let settled = small(accel_next, accel) && small(gyro_next, gyro);
-        accel = accel_next;
-        gyro = gyro_next;
-        if !coupled || (round > 0 && settled) {
-            converged = true;
-            break;
-        }
-    }
-    let mag = cal.mag.inverse(m.mag_gauss, &c);
-    Corrected {
-        accel_m_s2: accel,
-        gyro_rad_s: gyro,
-        mag_gauss: mag,
-        converged,
-    }
 }
 
 type Path = fn(&Calibration, &Measured, f64, f64, Vec3) -> Corrected;
@@ -130,7 +90,6 @@ fn main() {
         ("linear part (no nonlinearity, no lever arm)", &linear),
     ] {
         println!("{name}: correct takes the {:?} path", cal.inverse_path());
-        run("  plain loop (before)", cal, plain_loop);
         run("  correct_iterative (accel stages hoisted)", cal, iterative);
         run("  correct", cal, correct);
     }
