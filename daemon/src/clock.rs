@@ -239,6 +239,43 @@ fn least_squares(points: &[Minimum], keep: &[bool]) -> Option<Line> {
     })
 }
 
+/// Wall-clock stamps of samples: the monotonic stamp plus the host's wall-minus-monotonic
+/// offset, which is followed at the same bounded slew (a wall-clock step, e.g. by NTP, is
+/// spread over the following samples), so wall stamps are strictly increasing too.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WallStamps {
+    offset_ns: Option<f64>,
+    last: Option<(u64, u64)>,
+}
+
+impl WallStamps {
+    /// The wall-clock stamp of a sample stamped `t_sample_ns` (monotonic) that was read when
+    /// the clocks showed `t_mono_ns` and `t_wall_ns`.
+    pub fn stamp(&mut self, t_sample_ns: u64, t_mono_ns: u64, t_wall_ns: u64) -> u64 {
+        let measured = t_wall_ns as f64 - t_mono_ns as f64;
+        let offset = match (self.offset_ns, self.last) {
+            (Some(o), Some((last_sample, _))) => {
+                let spacing = t_sample_ns.saturating_sub(last_sample) as f64;
+                let error = measured - o;
+                let limit = if error.abs() > FAR_OFF_S * 1e9 {
+                    0.5
+                } else {
+                    MAX_SLEW
+                } * spacing;
+                o + error.clamp(-limit, limit)
+            }
+            _ => measured,
+        };
+        self.offset_ns = Some(offset);
+        let stamp = ((t_sample_ns as f64 + offset).max(0.0) as u64).max(
+            self.last
+                .map_or(0, |(_, w)| w.saturating_add(MIN_SPACING_NS)),
+        );
+        self.last = Some((t_sample_ns, stamp));
+        stamp
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -318,6 +355,24 @@ mod tests {
                 "spacing {dt}"
             );
         }
+    }
+
+    #[test]
+    fn wall_stamps_absorb_a_wall_clock_step_back() {
+        let mut w = WallStamps::default();
+        let wall0 = 1_700_000_000_000_000_000u64;
+        let mut last = 0;
+        for k in 0..3000u64 {
+            let mono = 1_000_000_000 + k * 10_000_000;
+            // The wall clock steps back by 2 s at sample 1000.
+            let wall = wall0 + k * 10_000_000 - if k >= 1000 { 2_000_000_000 } else { 0 };
+            let s = w.stamp(mono, mono + 300_000, wall + 300_000);
+            assert!(s > last, "sample {k}");
+            last = s;
+        }
+        // Caught up with the stepped clock again (half the spacing per sample while far off).
+        let expected = wall0 + 2999 * 10_000_000 - 2_000_000_000;
+        assert!(last.abs_diff(expected) < 1_000_000, "{last} vs {expected}");
     }
 
     #[test]

@@ -20,7 +20,7 @@ use imu_proto::ticks::TickUnwrapper;
 
 use tracing::warn;
 
-use crate::clock::ClockFit;
+use crate::clock::{ClockFit, WallStamps};
 use crate::gaps::{GapStep, GapTracker};
 
 const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
@@ -334,6 +334,7 @@ pub struct Pipeline {
     unwrapper: TickUnwrapper,
     gaps: GapAccounting,
     clock: ClockFit,
+    wall: WallStamps,
     calibration: Option<Arc<ActiveCalibration>>,
     temp_c: f64,
     last_gyro: Option<(u64, Vector3<f64>)>,
@@ -357,6 +358,7 @@ impl Pipeline {
             unwrapper: TickUnwrapper::new(),
             gaps: GapAccounting::default(),
             clock: ClockFit::new(tick_period_s),
+            wall: WallStamps::default(),
             calibration,
             temp_c: f64::NAN,
             last_gyro: None,
@@ -525,7 +527,7 @@ impl Pipeline {
         };
         let measured = counts.to_units(self.gains);
         let mut corrected = self.correct(&measured, t_sample_ns, t_device_ns);
-        corrected.t_wall_ns = t_wall_ns.saturating_sub(t_mono_ns.saturating_sub(t_sample_ns));
+        corrected.t_wall_ns = self.wall.stamp(t_sample_ns, t_mono_ns, t_wall_ns);
         self.publish(raw, corrected, sinks);
     }
 
