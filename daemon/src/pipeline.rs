@@ -384,6 +384,11 @@ impl Pipeline {
         self.last_sample_ns = None;
     }
 
+    /// The monotonic stamp of the last sample of this session, ns.
+    pub fn last_stamp_ns(&self) -> Option<u64> {
+        self.last_sample_ns
+    }
+
     /// The GainScales in force.
     pub fn gains(&self) -> Gains {
         self.gains
