@@ -459,17 +459,24 @@ uint64 checksum_failures
 uint64 resyncs
 uint64 garbage_bytes
 uint64 truncated_frames
-uint64 samples_lost           # tick gaps on the device link
+uint64 samples_lost           # samples the device link lost (from the device's ticks)
 uint64 log_drops              # log records dropped (queue full or logging stopped)
 uint64 publish_drops
 uint64 reconnects
 uint64 calibration_id         # content id of the calibration in force (0: uncalibrated)
-float64 tick_period_est_s     # NaN until known
-float64 clock_drift_ppm       # NaN until known
+float64 tick_period_est_s     # host seconds per device tick from the clock fit; NaN until known
+float64 clock_drift_ppm       # device clock rate error, ppm (positive: fast); NaN until known
 float64 temp_c                # NaN if none
 uint8 device_connected
 uint8 logging
-uint8[6] reserved
+uint8 gains_fallback          # GainScales that are configured fallbacks: 1 accel, 2 gyro, 4 mag
+uint8[5] reserved
+float64 clock_offset_s        # host monotonic s at device tick 0, from the clock fit; NaN until known
+float64 clock_residual_s      # RMS residual of the clock fit, s; NaN until known
+uint16 gain_scale_accel       # GainScales in force
+uint16 gain_scale_gyro
+uint16 gain_scale_mag
+uint8[2] reserved_end
 ",
     uses: &[&HEADER_DEF],
 };
@@ -891,7 +898,14 @@ impl RosMessage for DaemonStatusMsg {
         w.f64(s.temp_c);
         w.u8(s.device_connected);
         w.u8(s.logging);
+        w.u8(s.gains_fallback);
         w.u8_array(&s.reserved);
+        w.f64(s.clock_offset_s);
+        w.f64(s.clock_residual_s);
+        w.u16(s.gain_scale_accel);
+        w.u16(s.gain_scale_gyro);
+        w.u16(s.gain_scale_mag);
+        w.u8_array(&s.reserved_end);
     }
     fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
         Ok(Self {
@@ -914,7 +928,14 @@ impl RosMessage for DaemonStatusMsg {
                 temp_c: r.f64("temp_c")?,
                 device_connected: r.u8("device_connected")?,
                 logging: r.u8("logging")?,
+                gains_fallback: r.u8("gains_fallback")?,
                 reserved: r.u8_array("reserved")?,
+                clock_offset_s: r.f64("clock_offset_s")?,
+                clock_residual_s: r.f64("clock_residual_s")?,
+                gain_scale_accel: r.u16("gain_scale_accel")?,
+                gain_scale_gyro: r.u16("gain_scale_gyro")?,
+                gain_scale_mag: r.u16("gain_scale_mag")?,
+                reserved_end: r.u8_array("reserved_end")?,
             },
         })
     }
@@ -1099,7 +1120,14 @@ mod tests {
                 temp_c: 30.0,
                 device_connected: 1,
                 logging: 1,
-                reserved: [0, 1, 2, 3, 4, 5],
+                gains_fallback: 2,
+                reserved: [0, 1, 2, 3, 4],
+                clock_offset_s: 1234.5,
+                clock_residual_s: 2.5e-4,
+                gain_scale_accel: 8500,
+                gain_scale_gyro: 10_000,
+                gain_scale_mag: 2000,
+                reserved_end: [6, 7],
             },
         });
         round_trip(&CalibrationMsg {
