@@ -642,7 +642,14 @@ impl Pipeline {
             temp_c: self.temp_c,
             device_connected: u8::from(connected),
             logging: u8::from(logging),
-            reserved: [0; 6],
+            gains_fallback: self.gains.fallback.mask(),
+            reserved: [0; 5],
+            clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
+            clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),
+            gain_scale_accel: self.gains.accel,
+            gain_scale_gyro: self.gains.gyro,
+            gain_scale_mag: self.gains.mag,
+            reserved_end: [0; 2],
         }
     }
 }

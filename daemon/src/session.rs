@@ -259,7 +259,11 @@ impl Daemon {
             self.decoder.flush();
             self.drain_decoder();
             match end {
-                SessionEnd::Shutdown => return Ok(()),
+                SessionEnd::Shutdown => {
+                    // A last status, so the recording ends with the final counters.
+                    self.publish_status(false);
+                    return Ok(());
+                }
                 SessionEnd::Lost(e) => {
                     warn!(
                         "device {} unavailable: {e:#}; retrying in {:.1} s",

@@ -267,6 +267,33 @@ impl Daemon {
         Err(last_error.context("stopping continuous mode"))
     }
 
+    /// Starts continuous mode with data command `cmd`. Samples of the stream prove it started
+    /// when the acknowledgement itself was lost (no fence: a streaming device answers nothing).
+    async fn start_streaming(&mut self, port: &mut SerialStream, cmd: u8) -> anyhow::Result<()> {
+        self.drain_until_quiet(port).await?;
+        let samples_before = self.pipeline.counters().samples;
+        let mut last_error = anyhow!("not tried");
+        for attempt in 0..TRIES {
+            if attempt > 0 {
+                tokio::time::sleep(BACKOFF * 2u32.pow(attempt - 1)).await;
+            }
+            match self
+                .transact(port, Command::SetContinuous { command: cmd })
+                .await
+            {
+                Ok(Reply::Continuous { command, .. }) if command == cmd => return Ok(()),
+                Ok(other) => {
+                    last_error = anyhow!("the device did not confirm continuous mode: {other:?}");
+                }
+                Err(e) => last_error = e,
+            }
+            if self.pipeline.counters().samples > samples_before {
+                return Ok(());
+            }
+        }
+        Err(last_error.context("starting continuous mode"))
+    }
+
     /// Opens the port and runs the start-up sequence of the protocol notes, fenced.
     pub(crate) async fn open_and_start(
         &mut self,
@@ -297,14 +324,8 @@ impl Daemon {
             serial,
         );
         if cfg.mode == AcquisitionMode::Continuous {
-            self.drain_until_quiet(&mut port).await?;
-            let cmd = cfg.command.command().code();
-            let ack = self
-                .transact(&mut port, Command::SetContinuous { command: cmd })
+            self.start_streaming(&mut port, cfg.command.command().code())
                 .await?;
-            if !matches!(ack, Reply::Continuous { command, .. } if command == cmd) {
-                bail!("the device did not confirm continuous mode: {ack:?}");
-            }
         }
         self.pipeline
             .set_continuous(cfg.mode == AcquisitionMode::Continuous);

@@ -152,7 +152,10 @@ fn three_percent_byte_corruption_and_bursts_count_the_lost_frames() {
     assert!(lost > n / 3, "the link should lose about half: {lost}");
     assert!(lost.abs_diff(corrupted_frames) <= corrupted_frames / 1000 + 2);
     let error = c.samples_lost.abs_diff(lost) as f64 / lost as f64;
-    eprintln!("lost {lost}, counted {}, corrupted frames {corrupted_frames}", c.samples_lost);
+    eprintln!(
+        "lost {lost}, counted {}, corrupted frames {corrupted_frames}",
+        c.samples_lost
+    );
     assert!(
         error <= 0.01,
         "samples_lost {} vs {lost} lost ({:.2} %)",
