@@ -166,9 +166,8 @@ impl ClockFit {
                 abs_res[n] = (p.y_s - l.offset_s - l.drift * p.x_s).abs();
                 n += 1;
             }
-            let abs_res = &mut abs_res[..n];
-            abs_res.sort_by(f64::total_cmp);
-            let sigma = 1.4826 * abs_res[n / 2];
+            let (_, median, _) = abs_res[..n].select_nth_unstable_by(n / 2, f64::total_cmp);
+            let sigma = 1.4826 * *median;
             let limit = (REJECT_SIGMAS * sigma).max(REJECT_FLOOR_S);
             let mut changed = false;
             for (p, k) in points.iter().zip(keep.iter_mut()) {
@@ -214,23 +213,33 @@ impl ClockFit {
 /// The straight line through the kept points, with the RMS of their residuals; `None` with too
 /// few points or too short a baseline.
 fn least_squares(points: &[Minimum], keep: &[bool]) -> Option<Line> {
-    let kept = || points.iter().zip(keep).filter(|(_, k)| **k).map(|(p, _)| p);
-    let n = kept().count();
+    // One pass for the sums (relative to the first point, so they stay exact), one for the
+    // residuals.
+    let (x0, y0) = points.first().map(|p| (p.x_s, p.y_s))?;
+    let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0usize, 0.0, 0.0, 0.0, 0.0);
+    for (p, _) in points.iter().zip(keep).filter(|(_, k)| **k) {
+        let (x, y) = (p.x_s - x0, p.y_s - y0);
+        n += 1;
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        sxy += x * y;
+    }
     if n < MIN_BUCKETS {
         return None;
     }
     let nf = n as f64;
-    let mx = kept().map(|p| p.x_s).sum::<f64>() / nf;
-    let my = kept().map(|p| p.y_s).sum::<f64>() / nf;
-    let sxx: f64 = kept().map(|p| (p.x_s - mx).powi(2)).sum();
-    let sxy: f64 = kept().map(|p| (p.x_s - mx) * (p.y_s - my)).sum();
-    if sxx < (2.0 * BUCKET_S).powi(2) {
+    let var_x = sxx - sx * sx / nf;
+    if var_x < (2.0 * BUCKET_S).powi(2) {
         return None;
     }
-    let drift = sxy / sxx;
-    let offset_s = my - drift * mx;
-    let ss: f64 = kept()
-        .map(|p| (p.y_s - offset_s - drift * p.x_s).powi(2))
+    let drift = (sxy - sx * sy / nf) / var_x;
+    let offset_s = y0 + (sy - drift * sx) / nf - drift * x0;
+    let ss: f64 = points
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(p, _)| (p.y_s - offset_s - drift * p.x_s).powi(2))
         .sum();
     Some(Line {
         offset_s,

@@ -8,14 +8,16 @@
 //! the position of every sample on the device's continuous time line once the phase is known.
 //!
 //! [`GapTracker`] therefore
-//! 1. learns `step_ticks` from the first [`LEARN_SAMPLES`] samples by a search for the largest
-//!    step with which *every* learned sample is consistent (any step that divides the true one is
-//!    also consistent, so the largest is the true one; a mean that includes gaps is never used),
-//! 2. keeps the interval of continuous positions the last sample can have (set membership: each
-//!    sample confines its position to `[ticks, ticks + 1)`), which narrows to a small fraction of
-//!    a tick within a few samples, and counts the whole intervals between samples from it,
-//! 3. re-estimates `step_ticks` over an ever longer baseline, and learns again if the stream stops
-//!    fitting (a changed rate or a device reset).
+//! 1. learns `step_ticks` from the first [`LEARN_SAMPLES`] samples: a first estimate is the mean
+//!    of the small tick differences (one interval each, never a gap), then the steps near it with
+//!    which *every* learned sample fits some phase exactly are searched (a mean that includes
+//!    gaps is never used),
+//! 2. keeps the convex set of (phase, step) pairs that put every sample so far inside its tick
+//!    (set membership; it narrows quickly, so the step keeps being re-estimated over an ever
+//!    longer baseline), and gives each new sample the smallest whole number of intervals that
+//!    fits it: the samples lost before it are that number minus one,
+//! 3. starts a new set when a sample fits no count, and learns again when that keeps happening
+//!    (a changed rate or a device reset).
 //!
 //! Losses among the learned samples are counted when learning ends (their `GAP_BEFORE` flags are
 //! not set, they were published already). At more than one sample per tick (`step_ticks < 1`)
