@@ -91,6 +91,15 @@ impl ClockFit {
         self.last_stamp_ns = last;
     }
 
+    /// Forgets the fit but not the session's origin nor the last stamp: the stamps go on
+    /// smoothly towards a new fit (after the sample positions became exact).
+    pub fn restart_fit(&mut self) {
+        let (origin, last) = (self.origin, self.last_stamp_ns);
+        self.reset();
+        self.origin = origin;
+        self.last_stamp_ns = last;
+    }
+
     /// Adds a sample at `position_ticks` on the device time line, `spacing_ticks` of device time
     /// after the previous one, that arrived at host monotonic `host_ns`; returns its stamp, ns.
     pub fn update(&mut self, position_ticks: f64, spacing_ticks: f64, host_ns: u64) -> u64 {

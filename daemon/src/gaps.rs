@@ -46,6 +46,9 @@ pub struct GapStep {
     /// Device time since the previous sample, ticks: whole sample intervals times the step once
     /// known, the tick difference before.
     pub spacing_ticks: f64,
+    /// The step became known with this sample: positions before it were whole ticks (+ 0.5),
+    /// from here on they are exact.
+    pub learned: bool,
 }
 
 /// Most pieces of a phase set (more only at under one tick per sample, where the count of lost
@@ -333,6 +336,7 @@ impl GapTracker {
             lost_earlier: 0,
             position_ticks: anchor as f64 + phase + self.interval as f64 * step,
             spacing_ticks: n as f64 * step,
+            learned: false,
         }
     }
 
@@ -349,6 +353,7 @@ impl GapTracker {
             lost_earlier,
             position_ticks,
             spacing_ticks,
+            learned: self.feasible.is_some(),
         }
     }
 
@@ -418,6 +423,7 @@ impl GapTracker {
             lost_earlier: 0,
             position_ticks: ticks_unwrapped as f64 + 0.5,
             spacing_ticks: n as f64 * step,
+            learned: false,
         }
     }
 }

@@ -297,6 +297,7 @@ impl GapAccounting {
                 lost_earlier: 0,
                 position_ticks: ticks_unwrapped as f64 + 0.5,
                 spacing_ticks,
+                learned: false,
             };
         }
         let step = self.tracker.push(ticks_unwrapped);
@@ -496,6 +497,11 @@ impl Pipeline {
             .gaps
             .on_sample(self.seq, ticks_unwrapped, self.tick_period_s);
         self.counters.samples_lost += step.lost_before + step.lost_earlier;
+        if step.learned {
+            // Positions were whole ticks until now: their lower envelope is biased by up to
+            // half a tick, so the fit starts again from exact positions.
+            self.clock.restart_fit();
+        }
         let t_sample_ns = self
             .clock
             .update(step.position_ticks, step.spacing_ticks, t_mono_ns);
