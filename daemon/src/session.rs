@@ -93,10 +93,9 @@ impl CalibrationSource {
         match imu_model::Calibration::load(path) {
             Ok(model) => Some(Arc::new(ActiveCalibration::new(model))),
             Err(e) => {
-                // The whole chain: the OS reason of an unreadable file is the error's source.
                 error!(
-                    "calibration rejected, the previous one stays in force: {:#}",
-                    anyhow::Error::new(e)
+                    "calibration rejected, the previous one stays in force: {}",
+                    error_chain(e)
                 );
                 None
             }
@@ -107,6 +106,11 @@ impl CalibrationSource {
     fn changed(&self) -> bool {
         self.watch && self.path.is_some() && self.mtime() != self.modified
     }
+}
+
+/// An error with all its causes, e.g. the OS reason of an unreadable file (the error's source).
+pub fn error_chain(e: impl std::error::Error + Send + Sync + 'static) -> String {
+    format!("{:#}", anyhow::Error::new(e))
 }
 
 /// Everything the run loop owns.
@@ -360,5 +364,20 @@ impl Daemon {
                 .write_all(&Command::SetContinuous { command: 0 }.to_bytes())
                 .await;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_calibration_reload_error_names_the_os_reason() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("gone.toml");
+        let e = imu_model::Calibration::load(&path).unwrap_err();
+        let message = error_chain(e);
+        assert!(message.contains("gone.toml"), "{message}");
+        assert!(message.contains("No such file or directory"), "{message}");
     }
 }
