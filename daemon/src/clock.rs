@@ -4,9 +4,9 @@
 //! each frame's last byte arrived, which is the sample time plus a latency that is never
 //! negative and sometimes large (a loaded host, a stalled link: up to seconds). So, as NTP-style
 //! filters do, the fit uses the *lower envelope* of `arrival - device time`: the smallest value
-//! per [`BUCKET_S`] of device time, a straight line through those minima (offset + drift) with
-//! minima far above the line (buckets a stall covered) rejected, over the last [`BUCKETS`]
-//! buckets.
+//! per [`BUCKET_S`] of device time, over the last [`BUCKETS`] buckets. The lower convex hull of
+//! those minima gives a line no stall can lift; minima far above it (buckets a stall covered)
+//! are left out, and a least-squares line through the rest averages the link's latency noise.
 //!
 //! Stamps follow the device clock: each is the previous one plus the device-time spacing scaled
 //! by the fitted rate, nudged towards the fitted line by at most [`MAX_SLEW`] of the spacing
@@ -25,7 +25,7 @@ pub const MAX_SLEW: f64 = 0.005;
 const FAR_OFF_S: f64 = 0.05;
 /// Smallest spacing between two stamps, ns (stamps never repeat).
 const MIN_SPACING_NS: u64 = 1_000;
-/// Minima more than this above the line, in robust standard deviations, are rejected.
+/// Minima more than this above the envelope, in robust standard deviations, are left out.
 const REJECT_SIGMAS: f64 = 3.0;
 /// ... and never when closer than this, s.
 const REJECT_FLOOR_S: f64 = 100e-6;
@@ -162,35 +162,25 @@ impl ClockFit {
     /// again (a stall lifts whole buckets; nothing can arrive before it was sent).
     fn refit(&mut self) {
         let points = &self.minima[..self.n_minima];
-        let mut keep = [true; BUCKETS];
-        let mut line = None;
-        for _ in 0..4 {
-            let Some(l) = least_squares(points, &keep) else {
-                break;
-            };
-            line = Some(l);
-            let mut abs_res = [0.0f64; BUCKETS];
-            let mut n = 0;
-            for (p, _) in points.iter().zip(&keep).filter(|(_, k)| **k) {
-                abs_res[n] = (p.y_s - l.offset_s - l.drift * p.x_s).abs();
-                n += 1;
-            }
-            let (_, median, _) = abs_res[..n].select_nth_unstable_by(n / 2, f64::total_cmp);
-            let sigma = 1.4826 * *median;
-            let limit = (REJECT_SIGMAS * sigma).max(REJECT_FLOOR_S);
-            let mut changed = false;
-            for (p, k) in points.iter().zip(keep.iter_mut()) {
-                let above = p.y_s - l.offset_s - l.drift * p.x_s > limit;
-                if *k && above {
-                    *k = false;
-                    changed = true;
-                }
-            }
-            if !changed {
-                break;
-            }
+        let Some((offset_s, drift)) = lower_hull_line(points) else {
+            self.line = None;
+            return;
+        };
+        // Distances above the envelope: a stall lifts whole buckets far above it, the link's
+        // own latency noise only a little; the first are left out of the final fit.
+        let mut distances = [0.0f64; BUCKETS];
+        for (d, p) in distances.iter_mut().zip(points) {
+            *d = p.y_s - offset_s - drift * p.x_s;
         }
-        self.line = line;
+        let n = points.len();
+        let mut sorted = distances;
+        let (_, median, _) = sorted[..n].select_nth_unstable_by(n / 2, f64::total_cmp);
+        let limit = (REJECT_SIGMAS * 1.4826 * *median).max(REJECT_FLOOR_S);
+        let mut keep = [false; BUCKETS];
+        for (k, d) in keep.iter_mut().zip(&distances[..n]) {
+            *k = *d <= limit;
+        }
+        self.line = least_squares(points, &keep);
     }
 
     /// Host seconds per tick from the fit, once trusted.
@@ -217,6 +207,41 @@ impl ClockFit {
     pub fn residual_s(&self) -> Option<f64> {
         self.line.map(|l| l.residual_s)
     }
+}
+
+/// The line under all points that is highest at their mean time (the lower convex hull's edge
+/// there: the line below every point with the least total distance to them), as (offset, drift).
+fn lower_hull_line(points: &[Minimum]) -> Option<(f64, f64)> {
+    let mut sorted = [(0.0f64, 0.0f64); BUCKETS];
+    for (s, p) in sorted.iter_mut().zip(points) {
+        *s = (p.x_s, p.y_s);
+    }
+    let sorted = &mut sorted[..points.len()];
+    sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let mut hull = [(0.0f64, 0.0f64); BUCKETS];
+    let mut h = 0;
+    for &p in sorted.iter() {
+        while h >= 2 {
+            let (o, a) = (hull[h - 2], hull[h - 1]);
+            let cross = (a.0 - o.0) * (p.1 - o.1) - (a.1 - o.1) * (p.0 - o.0);
+            if cross > 0.0 {
+                break;
+            }
+            h -= 1;
+        }
+        hull[h] = p;
+        h += 1;
+    }
+    let mean_x = sorted.iter().map(|p| p.0).sum::<f64>() / sorted.len().max(1) as f64;
+    let edge = hull[..h]
+        .windows(2)
+        .find(|w| w[0].0 <= mean_x && mean_x <= w[1].0)?;
+    let (a, b) = (edge[0], edge[1]);
+    if b.0 <= a.0 {
+        return None;
+    }
+    let drift = (b.1 - a.1) / (b.0 - a.0);
+    Some((a.1 - drift * a.0, drift))
 }
 
 /// The straight line through the kept points, with the RMS of their residuals; `None` with too
