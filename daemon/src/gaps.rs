@@ -119,25 +119,30 @@ fn phases(ticks: &[u64], step: f64) -> Option<PhaseSet> {
     Some(set)
 }
 
-/// The tick step of a learned stretch, as the range of steps with which every sample fits
-/// some phase.
-///
-/// A first estimate is the mean of the small tick differences (at most one more than the
-/// smallest: one sample interval, never a gap; good to a few hundredths of a tick). Around it
-/// the steps that fit exactly form ranges about `1 / span^2` wide, so they are searched at that
-/// resolution within [`SEARCH_TICKS`], and the range nearest the first estimate is taken.
-fn estimate_step(ticks: &[u64]) -> Option<(f64, f64)> {
-    let span = (*ticks.last()? - *ticks.first()?) as f64;
+/// The mean of the tick differences that are at most one more than the smallest: one sample
+/// interval each, never a gap (good to a few hundredths of a tick).
+fn mean_small_difference(ticks: &[u64]) -> Option<f64> {
     let min_diff = ticks.windows(2).map(|w| w[1] - w[0]).min()?;
     let (sum, n) = ticks
         .windows(2)
         .map(|w| w[1] - w[0])
         .filter(|&d| d <= min_diff + 1)
         .fold((0u64, 0u64), |(s, n), d| (s + d, n + 1));
-    if span <= 0.0 || n == 0 || sum == 0 {
+    (n > 0 && sum > 0).then(|| sum as f64 / n as f64)
+}
+
+/// The tick step of a learned stretch, as the range of steps with which every sample fits
+/// some phase.
+///
+/// A first estimate is [`mean_small_difference`]. Around it
+/// the steps that fit exactly form ranges about `1 / span^2` wide, so they are searched at that
+/// resolution within [`SEARCH_TICKS`], and the range nearest the first estimate is taken.
+fn estimate_step(ticks: &[u64]) -> Option<(f64, f64)> {
+    let span = (*ticks.last()? - *ticks.first()?) as f64;
+    let coarse = mean_small_difference(ticks)?;
+    if span <= 0.0 {
         return None;
     }
-    let coarse = sum as f64 / n as f64;
     let resolution = 0.25 / (span * span).max(1.0) * coarse;
     let mut best: Option<(f64, f64)> = None;
     let mut open: Option<f64> = None;
@@ -340,10 +345,17 @@ impl GapTracker {
         }
     }
 
-    fn push_learning(&mut self, ticks_unwrapped: u64, spacing_ticks: f64) -> GapStep {
+    fn push_learning(&mut self, ticks_unwrapped: u64, tick_difference: f64) -> GapStep {
         let position_ticks = ticks_unwrapped as f64 + 0.5;
         self.learn[self.n_learn] = ticks_unwrapped;
         self.n_learn += 1;
+        // Until the step is known, stamps are spaced by the mean small tick difference (several
+        // samples can share a tick at high rates; their spacing must not be 0), or by the tick
+        // difference across an evident gap.
+        let spacing_ticks = match mean_small_difference(&self.learn[..self.n_learn]) {
+            Some(m) if tick_difference <= m + 1.0 => m,
+            _ => tick_difference,
+        };
         let mut lost_earlier = 0;
         if self.n_learn == LEARN_SAMPLES {
             lost_earlier = self.finish_learning();
@@ -507,6 +519,19 @@ mod tests {
         let step = 0.01 / 6.5536e-3;
         let (lost, dropped, _) = run(step, 0.0, 1000, |k| (3..6).contains(&k) || k == 40);
         assert_eq!((lost, dropped), (4, 4));
+    }
+
+    #[test]
+    fn samples_sharing_a_tick_are_spaced_while_learning() {
+        // 1 kHz on 6.5536 ms ticks: six or seven samples per tick.
+        let step = 0.001 / 6.5536e-3;
+        let mut g = GapTracker::new();
+        for k in 0..LEARN_SAMPLES as u64 - 1 {
+            let s = g.push(ticks(k, step, 0.2));
+            if k > 20 {
+                assert!((s.spacing_ticks / step - 1.0).abs() < 0.2, "{s:?}");
+            }
+        }
     }
 
     #[test]
