@@ -162,7 +162,12 @@ impl ClockFit {
     /// again (a stall lifts whole buckets; nothing can arrive before it was sent).
     fn refit(&mut self) {
         let points = &self.minima[..self.n_minima];
-        let Some((offset_s, drift)) = lower_hull_line(points) else {
+        let oldest = if self.n_minima == BUCKETS {
+            self.next
+        } else {
+            0
+        };
+        let Some((offset_s, drift)) = lower_hull_line(points, oldest) else {
             self.line = None;
             return;
         };
@@ -211,13 +216,19 @@ impl ClockFit {
 
 /// The line under all points that is highest at their mean time (the lower convex hull's edge
 /// there: the line below every point with the least total distance to them), as (offset, drift).
-fn lower_hull_line(points: &[Minimum]) -> Option<(f64, f64)> {
+///
+/// `oldest` is the index of the earliest point: the ring holds them in time order from there, so
+/// only a sort that is already done is skipped.
+fn lower_hull_line(points: &[Minimum], oldest: usize) -> Option<(f64, f64)> {
     let mut sorted = [(0.0f64, 0.0f64); BUCKETS];
-    for (s, p) in sorted.iter_mut().zip(points) {
+    let (newer, older) = points.split_at(oldest.min(points.len()));
+    for (s, p) in sorted.iter_mut().zip(older.iter().chain(newer)) {
         *s = (p.x_s, p.y_s);
     }
     let sorted = &mut sorted[..points.len()];
-    sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    if !sorted.is_sorted_by(|a, b| a.0 <= b.0) {
+        sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    }
     let mut hull = [(0.0f64, 0.0f64); BUCKETS];
     let mut h = 0;
     for &p in sorted.iter() {
