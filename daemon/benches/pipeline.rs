@@ -10,7 +10,7 @@ use imu_bus::shm::{Publishers, ShmOptions};
 use imu_model::Calibration;
 use imu_proto::decoder::ReplyDecoder;
 use imu_proto::reply::Reply;
-use imud::pipeline::{ActiveCalibration, Gains, Pipeline, Sinks};
+use imud::pipeline::{ActiveCalibration, GainFallback, Gains, Pipeline, Sinks};
 
 const BATCH: usize = 1000;
 const BATCHES: usize = 1000;
@@ -41,7 +41,7 @@ fn run(label: &str, sinks: &mut Sinks, calibrated: bool) {
         accel: 7000,
         gyro: 10000,
         mag: 2000,
-        fallback: false,
+        fallback: GainFallback::NONE,
     };
     let mut pipeline = Pipeline::new(gains, 6.5536e-3, cal);
     let mut decoder = ReplyDecoder::new();

@@ -322,18 +322,11 @@ impl Config {
             message,
         };
         let positive = |v: f64| v.is_finite() && v > 0.0;
-        if self.name.is_empty()
-            || !self
-                .name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-        {
+        // The same rule as every client that opens the instance's services (imu-echo).
+        if let Err(e) = imu_bus::shm::validate_instance_name(&self.name) {
             return Err(invalid(
                 "name",
-                format!(
-                    "`{}` must be non-empty letters, digits, `-` or `_` (it names shared-memory services and files)",
-                    self.name
-                ),
+                format!("{e} (it names shared-memory services and files)"),
             ));
         }
         let d = &self.device;
@@ -455,6 +448,18 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("z.toml:2:"), "{e}");
+    }
+
+    #[test]
+    fn instance_names_follow_the_shared_memory_rule() {
+        let parse = |name: &str| Config::from_toml_str(&format!("name = \"{name}\"\n"), "n.toml");
+        // A dot is as valid for the daemon as for imu-echo; a slash is not for either.
+        assert!(parse("imu.front_0").is_ok());
+        for bad in ["", "a/b", "a b", &"x".repeat(65)] {
+            let e = parse(bad).unwrap_err().to_string();
+            assert!(e.contains("`name`"), "{e}");
+            assert!(imu_bus::shm::validate_instance_name(bad).is_err());
+        }
     }
 
     #[test]

@@ -1,8 +1,11 @@
-//! The imud daemon as a library: configuration, the device session, the per-frame pipeline and
-//! the device-clock fit. `main.rs` is the thin binary; benchmarks and tests use these modules.
+//! The imud daemon as a library: configuration, the device session, the per-frame pipeline, the
+//! device-clock fit and the loss accounting. `main.rs` is the thin binary; benchmarks and tests
+//! use these modules.
 
 pub mod clock;
 pub mod config;
+pub mod gaps;
 pub mod offline;
 pub mod pipeline;
 pub mod session;
+pub mod startup;

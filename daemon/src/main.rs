@@ -12,7 +12,7 @@ use imu_bus::shm::{Publishers, ShmOptions};
 use tracing::{info, warn};
 
 use imud::config::{self, Config};
-use imud::pipeline::{Gains, Pipeline, Sinks};
+use imud::pipeline::{GainFallback, Gains, Pipeline, Sinks};
 use imud::session::{CalibrationSource, Daemon, DeviceIdentity, Signals};
 
 /// The default `--sim` scenario and truth model, built in so `imud --sim` works from anywhere.
@@ -246,7 +246,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
             accel: fallback.accel,
             gyro: fallback.gyro,
             mag: fallback.mag,
-            fallback: true,
+            fallback: GainFallback::ALL,
         },
         config.device.tick_period_s,
         None,
@@ -265,24 +265,16 @@ async fn run(args: Args) -> anyhow::Result<()> {
         notified_ready: false,
         on_identity: Box::new(move |id: &DeviceIdentity, sinks: &Sinks| {
             if let Some(r) = &sinks.recorder {
-                r.update_metadata(
-                    "imud.device",
-                    BTreeMap::from([
-                        ("path".to_string(), device_path.display().to_string()),
-                        (
-                            "firmware".to_string(),
-                            imu_proto::scale::format_firmware_version(id.firmware),
-                        ),
-                        ("serial-number".to_string(), id.serial.to_string()),
-                        ("gain-scale-accel".to_string(), id.gains.accel.to_string()),
-                        ("gain-scale-gyro".to_string(), id.gains.gyro.to_string()),
-                        ("gain-scale-mag".to_string(), id.gains.mag.to_string()),
-                        (
-                            "gains-are-fallback".to_string(),
-                            id.gains.fallback.to_string(),
-                        ),
-                    ]),
-                );
+                let mut metadata = BTreeMap::from([
+                    ("path".to_string(), device_path.display().to_string()),
+                    (
+                        "firmware".to_string(),
+                        imu_proto::scale::format_firmware_version(id.firmware),
+                    ),
+                    ("serial-number".to_string(), id.serial.to_string()),
+                ]);
+                metadata.extend(id.gains.metadata());
+                r.update_metadata("imud.device", metadata);
             }
         }),
         calibration_noise_pending: false,

@@ -19,7 +19,7 @@ use imu_proto::reply::Reply;
 use imu_sim::{DeviceCore, SimOptions};
 
 use crate::config::Config;
-use crate::pipeline::{ActiveCalibration, Gains, Pipeline, Sinks};
+use crate::pipeline::{ActiveCalibration, GainFallback, Gains, Pipeline, Sinks};
 
 /// What an offline run produced.
 #[derive(Debug, Clone)]
@@ -214,7 +214,11 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
         accel,
         gyro,
         mag,
-        fallback: fa || fg || fm,
+        fallback: GainFallback {
+            accel: fa,
+            gyro: fg,
+            mag: fm,
+        },
     };
     let calibration = match &config.calibration.path {
         Some(p) => Some(std::sync::Arc::new(ActiveCalibration::new(
@@ -229,20 +233,15 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
         sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));
     }
     if let Some(r) = &sinks.recorder {
-        r.update_metadata(
-            "imud.device",
-            BTreeMap::from([
-                ("path".to_string(), "offline simulation".to_string()),
-                (
-                    "serial-number".to_string(),
-                    sim.scenario.device.serial_number.to_string(),
-                ),
-                ("gain-scale-accel".to_string(), accel.to_string()),
-                ("gain-scale-gyro".to_string(), gyro.to_string()),
-                ("gain-scale-mag".to_string(), mag.to_string()),
-                ("gains-are-fallback".to_string(), gains.fallback.to_string()),
-            ]),
-        );
+        let mut metadata = BTreeMap::from([
+            ("path".to_string(), "offline simulation".to_string()),
+            (
+                "serial-number".to_string(),
+                sim.scenario.device.serial_number.to_string(),
+            ),
+        ]);
+        metadata.extend(gains.metadata());
+        r.update_metadata("imud.device", metadata);
     }
     let temp_every = if config.device.temperature_rate_hz > 0.0 {
         ((1.0 / period_s) / config.device.temperature_rate_hz)

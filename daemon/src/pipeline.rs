@@ -18,11 +18,50 @@ use imu_proto::reply::Reply;
 use imu_proto::scale;
 use imu_proto::ticks::TickUnwrapper;
 
-use crate::clock::ClockFit;
+use tracing::warn;
+
+use crate::clock::{ClockFit, WallStamps};
+use crate::gaps::{GapStep, GapTracker};
 
 const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
 
-/// The device's GainScales and whether they are fallbacks.
+/// Which GainScales are the configured fallbacks (the device's read failed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GainFallback {
+    /// The accelerometer GainScale is the fallback.
+    pub accel: bool,
+    /// The gyro GainScale is the fallback.
+    pub gyro: bool,
+    /// The magnetometer GainScale is the fallback.
+    pub mag: bool,
+}
+
+impl GainFallback {
+    /// All three are fallbacks (before the device answered).
+    pub const ALL: Self = Self {
+        accel: true,
+        gyro: true,
+        mag: true,
+    };
+    /// None is: all three were read from the device.
+    pub const NONE: Self = Self {
+        accel: false,
+        gyro: false,
+        mag: false,
+    };
+
+    /// True if any GainScale is a fallback.
+    pub fn any(self) -> bool {
+        self.accel || self.gyro || self.mag
+    }
+
+    /// Bit mask for the status: 1 accel, 2 gyro, 4 mag.
+    pub fn mask(self) -> u8 {
+        u8::from(self.accel) | u8::from(self.gyro) << 1 | u8::from(self.mag) << 2
+    }
+}
+
+/// The device's GainScales and which of them are fallbacks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Gains {
     /// Accelerometer GainScale.
@@ -31,8 +70,33 @@ pub struct Gains {
     pub gyro: u16,
     /// Magnetometer GainScale.
     pub mag: u16,
-    /// True when the EEPROM read failed and configured fallbacks are in use.
-    pub fallback: bool,
+    /// Which of them are the configured fallbacks.
+    pub fallback: GainFallback,
+}
+
+impl Gains {
+    /// The recording metadata that states the gains in force and where each came from.
+    pub fn metadata(&self) -> [(String, String); 7] {
+        let source = |fallback: bool| if fallback { "fallback" } else { "device" };
+        [
+            ("gain-scale-accel".into(), self.accel.to_string()),
+            ("gain-scale-gyro".into(), self.gyro.to_string()),
+            ("gain-scale-mag".into(), self.mag.to_string()),
+            (
+                "gain-scale-accel-source".into(),
+                source(self.fallback.accel).into(),
+            ),
+            (
+                "gain-scale-gyro-source".into(),
+                source(self.fallback.gyro).into(),
+            ),
+            (
+                "gain-scale-mag-source".into(),
+                source(self.fallback.mag).into(),
+            ),
+            ("gains-are-fallback".into(), self.fallback.any().to_string()),
+        ]
+    }
 }
 
 /// The calibration in force, ready for the per-sample path.
@@ -120,22 +184,160 @@ pub struct PipelineCounters {
     pub publish_errors: u64,
 }
 
+/// The counts of one data reply, widened to i32 (raw bits are unsigned, scaled ones signed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Counts {
+    accel: [i32; 3],
+    gyro: [i32; 3],
+    mag: [i32; 3],
+    /// Signed scaled counts (0x02/0x03/0x0C) rather than raw ADC bits (0x01).
+    scaled: bool,
+}
+
+impl Counts {
+    /// The counts of a data reply; `None` for other replies.
+    fn of(reply: &Reply) -> Option<Self> {
+        let (mag, accel, rate, scaled) = match *reply {
+            Reply::RawSensorBits {
+                mag, accel, rate, ..
+            } => (
+                mag.map(i32::from),
+                accel.map(i32::from),
+                rate.map(i32::from),
+                false,
+            ),
+            Reply::Vectors {
+                mag, accel, rate, ..
+            }
+            | Reply::QuaternionVectors {
+                mag, accel, rate, ..
+            } => (
+                mag.map(i32::from),
+                accel.map(i32::from),
+                rate.map(i32::from),
+                true,
+            ),
+            _ => return None,
+        };
+        Some(Self {
+            accel,
+            gyro: rate,
+            mag,
+            scaled,
+        })
+    }
+
+    /// True if any channel sits at the end of its range.
+    fn saturated(&self) -> bool {
+        let at_limit = |v: i32| {
+            if self.scaled {
+                v == i32::from(i16::MAX) || v == i32::from(i16::MIN)
+            } else {
+                v == 0 || v == i32::from(u16::MAX)
+            }
+        };
+        [self.accel, self.gyro, self.mag]
+            .iter()
+            .flatten()
+            .any(|&v| at_limit(v))
+    }
+
+    /// Physical units with the GainScales in force.
+    fn to_units(self, g: Gains) -> Measured {
+        let unit = |c: i32, gain: u16| {
+            if self.scaled {
+                scale::scaled_to_units(c as i16, gain)
+            } else {
+                scale::raw_bits_to_units(c as u16, gain)
+            }
+        };
+        Measured {
+            accel_m_s2: Vector3::from_fn(|i, _| unit(self.accel[i], g.accel) * G0),
+            gyro_rad_s: Vector3::from_fn(|i, _| unit(self.gyro[i], g.gyro)),
+            mag_gauss: Vector3::from_fn(|i, _| unit(self.mag[i], g.mag)),
+        }
+    }
+}
+
+/// Loss accounting of a continuous stream: the tick tracker and the log of loss bursts.
+#[derive(Debug, Clone, Default)]
+struct GapAccounting {
+    /// Only continuous streams are paced by the device; polls are the host's.
+    enabled: bool,
+    tracker: GapTracker,
+    burst: Option<LossBurst>,
+    /// The previous sample's ticks (polls only).
+    last_ticks: Option<u64>,
+}
+
+/// Losses close together, logged once when the link has been clean for [`BURST_QUIET_S`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct LossBurst {
+    first_seq: u64,
+    lost: u64,
+    gaps: u64,
+    last_gap_ticks: f64,
+}
+
+/// A loss burst ends after this much device time without a loss, s.
+const BURST_QUIET_S: f64 = 1.0;
+
+impl GapAccounting {
+    /// Accounts the sample `seq` at `ticks_unwrapped`: returns the loss step and whether a gap
+    /// precedes it.
+    fn on_sample(&mut self, seq: u64, ticks_unwrapped: u64, tick_period_s: f64) -> GapStep {
+        if !self.enabled {
+            // Polls: each sample's own tick interval, no losses to count.
+            let spacing_ticks = self
+                .last_ticks
+                .map_or(0.0, |l| ticks_unwrapped.saturating_sub(l) as f64);
+            self.last_ticks = Some(ticks_unwrapped);
+            return GapStep {
+                lost_before: 0,
+                lost_earlier: 0,
+                position_ticks: ticks_unwrapped as f64 + 0.5,
+                spacing_ticks,
+                learned: false,
+            };
+        }
+        let step = self.tracker.push(ticks_unwrapped);
+        let lost = step.lost_before + step.lost_earlier;
+        if lost > 0 {
+            let b = self.burst.get_or_insert(LossBurst {
+                first_seq: seq,
+                lost: 0,
+                gaps: 0,
+                last_gap_ticks: step.position_ticks,
+            });
+            b.lost += lost;
+            b.gaps += 1;
+            b.last_gap_ticks = step.position_ticks;
+        } else if let Some(b) = self.burst
+            && (step.position_ticks - b.last_gap_ticks) * tick_period_s > BURST_QUIET_S
+        {
+            warn!(
+                "device link lost {} sample(s) in {} gap(s) from sample {} to {}",
+                b.lost,
+                b.gaps,
+                b.first_seq,
+                seq.saturating_sub(1)
+            );
+            self.burst = None;
+        }
+        step
+    }
+}
+
 /// The per-frame state machine.
 pub struct Pipeline {
     gains: Gains,
     tick_period_s: f64,
     unwrapper: TickUnwrapper,
+    gaps: GapAccounting,
     clock: ClockFit,
+    wall: WallStamps,
     calibration: Option<Arc<ActiveCalibration>>,
     temp_c: f64,
-    /// Expected ticks between consecutive samples in continuous mode (for gap detection),
-    /// learned from the first samples of a session.
-    expected_tick_step: Option<f64>,
-    /// Whether to learn `expected_tick_step` (continuous mode only: polls are irregular).
-    detect_gaps: bool,
-    /// Sum and count of tick steps while learning.
-    step_stats: (u64, u64),
-    last_ticks: Option<u64>,
     last_gyro: Option<(u64, Vector3<f64>)>,
     /// First sample time of the session and samples since (for the sample-rate estimate).
     rate_origin: Option<(u64, u64)>,
@@ -155,13 +357,11 @@ impl Pipeline {
             gains,
             tick_period_s,
             unwrapper: TickUnwrapper::new(),
+            gaps: GapAccounting::default(),
             clock: ClockFit::new(tick_period_s),
+            wall: WallStamps::default(),
             calibration,
             temp_c: f64::NAN,
-            expected_tick_step: None,
-            detect_gaps: false,
-            step_stats: (0, 0),
-            last_ticks: None,
             last_gyro: None,
             rate_origin: None,
             last_sample_ns: None,
@@ -170,16 +370,29 @@ impl Pipeline {
         }
     }
 
-    /// Starts a new device session (after a reconnect): keeps the sequence numbering, forgets
-    /// the device's clock.
+    /// Starts a new device session (after a reconnect): keeps the sequence numbering and the
+    /// stamps' order, forgets the device's clock.
     pub fn new_session(&mut self, gains: Gains) {
         self.gains = gains;
         self.unwrapper = TickUnwrapper::new();
+        self.gaps = GapAccounting {
+            enabled: self.gaps.enabled,
+            ..GapAccounting::default()
+        };
         self.clock.reset();
-        self.last_ticks = None;
         self.last_gyro = None;
         self.rate_origin = None;
         self.last_sample_ns = None;
+    }
+
+    /// The monotonic stamp of the last sample of this session, ns.
+    pub fn last_stamp_ns(&self) -> Option<u64> {
+        self.last_sample_ns
+    }
+
+    /// The GainScales in force.
+    pub fn gains(&self) -> Gains {
+        self.gains
     }
 
     /// Measured data rate, Hz, once at least two seconds of samples were seen this session.
@@ -190,12 +403,13 @@ impl Pipeline {
         (span_s >= 2.0).then(|| (n1 - n0 - 1) as f64 / span_s)
     }
 
-    /// Turns on gap detection for a continuous stream (the device's sample interval is learned
-    /// from the first samples' tick steps); off for polling, whose intervals are the host's.
+    /// Turns on loss accounting for a continuous stream (the device paces it; the tick step is
+    /// learned from its first samples); off for polling, whose intervals are the host's.
     pub fn set_continuous(&mut self, continuous: bool) {
-        self.detect_gaps = continuous;
-        self.expected_tick_step = None;
-        self.step_stats = (0, 0);
+        self.gaps = GapAccounting {
+            enabled: continuous,
+            ..GapAccounting::default()
+        };
     }
 
     /// Puts a calibration in force from the next sample on (returns that sample's seq).
@@ -263,82 +477,49 @@ impl Pipeline {
         }
     }
 
-    /// Handles one good reply.
+    /// Handles one good reply: a temperature is kept, a data reply becomes a raw and a corrected
+    /// sample (gap accounting, time stamp, scaling, correction, publishing).
     pub fn on_reply(&mut self, reply: &Reply, t_mono_ns: u64, t_wall_ns: u64, sinks: &mut Sinks) {
-        let (accel, gyro, mag, scaled) = match *reply {
-            Reply::Temperature { raw, .. } => {
-                self.temp_c = scale::temp_raw_to_c(raw);
-                sinks.log(LogRecord::Temperature {
-                    t_wall_ns,
-                    temp_c: self.temp_c,
-                });
-                return;
-            }
-            Reply::RawSensorBits {
-                mag, accel, rate, ..
-            } => (
-                accel.map(i32::from),
-                rate.map(i32::from),
-                mag.map(i32::from),
-                false,
-            ),
-            Reply::Vectors {
-                mag, accel, rate, ..
-            }
-            | Reply::QuaternionVectors {
-                mag, accel, rate, ..
-            } => (
-                accel.map(i32::from),
-                rate.map(i32::from),
-                mag.map(i32::from),
-                true,
-            ),
-            _ => return,
+        if let Reply::Temperature { raw, .. } = *reply {
+            self.temp_c = scale::temp_raw_to_c(raw);
+            sinks.log(LogRecord::Temperature {
+                t_wall_ns,
+                temp_c: self.temp_c,
+            });
+            return;
+        }
+        let Some(counts) = Counts::of(reply) else {
+            return;
         };
         let ticks = reply.ticks().unwrap_or(0);
         let ticks_unwrapped = self.unwrapper.unwrap(ticks);
-        let mut flags = if scaled { raw_flags::SCALED_COUNTS } else { 0 };
-        if let Some(last) = self.last_ticks
-            && self.detect_gaps
-        {
-            let step = ticks_unwrapped.saturating_sub(last);
-            match self.expected_tick_step {
-                Some(expected) => {
-                    let intervals = (step as f64 / expected).round() as u64;
-                    if intervals > 1 {
-                        self.counters.samples_lost += intervals - 1;
-                        flags |= raw_flags::GAP_BEFORE;
-                    }
-                }
-                None => {
-                    // Ticks are coarser than some sample intervals (6.5536 ms vs 10 ms at
-                    // 100 Hz), so learn the mean step over the first samples.
-                    self.step_stats.0 += step;
-                    self.step_stats.1 += 1;
-                    if self.step_stats.1 == 128 && self.step_stats.0 > 0 {
-                        self.expected_tick_step = Some(self.step_stats.0 as f64 / 128.0);
-                    }
-                }
-            }
+        let step = self
+            .gaps
+            .on_sample(self.seq, ticks_unwrapped, self.tick_period_s);
+        self.counters.samples_lost += step.lost_before + step.lost_earlier;
+        if step.learned {
+            // Positions were whole ticks until now: their lower envelope is biased by up to
+            // half a tick, so the fit starts again from exact positions.
+            self.clock.restart_fit();
         }
-        self.last_ticks = Some(ticks_unwrapped);
+        let t_sample_ns = self
+            .clock
+            .update(step.position_ticks, step.spacing_ticks, t_mono_ns);
+        let t_device_ns = (ticks_unwrapped as f64 * self.tick_period_s * 1e9) as u64;
+        let mut flags = if counts.scaled {
+            raw_flags::SCALED_COUNTS
+        } else {
+            0
+        };
+        if step.lost_before > 0 {
+            flags |= raw_flags::GAP_BEFORE;
+        }
         if self.temp_c.is_nan() {
             flags |= raw_flags::TEMP_STALE;
         }
-        let saturated = |c: &[i32; 3]| {
-            c.iter().any(|&v| {
-                if scaled {
-                    v == i16::MAX as i32 || v == i16::MIN as i32
-                } else {
-                    v == 0 || v == u16::MAX as i32
-                }
-            })
-        };
-        if saturated(&accel) || saturated(&gyro) || saturated(&mag) {
+        if counts.saturated() {
             flags |= raw_flags::SATURATED;
         }
-        let t_sample_ns = self.clock.update(ticks_unwrapped, t_mono_ns);
-        let t_device_ns = (ticks_unwrapped as f64 * self.tick_period_s * 1e9) as u64;
         let raw = RawSample {
             seq: self.seq,
             t_device_ns,
@@ -346,43 +527,38 @@ impl Pipeline {
             t_host_wall_ns: t_wall_ns,
             t_sample_ns,
             ticks_unwrapped,
-            accel_counts: accel,
-            gyro_counts: gyro,
-            mag_counts: mag,
+            accel_counts: counts.accel,
+            gyro_counts: counts.gyro,
+            mag_counts: counts.mag,
             temp_c: self.temp_c,
             ticks,
             command: reply.code(),
             reserved: 0,
             flags,
         };
-        let to_units = |c: i32, gain: u16| {
-            if scaled {
-                scale::scaled_to_units(c as i16, gain)
-            } else {
-                scale::raw_bits_to_units(c as u16, gain)
-            }
-        };
-        let g = self.gains;
-        let measured = Measured {
-            accel_m_s2: Vector3::from_fn(|i, _| to_units(accel[i], g.accel) * G0),
-            gyro_rad_s: Vector3::from_fn(|i, _| to_units(gyro[i], g.gyro)),
-            mag_gauss: Vector3::from_fn(|i, _| to_units(mag[i], g.mag)),
-        };
-        let mut cflags = if g.fallback {
+        let measured = counts.to_units(self.gains);
+        let mut corrected = self.correct(&measured, t_sample_ns, t_device_ns);
+        corrected.t_wall_ns = self.wall.stamp(t_sample_ns, t_mono_ns, t_wall_ns);
+        self.publish(raw, corrected, sinks);
+    }
+
+    /// Applies the calibration in force (or only the GainScales) to one sample.
+    fn correct(&mut self, m: &Measured, t_sample_ns: u64, t_device_ns: u64) -> CorrectedSample {
+        let mut flags = if self.gains.fallback.any() {
             corrected_flags::FALLBACK_GAINS
         } else {
             0
         };
         if self.temp_c.is_nan() {
-            cflags |= corrected_flags::TEMP_STALE;
+            flags |= corrected_flags::TEMP_STALE;
         }
-        let (accel_si, gyro_si, mag_si, calibration_id) = match &self.calibration {
+        let (accel, gyro, mag, calibration_id) = match &self.calibration {
             Some(cal) => {
                 // Angular acceleration for the lever-arm term: finite difference of the corrected
                 // rate (one sample late, which the lever-arm magnitude makes negligible).
                 let angular_accel = match self.last_gyro {
                     Some((t_prev, w_prev)) if t_sample_ns > t_prev => {
-                        (measured.gyro_rad_s - w_prev) / ((t_sample_ns - t_prev) as f64 * 1e-9)
+                        (m.gyro_rad_s - w_prev) / ((t_sample_ns - t_prev) as f64 * 1e-9)
                     }
                     _ => Vector3::zeros(),
                 };
@@ -391,43 +567,41 @@ impl Pipeline {
                 } else {
                     self.temp_c
                 };
-                let c =
-                    cal.model
-                        .correct(&measured, temp, t_device_ns as f64 * 1e-9, angular_accel);
+                let c = cal
+                    .model
+                    .correct(m, temp, t_device_ns as f64 * 1e-9, angular_accel);
                 if !c.converged {
-                    cflags |= corrected_flags::NOT_CONVERGED;
+                    flags |= corrected_flags::NOT_CONVERGED;
                     self.counters.not_converged += 1;
                 }
                 self.last_gyro = Some((t_sample_ns, c.gyro_rad_s));
                 (c.accel_m_s2, c.gyro_rad_s, c.mag_gauss, cal.id)
             }
             None => {
-                cflags |= corrected_flags::UNCALIBRATED;
-                (
-                    measured.accel_m_s2,
-                    measured.gyro_rad_s,
-                    measured.mag_gauss,
-                    0,
-                )
+                flags |= corrected_flags::UNCALIBRATED;
+                (m.accel_m_s2, m.gyro_rad_s, m.mag_gauss, 0)
             }
         };
-        let t_wall_sample_ns = t_wall_ns.saturating_sub(t_mono_ns.saturating_sub(t_sample_ns));
-        let corrected = CorrectedSample {
+        CorrectedSample {
             seq: self.seq,
             t_sample_ns,
-            t_wall_ns: t_wall_sample_ns,
+            t_wall_ns: 0,
             t_device_ns,
-            accel_m_s2: accel_si.into(),
-            gyro_rad_s: gyro_si.into(),
-            mag_gauss: mag_si.into(),
+            accel_m_s2: accel.into(),
+            gyro_rad_s: gyro.into(),
+            mag_gauss: mag.into(),
             temp_c: self.temp_c,
             calibration_id,
-            flags: cflags,
+            flags,
             reserved: 0,
-        };
+        }
+    }
+
+    /// Counts the sample and hands it to shared memory and the log.
+    fn publish(&mut self, raw: RawSample, corrected: CorrectedSample, sinks: &mut Sinks) {
         self.rate_origin
-            .get_or_insert((t_sample_ns, self.counters.samples));
-        self.last_sample_ns = Some(t_sample_ns);
+            .get_or_insert((raw.t_sample_ns, self.counters.samples));
+        self.last_sample_ns = Some(raw.t_sample_ns);
         self.seq += 1;
         self.counters.samples += 1;
         if let Some(p) = &mut sinks.publishers {
@@ -474,7 +648,14 @@ impl Pipeline {
             temp_c: self.temp_c,
             device_connected: u8::from(connected),
             logging: u8::from(logging),
-            reserved: [0; 6],
+            gains_fallback: self.gains.fallback.mask(),
+            reserved: [0; 5],
+            clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
+            clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),
+            gain_scale_accel: self.gains.accel,
+            gain_scale_gyro: self.gains.gyro,
+            gain_scale_mag: self.gains.mag,
+            reserved_end: [0; 2],
         }
     }
 }
@@ -498,7 +679,7 @@ mod tests {
             accel: 7000,
             gyro: 10000,
             mag: 2000,
-            fallback: false,
+            fallback: GainFallback::NONE,
         };
         let mut p = Pipeline::new(gains, 6.5536e-3, None);
         p.set_continuous(true);
@@ -529,7 +710,7 @@ mod tests {
             accel: 7000,
             gyro: 10000,
             mag: 2000,
-            fallback: true,
+            fallback: GainFallback::ALL,
         };
         let mut p = Pipeline::new(gains, 6.5536e-3, None);
         p.set_continuous(false);

@@ -8,14 +8,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{Context, anyhow};
 use imu_bus::recording::LogRecord;
 use imu_proto::command::Command;
-use imu_proto::decoder::{DecodeEvent, ReplyDecoder};
-use imu_proto::reply::Reply;
+use imu_proto::decoder::ReplyDecoder;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::signal::unix::{Signal, SignalKind, signal};
-use tokio_serial::{SerialPort, SerialPortBuilderExt, SerialStream};
+use tokio_serial::SerialStream;
 use tracing::{error, info, warn};
 
 use crate::config::{AcquisitionMode, Config};
@@ -28,7 +27,7 @@ pub struct DeviceIdentity {
     pub firmware: u16,
     /// Serial number.
     pub serial: u16,
-    /// GainScales (maybe fallbacks).
+    /// GainScales in force (each read from the device or the configured fallback).
     pub gains: Gains,
 }
 
@@ -94,7 +93,10 @@ impl CalibrationSource {
         match imu_model::Calibration::load(path) {
             Ok(model) => Some(Arc::new(ActiveCalibration::new(model))),
             Err(e) => {
-                error!("calibration rejected, the previous one stays in force: {e}");
+                error!(
+                    "calibration rejected, the previous one stays in force: {}",
+                    error_chain(e)
+                );
                 None
             }
         }
@@ -104,6 +106,11 @@ impl CalibrationSource {
     fn changed(&self) -> bool {
         self.watch && self.path.is_some() && self.mtime() != self.modified
     }
+}
+
+/// An error with all its causes, e.g. the OS reason of an unreadable file (the error's source).
+pub fn error_chain(e: impl std::error::Error + Send + Sync + 'static) -> String {
+    format!("{:#}", anyhow::Error::new(e))
 }
 
 /// Everything the run loop owns.
@@ -218,7 +225,7 @@ impl Daemon {
         }
     }
 
-    fn drain_decoder(&mut self) {
+    pub(crate) fn drain_decoder(&mut self) {
         let (mono, wall) = now_ns();
         while let Some(ev) = self.decoder.next_event() {
             self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
@@ -256,7 +263,11 @@ impl Daemon {
             self.decoder.flush();
             self.drain_decoder();
             match end {
-                SessionEnd::Shutdown => return Ok(()),
+                SessionEnd::Shutdown => {
+                    // A last status, so the recording ends with the final counters.
+                    self.publish_status(false);
+                    return Ok(());
+                }
                 SessionEnd::Lost(e) => {
                     warn!(
                         "device {} unavailable: {e:#}; retrying in {:.1} s",
@@ -281,138 +292,6 @@ impl Daemon {
             }
             backoff = (backoff * 2).min(Duration::from_secs_f64(cfg.reconnect_max_s));
         }
-    }
-
-    /// Reads until a frame with `code` arrives (other frames go through the pipeline).
-    async fn await_reply(&mut self, port: &mut SerialStream, code: u8) -> anyhow::Result<Reply> {
-        let timeout = Duration::from_secs_f64(self.config.device.reply_timeout_s);
-        let mut buf = [0u8; 512];
-        tokio::time::timeout(timeout, async {
-            loop {
-                while let Some(ev) = self.decoder.next_event() {
-                    let (mono, wall) = now_ns();
-                    if let DecodeEvent::Frame { reply, .. } = &ev
-                        && reply.code() == code
-                    {
-                        let reply = *reply;
-                        self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
-                        return Ok(reply);
-                    }
-                    self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
-                }
-                let n = port
-                    .read(&mut buf)
-                    .await
-                    .context("reading from the device")?;
-                if n == 0 {
-                    bail!("the device closed the line");
-                }
-                self.decoder.push(&buf[..n]);
-            }
-        })
-        .await
-        .map_err(|_| {
-            anyhow!(
-                "no reply to command 0x{code:02X} within {:.1} s",
-                timeout.as_secs_f64()
-            )
-        })?
-    }
-
-    async fn transact(&mut self, port: &mut SerialStream, cmd: Command) -> anyhow::Result<Reply> {
-        port.write_all(&cmd.to_bytes())
-            .await
-            .context("writing to the device")?;
-        self.await_reply(port, cmd.code()).await
-    }
-
-    /// Opens the port and runs the start-up sequence of the protocol notes.
-    async fn open_and_start(&mut self) -> anyhow::Result<(SerialStream, DeviceIdentity)> {
-        let cfg = self.config.device.clone();
-        let mut port = tokio_serial::new(cfg.path.to_string_lossy(), cfg.baud)
-            .open_native_async()
-            .with_context(|| format!("opening {}", cfg.path.display()))?;
-        // Stop any streaming, let in-flight bytes arrive, drop them, then stop again and check.
-        port.write_all(&Command::SetContinuous { command: 0 }.to_bytes())
-            .await
-            .context("writing to the device")?;
-        tokio::time::sleep(Duration::from_millis(300)).await;
-        let _ = port.clear(tokio_serial::ClearBuffer::Input);
-        let stop = self
-            .transact(&mut port, Command::SetContinuous { command: 0 })
-            .await?;
-        if !matches!(stop, Reply::Continuous { command: 0, .. }) {
-            bail!("the device did not confirm stopping continuous mode: {stop:?}");
-        }
-        let firmware = match self.transact(&mut port, Command::FirmwareVersion).await? {
-            Reply::FirmwareVersion { version } => version,
-            other => bail!("unexpected firmware reply {other:?}"),
-        };
-        let serial = match self.transact(&mut port, Command::SerialNumber).await? {
-            Reply::SerialNumber { serial } => serial,
-            other => bail!("unexpected serial-number reply {other:?}"),
-        };
-        let mut gains = Gains {
-            accel: cfg.fallback_gains.accel,
-            gyro: cfg.fallback_gains.gyro,
-            mag: cfg.fallback_gains.mag,
-            fallback: false,
-        };
-        for (address, slot) in [
-            (imu_proto::device::ACCEL_GAIN_SCALE_ADDR, 0),
-            (imu_proto::device::GYRO_GAIN_SCALE_ADDR, 1),
-            (imu_proto::device::MAG_GAIN_SCALE_ADDR, 2),
-        ] {
-            match self
-                .transact(&mut port, Command::ReadEeprom { address })
-                .await
-            {
-                Ok(Reply::EepromRead { value, .. }) if value != 0 => match slot {
-                    0 => gains.accel = value,
-                    1 => gains.gyro = value,
-                    _ => gains.mag = value,
-                },
-                other => {
-                    gains.fallback = true;
-                    error!(
-                        "GainScale at EEPROM {address} unreadable ({other:?}): using the configured FALLBACK gains {:?}; corrected samples are flagged FALLBACK_GAINS",
-                        cfg.fallback_gains
-                    );
-                }
-            }
-        }
-        // One temperature reading before streaming (the device says nothing else while it streams).
-        if let Err(e) = self.transact(&mut port, Command::Temperature).await {
-            warn!("no temperature reading at start-up: {e:#}");
-        }
-        self.pipeline.new_session(gains);
-        let identity = DeviceIdentity {
-            firmware,
-            serial,
-            gains,
-        };
-        info!(
-            "device {} firmware {} serial {} gains accel {} gyro {} mag {}{}",
-            cfg.path.display(),
-            imu_proto::scale::format_firmware_version(firmware),
-            serial,
-            gains.accel,
-            gains.gyro,
-            gains.mag,
-            if gains.fallback { " (FALLBACK)" } else { "" }
-        );
-        if cfg.mode == AcquisitionMode::Continuous {
-            let cmd = cfg.command.command().code();
-            let ack = self
-                .transact(&mut port, Command::SetContinuous { command: cmd })
-                .await?;
-            if !matches!(ack, Reply::Continuous { command, .. } if command == cmd) {
-                bail!("the device did not confirm continuous mode: {ack:?}");
-            }
-        }
-        self.pipeline
-            .set_continuous(cfg.mode == AcquisitionMode::Continuous);
-        Ok((port, identity))
     }
 
     /// Streams (or polls) until the device is lost or a shutdown signal arrives.
@@ -485,5 +364,20 @@ impl Daemon {
                 .write_all(&Command::SetContinuous { command: 0 }.to_bytes())
                 .await;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_calibration_reload_error_names_the_os_reason() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("gone.toml");
+        let e = imu_model::Calibration::load(&path).unwrap_err();
+        let message = error_chain(e);
+        assert!(message.contains("gone.toml"), "{message}");
+        assert!(message.contains("No such file or directory"), "{message}");
     }
 }

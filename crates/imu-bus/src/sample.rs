@@ -15,7 +15,7 @@
 //! |---------------------|-----------------------------|------|-------|
 //! | [`RawSample`]       | `imud::RawSample.v1`        | 104  | 8     |
 //! | [`CorrectedSample`] | `imud::CorrectedSample.v1`  | 128  | 8     |
-//! | [`DaemonStatus`]    | `imud::DaemonStatus.v1`     | 128  | 8     |
+//! | [`DaemonStatus`]    | `imud::DaemonStatus.v2`     | 152  | 8     |
 //!
 //! The user header is iceoryx2's default `()` (type name `()`, size 0, alignment 1). All
 //! integers and floats are native-endian (little-endian on every supported host).
@@ -50,8 +50,11 @@
 //!  80 uint64_t reconnects;          88 uint64_t calibration_id;
 //!  96 double   tick_period_est_s;  104 double   clock_drift_ppm;
 //! 112 double   temp_c;             120 uint8_t  device_connected;
-//! 121 uint8_t  logging;            122 uint8_t  reserved[6];
-//! 128 = sizeof
+//! 121 uint8_t  logging;            122 uint8_t  gains_fallback;
+//! 123 uint8_t  reserved[5];        128 double   clock_offset_s;
+//! 136 double   clock_residual_s;   144 uint16_t gain_scale_accel;
+//! 146 uint16_t gain_scale_gyro;    148 uint16_t gain_scale_mag;
+//! 150 uint8_t  reserved_end[2];    152 = sizeof
 //! ```
 //! The sizes are checked at compile time below and every offset by a unit test, so a layout
 //! change cannot slip through without a new type-name version.
@@ -67,13 +70,13 @@ pub const RAW_SAMPLE_TYPE_NAME: &str = "imud::RawSample.v1";
 /// iceoryx2 type name of [`CorrectedSample`] (see the module docs for the C layout).
 pub const CORRECTED_SAMPLE_TYPE_NAME: &str = "imud::CorrectedSample.v1";
 /// iceoryx2 type name of [`DaemonStatus`] (see the module docs for the C layout).
-pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v1";
+pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v2";
 
 // Layout guards: a size change must come with a new type-name version (and new mirrors in
 // examples/python/imu_subscriber.py). Offsets are checked in the tests below.
 const _: () = assert!(size_of::<RawSample>() == 104 && align_of::<RawSample>() == 8);
 const _: () = assert!(size_of::<CorrectedSample>() == 128 && align_of::<CorrectedSample>() == 8);
-const _: () = assert!(size_of::<DaemonStatus>() == 128 && align_of::<DaemonStatus>() == 8);
+const _: () = assert!(size_of::<DaemonStatus>() == 152 && align_of::<DaemonStatus>() == 8);
 
 /// Bit flags of a [`RawSample`].
 pub mod raw_flags {
@@ -166,7 +169,7 @@ pub struct CorrectedSample {
 /// Health counters of a running daemon (published about once a second and on change).
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, serde::Serialize)]
 #[repr(C)]
-#[type_name("imud::DaemonStatus.v1")]
+#[type_name("imud::DaemonStatus.v2")]
 pub struct DaemonStatus {
     /// Host monotonic time of this status, ns.
     pub t_host_monotonic_ns: u64,
@@ -193,9 +196,10 @@ pub struct DaemonStatus {
     pub reconnects: u64,
     /// Content id of the calibration in force (0 when uncalibrated).
     pub calibration_id: u64,
-    /// Estimated tick period from the device-clock fit, s (NaN until known).
+    /// Host seconds per device tick from the device-clock fit, s (NaN until known).
     pub tick_period_est_s: f64,
-    /// Device clock drift against the host clock, ppm (NaN until known).
+    /// Device clock rate error against the host clock, ppm; positive: the device runs fast
+    /// (NaN until known).
     pub clock_drift_ppm: f64,
     /// Latest temperature, deg C (NaN if none).
     pub temp_c: f64,
@@ -203,8 +207,26 @@ pub struct DaemonStatus {
     pub device_connected: u8,
     /// 1 while MCAP logging is active.
     pub logging: u8,
+    /// Which GainScales in force are the configured fallbacks (the device's EEPROM read
+    /// failed): bit 0 accel, bit 1 gyro, bit 2 mag.
+    pub gains_fallback: u8,
     /// Reserved, zero.
-    pub reserved: [u8; 6],
+    pub reserved: [u8; 5],
+    /// Host monotonic time, s, at which the device's unwrapped tick count was 0, from the clock
+    /// fit (a sample's time is `clock_offset_s + ticks * tick_period_est_s` plus the link's least
+    /// latency; NaN until known).
+    pub clock_offset_s: f64,
+    /// RMS residual of the clock fit (its lower-envelope points about the line), s (NaN until
+    /// known).
+    pub clock_residual_s: f64,
+    /// Accelerometer GainScale in force.
+    pub gain_scale_accel: u16,
+    /// Gyro GainScale in force.
+    pub gain_scale_gyro: u16,
+    /// Magnetometer GainScale in force.
+    pub gain_scale_mag: u16,
+    /// Reserved, zero.
+    pub reserved_end: [u8; 2],
 }
 
 #[cfg(test)]
@@ -266,7 +288,14 @@ mod tests {
         assert_eq!(offset_of!(DaemonStatus, temp_c), 112);
         assert_eq!(offset_of!(DaemonStatus, device_connected), 120);
         assert_eq!(offset_of!(DaemonStatus, logging), 121);
-        assert_eq!(offset_of!(DaemonStatus, reserved), 122);
-        assert_eq!(size_of::<DaemonStatus>(), 128);
+        assert_eq!(offset_of!(DaemonStatus, gains_fallback), 122);
+        assert_eq!(offset_of!(DaemonStatus, reserved), 123);
+        assert_eq!(offset_of!(DaemonStatus, clock_offset_s), 128);
+        assert_eq!(offset_of!(DaemonStatus, clock_residual_s), 136);
+        assert_eq!(offset_of!(DaemonStatus, gain_scale_accel), 144);
+        assert_eq!(offset_of!(DaemonStatus, gain_scale_gyro), 146);
+        assert_eq!(offset_of!(DaemonStatus, gain_scale_mag), 148);
+        assert_eq!(offset_of!(DaemonStatus, reserved_end), 150);
+        assert_eq!(size_of::<DaemonStatus>(), 152);
     }
 }

@@ -10,7 +10,7 @@
 //! |-----------------------|-------------------|--------------------------------------------------|
 //! | `imud/NAME/raw`       | publish-subscribe | [`RawSample`] (`imud::RawSample.v1`)             |
 //! | `imud/NAME/corrected` | publish-subscribe | [`CorrectedSample`] (`imud::CorrectedSample.v1`) |
-//! | `imud/NAME/status`    | publish-subscribe | [`DaemonStatus`] (`imud::DaemonStatus.v1`)       |
+//! | `imud/NAME/status`    | publish-subscribe | [`DaemonStatus`] (`imud::DaemonStatus.v2`)       |
 //! | `imud/NAME/event`     | event             | [`ShmEvent`] ids: 1 = samples, 2 = status        |
 //!
 //! The publish-subscribe services use iceoryx2's *safe overflow*: when a subscriber's buffer is

@@ -203,12 +203,18 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
             ("calibration_id", w.calibration_id),
             ("device_connected", u64::from(w.device_connected)),
             ("logging", u64::from(w.logging)),
+            ("gains_fallback", u64::from(w.gains_fallback)),
+            ("gain_scale_accel", u64::from(w.gain_scale_accel)),
+            ("gain_scale_gyro", u64::from(w.gain_scale_gyro)),
+            ("gain_scale_mag", u64::from(w.gain_scale_mag)),
         ] {
             assert_eq!(u(&g[field]), value, "/imud/status {field}");
         }
         close(&g["tick_period_est_s"], w.tick_period_est_s, "tick period");
         close(&g["clock_drift_ppm"], w.clock_drift_ppm, "drift");
         close(&g["temp_c"], w.temp_c, "status temp");
+        close(&g["clock_offset_s"], w.clock_offset_s, "clock offset");
+        close(&g["clock_residual_s"], w.clock_residual_s, "clock residual");
         assert_eq!(g["reserved"], serde_json::json!(w.reserved));
     }
 

@@ -88,7 +88,14 @@ fn daemon_status(n: u64) -> DaemonStatus {
         temp_c: f64::NAN,
         device_connected: 1,
         logging: 0,
-        reserved: [0; 6],
+        gains_fallback: 7,
+        reserved: [0; 5],
+        clock_offset_s: -0.0,
+        clock_residual_s: f64::NAN,
+        gain_scale_accel: 7000,
+        gain_scale_gyro: 10_000,
+        gain_scale_mag: 2000,
+        reserved_end: [0; 2],
     }
 }
 
@@ -156,8 +163,15 @@ fn status_bits(s: &DaemonStatus) -> Vec<u64> {
         s.temp_c.to_bits(),
         s.device_connected.into(),
         s.logging.into(),
+        s.gains_fallback.into(),
+        s.clock_offset_s.to_bits(),
+        s.clock_residual_s.to_bits(),
+        s.gain_scale_accel.into(),
+        s.gain_scale_gyro.into(),
+        s.gain_scale_mag.into(),
     ];
     v.extend(s.reserved.iter().map(|&b| u64::from(b)));
+    v.extend(s.reserved_end.iter().map(|&b| u64::from(b)));
     v
 }
 

@@ -183,17 +183,24 @@ uint64 checksum_failures
 uint64 resyncs
 uint64 garbage_bytes
 uint64 truncated_frames
-uint64 samples_lost           # tick gaps on the device link
+uint64 samples_lost           # samples the device link lost (from the device's ticks)
 uint64 log_drops              # log records dropped (queue full or logging stopped)
 uint64 publish_drops
 uint64 reconnects
 uint64 calibration_id         # content id of the calibration in force (0: uncalibrated)
-float64 tick_period_est_s     # NaN until known
-float64 clock_drift_ppm       # NaN until known
+float64 tick_period_est_s     # host seconds per device tick from the clock fit; NaN until known
+float64 clock_drift_ppm       # device clock rate error, ppm (positive: fast); NaN until known
 float64 temp_c                # NaN if none
 uint8 device_connected
 uint8 logging
-uint8[6] reserved
+uint8 gains_fallback          # GainScales that are configured fallbacks: 1 accel, 2 gyro, 4 mag
+uint8[5] reserved
+float64 clock_offset_s        # host monotonic s at device tick 0, from the clock fit; NaN until known
+float64 clock_residual_s      # RMS residual of the clock fit, s; NaN until known
+uint16 gain_scale_accel       # GainScales in force
+uint16 gain_scale_gyro
+uint16 gain_scale_mag
+uint8[2] reserved_end
 ",
     uses: &[&HEADER_DEF],
 };

@@ -408,7 +408,14 @@ impl RosMessage for DaemonStatusMsg {
         w.f64(s.temp_c);
         w.u8(s.device_connected);
         w.u8(s.logging);
+        w.u8(s.gains_fallback);
         w.u8_array(&s.reserved);
+        w.f64(s.clock_offset_s);
+        w.f64(s.clock_residual_s);
+        w.u16(s.gain_scale_accel);
+        w.u16(s.gain_scale_gyro);
+        w.u16(s.gain_scale_mag);
+        w.u8_array(&s.reserved_end);
     }
     fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
         Ok(Self {
@@ -431,7 +438,14 @@ impl RosMessage for DaemonStatusMsg {
                 temp_c: r.f64("temp_c")?,
                 device_connected: r.u8("device_connected")?,
                 logging: r.u8("logging")?,
+                gains_fallback: r.u8("gains_fallback")?,
                 reserved: r.u8_array("reserved")?,
+                clock_offset_s: r.f64("clock_offset_s")?,
+                clock_residual_s: r.f64("clock_residual_s")?,
+                gain_scale_accel: r.u16("gain_scale_accel")?,
+                gain_scale_gyro: r.u16("gain_scale_gyro")?,
+                gain_scale_mag: r.u16("gain_scale_mag")?,
+                reserved_end: r.u8_array("reserved_end")?,
             },
         })
     }

@@ -142,7 +142,14 @@ fn every_type_round_trips_and_rejects_truncation() {
             temp_c: 30.0,
             device_connected: 1,
             logging: 1,
-            reserved: [0, 1, 2, 3, 4, 5],
+            gains_fallback: 2,
+            reserved: [0, 1, 2, 3, 4],
+            clock_offset_s: 1234.5,
+            clock_residual_s: 2.5e-4,
+            gain_scale_accel: 8500,
+            gain_scale_gyro: 10_000,
+            gain_scale_mag: 2000,
+            reserved_end: [6, 7],
         },
     });
     round_trip(&CalibrationMsg {

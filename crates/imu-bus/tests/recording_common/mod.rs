@@ -100,7 +100,14 @@ pub fn status(i: u64) -> LogRecord {
             temp_c: 25.5,
             device_connected: 1,
             logging: 1,
-            reserved: [0; 6],
+            gains_fallback: 4,
+            reserved: [0; 5],
+            clock_offset_s: 123.25,
+            clock_residual_s: 1.5e-4,
+            gain_scale_accel: 8500,
+            gain_scale_gyro: 10_000,
+            gain_scale_mag: 2000,
+            reserved_end: [0; 2],
         },
     }
 }
