@@ -5,7 +5,6 @@
 //! No device I/O and no tokio here: these are pure computations over files.
 
 pub mod allan;
-pub mod cli;
 pub mod diagnose;
 pub mod dynamic;
 pub mod fit;
@@ -15,8 +14,6 @@ pub mod lsq;
 pub mod noise;
 pub mod plan;
 pub mod plot;
-#[cfg(feature = "progress")]
-pub mod progress;
 pub mod provenance;
 pub mod reference;
 pub mod reference_free;

@@ -227,10 +227,8 @@ fn copy_record(
     c: &mut Copied,
 ) -> mcap::McapResult<bool> {
     match record {
-        Record::Schema { header, data } => {
-            if header.id != 0 && c.schemas.insert(header.id) {
-                w.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
-            }
+        Record::Schema { header, data } if header.id != 0 && c.schemas.insert(header.id) => {
+            w.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
         }
         Record::Channel(ch) => {
             let schema_known = ch.schema_id == 0 || c.schemas.contains(&ch.schema_id);
