@@ -225,7 +225,9 @@ pub fn for_each_message_with_progress(
         });
     }
     report.unfinished = report.stopped_early.as_ref().map(|reason| Unfinished {
-        footer_missing: hit_eof,
+        // The read may stop at damage before the end (a killed writer's last chunk is often
+        // cut short); whether the file has its footer is read from its end.
+        footer_missing: hit_eof || !crate::recover::is_finished(path).unwrap_or(false),
         reason: reason.clone(),
         n_messages: report.n_messages,
         last_log_time_ns,
