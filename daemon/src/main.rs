@@ -72,8 +72,9 @@ struct Args {
 
 #[derive(Debug, clap::Subcommand)]
 enum Command {
-    /// Repair recordings whose writer died (kill -9, power loss), like `ros2 bag reindex`:
-    /// every complete record is rewritten with summary, index and footer, so every MCAP reader
+    /// Repair recordings whose writer died (kill -9, power loss), like `ros2 bag reindex`.
+    ///
+    /// Every complete record is rewritten with summary, index and footer, so every MCAP reader
     /// opens the file with its default options. The repaired file is verified before it
     /// replaces the original. Finished files are left as they are.
     Recover {

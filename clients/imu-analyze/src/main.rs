@@ -200,11 +200,17 @@ fn emit(
     }
     let mut out = io::stdout().lock();
     if output.json {
-        let mut value = serde_json::to_value(json).context("encoding the result as JSON")?;
-        if let (Some(note), Some(map)) = (unfinished, value.as_object_mut()) {
-            map.insert("input_unfinished".into(), note);
+        if let Some(note) = unfinished {
+            // Only then through a Value (whose map sorts the keys): a complete input's document
+            // keeps its field order.
+            let mut value = serde_json::to_value(json).context("encoding the result as JSON")?;
+            if let Some(map) = value.as_object_mut() {
+                map.insert("input_unfinished".into(), note);
+            }
+            serde_json::to_writer_pretty(&mut out, &value).context("writing JSON to stdout")?;
+        } else {
+            serde_json::to_writer_pretty(&mut out, json).context("writing JSON to stdout")?;
         }
-        serde_json::to_writer_pretty(&mut out, &value).context("writing JSON to stdout")?;
         writeln!(out).context("writing to stdout")?;
     } else {
         out.write_all(text.as_bytes())

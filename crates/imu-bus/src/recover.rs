@@ -131,8 +131,21 @@ struct Copied {
     stopped: Option<String>,
 }
 
-/// Copies every complete record of `src` into `out` (up to the first damage or the end of the
-/// data section) and finishes `out` with summary, indexes and footer.
+type CopyWriter = mcap::Writer<BufWriter<File>>;
+
+/// The writer of the repaired copy, with the original's profile and library.
+fn start_writer(header: Option<mcap::records::Header>, out: File) -> mcap::McapResult<CopyWriter> {
+    let (profile, library) = header.map(|h| (h.profile, h.library)).unwrap_or_default();
+    mcap::WriteOptions::new()
+        .profile(profile)
+        .library(library)
+        .compression(Some(mcap::Compression::Zstd))
+        .chunk_size(Some(1024 * 1024))
+        .create(BufWriter::new(out))
+}
+
+/// Copies every complete record of `src` into a new file `copy` (up to the first damage or the
+/// end of the data section) and finishes it with summary, indexes and footer.
 fn copy_records(src: &Path, copy: &Path) -> Result<Copied, RecoverError> {
     let read_err = |source| McapReadError::Io {
         path: src.to_path_buf(),
@@ -149,7 +162,7 @@ fn copy_records(src: &Path, copy: &Path) -> Result<Copied, RecoverError> {
             .with_validate_chunk_crcs(true)
             .with_record_length_limit(1 << 30),
     );
-    let mut writer: Option<mcap::Writer<BufWriter<File>>> = None;
+    let mut writer: Option<CopyWriter> = None;
     let mut out = Some(out);
     let mut c = Copied::default();
     let mut header = None;
@@ -186,17 +199,8 @@ fn copy_records(src: &Path, copy: &Path) -> Result<Copied, RecoverError> {
         let w = match &mut writer {
             Some(w) => w,
             None => {
-                let (profile, library) = header
-                    .take()
-                    .map(|h: mcap::records::Header| (h.profile, h.library))
-                    .unwrap_or_default();
-                let options = mcap::WriteOptions::new()
-                    .profile(profile)
-                    .library(library)
-                    .compression(Some(mcap::Compression::Zstd))
-                    .chunk_size(Some(1024 * 1024));
-                let sink = BufWriter::new(out.take().expect("created once"));
-                writer.insert(options.create(sink).map_err(write_err)?)
+                let out = out.take().expect("created once");
+                writer.insert(start_writer(header.take(), out).map_err(write_err)?)
             }
         };
         if !copy_record(w, record, &mut c).map_err(write_err)? {
@@ -221,11 +225,7 @@ fn copy_records(src: &Path, copy: &Path) -> Result<Copied, RecoverError> {
 }
 
 /// Copies one record; `Ok(false)` stops the copy (a message on an unknown channel: damage).
-fn copy_record(
-    w: &mut mcap::Writer<BufWriter<File>>,
-    record: Record<'_>,
-    c: &mut Copied,
-) -> mcap::McapResult<bool> {
+fn copy_record(w: &mut CopyWriter, record: Record<'_>, c: &mut Copied) -> mcap::McapResult<bool> {
     match record {
         Record::Schema { header, data } if header.id != 0 && c.schemas.insert(header.id) => {
             w.add_schema_with_id(header.id, &header.name, &header.encoding, &data)?;
