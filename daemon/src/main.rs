@@ -26,10 +26,13 @@ const DEMO_TRUTH: &str = include_str!("../../config/models/example-3dm-gx1.toml"
 /// and logs every frame to MCAP (ros2 profile: /imu/data is sensor_msgs/msg/Imu). Configuration:
 /// --config FILE, else $IMUD_CONFIG, else /etc/imud/imud.toml, else built-in defaults (documented
 /// in config/imud.toml); the flags below override the file. SIGHUP reloads the calibration;
-/// SIGTERM finishes the MCAP file and exits.
+/// SIGTERM finishes the MCAP file and exits. At start-up, recordings of this instance that a
+/// crash left unfinished in the log directory are repaired (see `imud recover`).
 #[derive(Debug, Parser)]
-#[command(name = "imud", version)]
+#[command(name = "imud", version, args_conflicts_with_subcommands = true)]
 struct Args {
+    #[command(subcommand)]
+    command: Option<Command>,
     /// Configuration file (TOML).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
@@ -67,6 +70,23 @@ struct Args {
     print_config: bool,
 }
 
+#[derive(Debug, clap::Subcommand)]
+enum Command {
+    /// Repair recordings whose writer died (kill -9, power loss), like `ros2 bag reindex`.
+    ///
+    /// Every complete record is rewritten with summary, index and footer, so every MCAP reader
+    /// opens the file with its default options. The repaired file is verified before it
+    /// replaces the original. Finished files are left as they are.
+    Recover {
+        /// MCAP recordings.
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+        /// Keep each original as FILE.orig.
+        #[arg(long)]
+        keep_original: bool,
+    },
+}
+
 fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -77,23 +97,89 @@ fn main() -> std::process::ExitCode {
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     imu_bus::shm::quiet_iceoryx2_logs();
-    let args = Args::parse();
-    let runtime = match tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("imud: error: cannot start the runtime: {e}");
-            return std::process::ExitCode::FAILURE;
+    imu_cli::main("imud", |args: Args| {
+        if let Some(Command::Recover {
+            files,
+            keep_original,
+        }) = &args.command
+        {
+            return Ok(recover_files(files, *keep_original));
         }
-    };
-    match runtime.block_on(run(args)) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("imud: error: {e:#}");
-            std::process::ExitCode::FAILURE
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .context("starting the runtime")?;
+        runtime.block_on(run(args))?;
+        Ok(std::process::ExitCode::SUCCESS)
+    })
+}
+
+/// `imud recover FILE...`: one line per file on stdout; failures on stderr, the exit code of
+/// the first (66 for a file that cannot be opened).
+fn recover_files(files: &[PathBuf], keep_original: bool) -> std::process::ExitCode {
+    let mut code = std::process::ExitCode::SUCCESS;
+    let mut failed = false;
+    for f in files {
+        match imu_bus::recover::recover(f, keep_original) {
+            Ok(None) => println!("{}: finished already, left as it is", f.display()),
+            Ok(Some(r)) => println!("{}", recovered_line(&r)),
+            Err(e) => {
+                let e = anyhow::Error::new(e);
+                eprintln!("imud: error: {e:#}");
+                if !failed {
+                    code = std::process::ExitCode::from(imu_cli::exit::exit_code_of(&e));
+                    failed = true;
+                }
+            }
         }
+    }
+    code
+}
+
+fn recovered_line(r: &imu_bus::recover::Recovered) -> String {
+    let until = r.last_log_time_ns.map_or("no message".into(), |t| {
+        format!("up to log time {}", imu_cli::unfinished::utc_ms(t))
+    });
+    format!(
+        "{}: repaired: {} messages and {} metadata records kept, {until}; {} -> {} bytes{} ({})",
+        r.path.display(),
+        r.n_messages,
+        r.n_metadata,
+        r.original_bytes,
+        r.repaired_bytes,
+        r.original_kept.as_ref().map_or(String::new(), |o| format!(
+            "; original kept as {}",
+            o.display()
+        )),
+        r.reason
+    )
+}
+
+/// Repairs what a crash left unfinished in the log directory (this instance's files only: no
+/// other process writes them; the recorder's file lock guards against one that does). Runs
+/// before the simulator or the recorder create their files.
+fn repair_log_dir(config: &Config) {
+    let dir = &config.log.dir;
+    if !config.log.enabled || !dir.is_dir() {
+        return;
+    }
+    match imu_bus::recover::recover_dir(dir, &format!("{}-", config.name)) {
+        Ok(results) => {
+            for (path, result) in results {
+                match result {
+                    Ok(r) => info!("{}", recovered_line(&r)),
+                    Err(e) => warn!(
+                        "{}: cannot repair this unfinished recording: {:#}",
+                        path.display(),
+                        anyhow::Error::new(e)
+                    ),
+                }
+            }
+        }
+        Err(e) => warn!(
+            "cannot list {} for unfinished recordings: {e}",
+            dir.display()
+        ),
     }
 }
 
@@ -195,6 +281,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
         );
         return Ok(());
     }
+    repair_log_dir(&config);
     let _sim = match &args.sim {
         Some(scenario) => {
             let h = start_sim(sim_options(scenario.as_deref(), args.seed)?, &config)?;

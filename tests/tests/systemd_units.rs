@@ -68,3 +68,57 @@ fn systemd_analyze_verify_reports_nothing() {
         "systemd-analyze verify: {stderr}"
     );
 }
+
+/// The exposure `systemd-analyze security` rates the unit with, from its last line
+/// (`→ Overall exposure level for imud@imu0.service: 0.8 SAFE 😀`).
+fn exposure(report: &str) -> Option<f64> {
+    let line = report
+        .lines()
+        .find(|l| l.contains("Overall exposure level"))?;
+    line.rsplit_once(':')?
+        .1
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+#[test]
+fn exposure_is_at_most_1_5() {
+    const LIMIT: f64 = 1.5;
+    let available = std::process::Command::new("systemd-analyze")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !available {
+        // scripts/test installs it (Debian's `systemd`); only a machine that cannot have it
+        // (not Linux) skips, and CI never does.
+        assert!(
+            !cfg!(target_os = "linux") || std::env::var_os("IMUD_REQUIRE_PEERS").is_none(),
+            "systemd-analyze is missing: apt-get install systemd (scripts/test does)"
+        );
+        eprintln!("systemd-analyze not installed: skipping the exposure check");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let unit = dir.path().join("imud@imu0.service");
+    std::fs::write(&unit, unit_text().replace("/usr/bin/imud", "/bin/true")).unwrap();
+    let out = std::process::Command::new("systemd-analyze")
+        .args(["security", "--offline=true", "--no-pager"])
+        .arg(&unit)
+        .output()
+        .unwrap();
+    let report = String::from_utf8_lossy(&out.stdout);
+    let score = exposure(&report).unwrap_or_else(|| {
+        panic!(
+            "no exposure in the report ({}): {report}{}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    assert!(score <= LIMIT, "exposure {score} > {LIMIT}:\n{report}");
+    assert_eq!(
+        exposure("→ Overall exposure level for imud@imu0.service: 0.8 SAFE 😀"),
+        Some(0.8)
+    );
+}

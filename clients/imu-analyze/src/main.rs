@@ -3,16 +3,16 @@
 
 use std::io::{self, IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 
 use imu_analysis::characterize::{dynamic, impact, thermal};
-use imu_analysis::input::{ImuSeries, InputError, Source};
-use imu_analysis::progress::read_any;
+use imu_analysis::input::{ImuSeries, Source};
 use imu_analysis::render::html::{self, Section};
 use imu_analysis::render::svg::{Chart, write_svg};
+use imu_cli::finite_f64;
+use imu_cli::progress::read_any;
 
 /// Offline thermal, impact and dynamic tests of IMU recordings.
 #[derive(Debug, Parser)]
@@ -26,7 +26,7 @@ struct Args {
 #[derive(Debug, clap::Args)]
 struct Output {
     #[command(flatten)]
-    csv: imu_analysis::cli::CsvArgs,
+    csv: imu_cli::CsvArgs,
     /// Print the full result as JSON on stdout instead of a text summary.
     #[arg(long)]
     json: bool,
@@ -83,7 +83,7 @@ enum Command {
         #[arg(long, value_enum, default_value = "raw")]
         source: SourceArg,
         /// Time bin width, s.
-        #[arg(long, default_value_t = 60.0)]
+        #[arg(long, default_value_t = 60.0, value_parser = finite_f64)]
         bin_s: f64,
         #[command(flatten)]
         output: Output,
@@ -97,7 +97,7 @@ enum Command {
         #[arg(long, value_enum, default_value = "raw")]
         source: SourceArg,
         /// Detection threshold in robust standard deviations of the accel magnitude.
-        #[arg(long, default_value_t = 10.0)]
+        #[arg(long, default_value_t = 10.0, value_parser = finite_f64)]
         threshold_sigmas: f64,
         #[command(flatten)]
         output: Output,
@@ -117,42 +117,15 @@ enum Command {
         #[arg(long, value_enum, default_value = "both")]
         source: DynamicSource,
         /// Largest timing offset searched, s.
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, value_parser = finite_f64)]
         max_offset_s: f64,
         #[command(flatten)]
         output: Output,
     },
 }
 
-fn main() -> ExitCode {
-    let args = Args::parse();
-    match run(&args) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) if imu_analysis::cli::is_broken_pipe(e.chain()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("imu-analyze: error: {e:#}");
-            ExitCode::from(exit_code(&e))
-        }
-    }
-}
-
-/// sysexits-style codes: 66 an input could not be opened, 65 its data are unusable, 1 otherwise.
-fn exit_code(e: &anyhow::Error) -> u8 {
-    for cause in e.chain() {
-        if let Some(ie) = cause.downcast_ref::<InputError>() {
-            return match ie {
-                InputError::Io { .. } => 66,
-                _ => 65,
-            };
-        }
-        if cause.downcast_ref::<thermal::ThermalError>().is_some()
-            || cause.downcast_ref::<impact::ImpactError>().is_some()
-            || cause.downcast_ref::<dynamic::DynamicError>().is_some()
-        {
-            return 65;
-        }
-    }
-    1
+fn main() -> std::process::ExitCode {
+    imu_cli::main("imu-analyze", |args: Args| run(&args))
 }
 
 /// A status line on stderr while a file is read; silent when stderr is not a terminal. The
@@ -180,11 +153,18 @@ impl Progress {
     }
 }
 
-fn read(path: &Path, source: Source, csv: &imu_analysis::cli::CsvArgs) -> Result<ImuSeries> {
+/// Reads one recording; an input read without its footer is warned about once and noted in
+/// `unfinished` for the JSON output.
+fn read(
+    path: &Path,
+    source: Source,
+    csv: &imu_cli::CsvArgs,
+    unfinished: &mut Option<serde_json::Value>,
+) -> Result<ImuSeries> {
     let p = Progress::start("reading", path);
     let options = csv
         .options_for(&[path.to_path_buf()], 0)
-        .map_err(anyhow::Error::msg)?;
+        .map_err(imu_cli::UsageError)?;
     let s = read_any(path, source, &options)
         .with_context(|| format!("reading {} ({source:?} stream)", path.display()))?;
     p.done(&format!(
@@ -192,11 +172,8 @@ fn read(path: &Path, source: Source, csv: &imu_analysis::cli::CsvArgs) -> Result
         s.len(),
         s.temp.len()
     ));
-    if let Some(why) = &s.stopped_early {
-        eprintln!(
-            "imu-analyze: warning: {}: read up to the last good record: {why}",
-            path.display()
-        );
+    if unfinished.is_none() {
+        *unfinished = imu_cli::unfinished::warn("imu-analyze", path, s.unfinished.as_ref());
     }
     Ok(s)
 }
@@ -208,6 +185,7 @@ fn emit(
     section: Section,
     charts: &[Chart],
     stem: &str,
+    unfinished: Option<serde_json::Value>,
 ) -> Result<()> {
     if let Some(dir) = &output.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -222,7 +200,17 @@ fn emit(
     }
     let mut out = io::stdout().lock();
     if output.json {
-        serde_json::to_writer_pretty(&mut out, json).context("writing JSON to stdout")?;
+        if let Some(note) = unfinished {
+            // Only then through a Value (whose map sorts the keys): a complete input's document
+            // keeps its field order.
+            let mut value = serde_json::to_value(json).context("encoding the result as JSON")?;
+            if let Some(map) = value.as_object_mut() {
+                map.insert("input_unfinished".into(), note);
+            }
+            serde_json::to_writer_pretty(&mut out, &value).context("writing JSON to stdout")?;
+        } else {
+            serde_json::to_writer_pretty(&mut out, json).context("writing JSON to stdout")?;
+        }
         writeln!(out).context("writing to stdout")?;
     } else {
         out.write_all(text.as_bytes())
@@ -233,6 +221,7 @@ fn emit(
 }
 
 fn run(args: &Args) -> Result<()> {
+    let mut unfinished = None;
     match &args.command {
         Command::Thermal {
             recording,
@@ -243,7 +232,7 @@ fn run(args: &Args) -> Result<()> {
             if !(bin_s.is_finite() && *bin_s > 0.0) {
                 bail!("--bin-s must be a positive number of seconds, got {bin_s}");
             }
-            let series = read(recording, (*source).into(), &output.csv)?;
+            let series = read(recording, (*source).into(), &output.csv, &mut unfinished)?;
             // The thermal analysis reads output drift as temperature dependence: motion would
             // masquerade as a thermal effect.
             if let Some(w) = series.motion_warning() {
@@ -289,7 +278,7 @@ fn run(args: &Args) -> Result<()> {
             text.push('\n');
             let charts = thermal::charts(&r);
             let section = html::thermal_section(&r, &charts);
-            emit(output, &r, &text, section, &charts, "thermal")
+            emit(output, &r, &text, section, &charts, "thermal", unfinished)
         }
         Command::Impact {
             recording,
@@ -297,7 +286,7 @@ fn run(args: &Args) -> Result<()> {
             threshold_sigmas,
             output,
         } => {
-            let series = read(recording, (*source).into(), &output.csv)?;
+            let series = read(recording, (*source).into(), &output.csv, &mut unfinished)?;
             let r = impact::analyze(
                 &series,
                 &impact::ImpactOptions {
@@ -328,7 +317,7 @@ fn run(args: &Args) -> Result<()> {
             }
             let charts = impact::charts(&series, &r);
             let section = html::impact_section(&r, &charts);
-            emit(output, &r, &text, section, &charts, "impact")
+            emit(output, &r, &text, section, &charts, "impact", unfinished)
         }
         Command::Dynamic {
             recording,
@@ -356,7 +345,7 @@ fn run(args: &Args) -> Result<()> {
                 if !want(flag) {
                     continue;
                 }
-                match read(recording, src, &output.csv) {
+                match read(recording, src, &output.csv, &mut unfinished) {
                     Ok(series) => {
                         runs[k] = Some(
                             dynamic::analyze(&series, &reference, &options).with_context(|| {
@@ -381,7 +370,7 @@ fn run(args: &Args) -> Result<()> {
             let text = format!("{}\n", r.summary);
             let charts = dynamic::charts(&r);
             let section = html::dynamic_section(&r, &charts);
-            emit(output, &r, &text, section, &charts, "dynamic")
+            emit(output, &r, &text, section, &charts, "dynamic", unfinished)
         }
     }
 }

@@ -6,10 +6,9 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::{ArgGroup, ArgMatches, CommandFactory, FromArgMatches, Parser};
+use clap::{ArgGroup, ArgMatches, FromArgMatches, Parser};
 use imu_analysis::Source;
 use imu_analysis::calibrate::reference_free::{
     ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
@@ -17,9 +16,10 @@ use imu_analysis::calibrate::reference_free::{
 use imu_analysis::calibrate::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate_recordings,
 };
-use imu_analysis::progress::read_any;
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
+use imu_cli::finite_f64;
+use imu_cli::progress::read_any;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
@@ -51,7 +51,7 @@ struct Cli {
     /// Clock offset of a reference log (log clock minus recording clock, seconds from the
     /// recording's first sample) instead of finding it by cross-correlation. It applies to the
     /// --reference given just before it (with one recording and one --reference, anywhere).
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, value_name = "S", allow_negative_numbers = true, value_parser = finite_f64)]
     reference_offset_s: Vec<f64>,
     /// No reference: the unit was held still in many (30 or more) orientations and turned
     /// between them. The accelerometer is fitted to the gravity magnitude (its axes define the
@@ -61,11 +61,11 @@ struct Cli {
     reference_free: bool,
     /// Local gravity for --reference-free, m/s^2 (default: WGS-84 normal gravity at
     /// --latitude-deg, else 9.80665).
-    #[arg(long, value_name = "M_S2")]
+    #[arg(long, value_name = "M_S2", value_parser = finite_f64)]
     gravity_m_s2: Option<f64>,
     /// Geodetic latitude for --reference-free, degrees: local gravity (unless given) and the
     /// vertical part of Earth's rate, removed from the gyro bias.
-    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true, value_parser = finite_f64)]
     latitude_deg: Option<f64>,
     /// Accel turn-on to turn-on bias repeatability, m/s^2 (1 sigma; one value for all axes or
     /// X,Y,Z): each recording's bias may differ from the fitted one (then the mean over the
@@ -74,7 +74,8 @@ struct Cli {
         long,
         value_name = "S|X,Y,Z",
         value_delimiter = ',',
-        conflicts_with = "reference_free"
+        conflicts_with = "reference_free",
+        value_parser = finite_f64
     )]
     accel_turn_on_bias_m_s2: Vec<f64>,
     /// Gyro turn-on to turn-on bias repeatability, rad/s (1 sigma; one value or X,Y,Z), like
@@ -83,7 +84,8 @@ struct Cli {
         long,
         value_name = "S|X,Y,Z",
         value_delimiter = ',',
-        conflicts_with = "reference_free"
+        conflicts_with = "reference_free",
+        value_parser = finite_f64
     )]
     gyro_turn_on_bias_rad_s: Vec<f64>,
     /// Calibration-format file whose accel and gyro effects say what to fit (values are the
@@ -106,7 +108,7 @@ struct Cli {
     #[arg(long)]
     json: bool,
     #[command(flatten)]
-    csv: imu_analysis::cli::CsvArgs,
+    csv: imu_cli::CsvArgs,
 }
 
 /// Where one recording's true input comes from, as given on the command line.
@@ -274,6 +276,9 @@ struct JsonOutReferenceFree<'a> {
     fit: &'a ReferenceFreeFit,
     /// The truth is expressed in the body frame the accelerometer defines (the fit's gauge).
     truth_comparison: Option<Vec<TruthRow>>,
+    /// Recordings read without their footer (killed writer): how far each read got.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    inputs_unfinished: Vec<serde_json::Value>,
 }
 
 /// One recording of a fit and what it contributed.
@@ -304,6 +309,9 @@ struct JsonOut<'a> {
     output: Option<String>,
     fit: &'a CalibrationFit,
     truth_comparison: Option<Vec<TruthRow>>,
+    /// Recordings read without their footer (killed writer): how far each read got.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    inputs_unfinished: Vec<serde_json::Value>,
 }
 
 /// The input files' hashes, computed while the recording is read and fitted (hundreds of MB
@@ -347,7 +355,7 @@ fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
         opts.gyro_noise = m.gyro.noise.clone();
     }
     for spec in &cli.add {
-        for (t, k) in imu_analysis::cli::parse_effect(spec, "--add").map_err(anyhow::Error::msg)? {
+        for (t, k) in imu_cli::parse_effect(spec, "--add").map_err(imu_cli::UsageError)? {
             let m = if t == Triad::Gyro {
                 &mut opts.gyro
             } else {
@@ -631,9 +639,10 @@ fn read_recording(cli: &Cli, k: usize) -> Result<imu_analysis::ImuSeries> {
     let options = cli
         .csv
         .options_for(&cli.recordings, k)
-        .map_err(anyhow::Error::msg)?;
+        .map_err(imu_cli::UsageError)?;
     let series = read_any(path, Source::Raw, &options)
         .with_context(|| format!("reading {}", path.display()))?;
+    imu_cli::unfinished::warn("imu-calibrate", path, series.unfinished.as_ref());
     if series.is_empty() {
         bail!("{}: no samples", path.display());
     }
@@ -761,6 +770,11 @@ fn run_reference_free(
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
             truth_comparison: truth_rows,
+            inputs_unfinished: series
+                .unfinished
+                .iter()
+                .map(|u| imu_cli::unfinished::json(recording, u))
+                .collect(),
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -890,6 +904,15 @@ fn run_reference(
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit: &fit,
             truth_comparison: truth_rows,
+            inputs_unfinished: loaded
+                .iter()
+                .zip(&cli.recordings)
+                .filter_map(|((s, _), path)| {
+                    s.unfinished
+                        .as_ref()
+                        .map(|u| imu_cli::unfinished::json(path, u))
+                })
+                .collect(),
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -906,17 +929,9 @@ fn run_reference(
     Ok(())
 }
 
-fn main() -> ExitCode {
-    let matches = Cli::command().get_matches();
-    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
-    match run(&cli, &matches) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            if imu_analysis::cli::is_broken_pipe(e.chain()) {
-                return ExitCode::SUCCESS;
-            }
-            eprintln!("imu-calibrate: error: {e:#}");
-            ExitCode::from(1)
-        }
-    }
+fn main() -> std::process::ExitCode {
+    imu_cli::main_with_matches::<Cli, ()>("imu-calibrate", |matches| {
+        let cli = Cli::from_arg_matches(matches).map_err(imu_cli::UsageError::from_clap)?;
+        run(&cli, matches)
+    })
 }

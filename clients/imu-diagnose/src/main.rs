@@ -5,7 +5,6 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args, Parser, Subcommand};
@@ -17,6 +16,7 @@ use imu_analysis::render::html::{
 };
 use imu_analysis::workbench::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::{ImuSeries, segment::SegmentKind};
+use imu_cli::finite_f64;
 use imu_model::{Calibration, EffectKind, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
@@ -68,7 +68,7 @@ struct DiagnoseArgs {
     #[arg(long)]
     json: bool,
     #[command(flatten)]
-    csv: imu_analysis::cli::CsvArgs,
+    csv: imu_cli::CsvArgs,
 }
 
 /// Where the true input comes from, as for imu-calibrate: exactly one of a test plan or a
@@ -97,7 +97,8 @@ struct RefArgs {
         long,
         value_name = "S",
         requires = "reference",
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        value_parser = finite_f64
     )]
     reference_offset_s: Option<f64>,
     /// No reference: the unit was held still in many (30 or more) orientations and turned
@@ -110,7 +111,12 @@ struct RefArgs {
     reference_free: bool,
     /// Local gravity for --reference-free, m/s^2 (default: WGS-84 normal gravity at
     /// --latitude-deg, else 9.80665).
-    #[arg(long, value_name = "M_S2", conflicts_with_all = ["plan", "reference"])]
+    #[arg(
+        long,
+        value_name = "M_S2",
+        conflicts_with_all = ["plan", "reference"],
+        value_parser = finite_f64
+    )]
     gravity_m_s2: Option<f64>,
     /// Geodetic latitude for --reference-free, degrees: local gravity (unless given) and the
     /// vertical part of Earth's rate, the gyro's true rate at rest.
@@ -118,7 +124,8 @@ struct RefArgs {
         long,
         value_name = "DEG",
         conflicts_with_all = ["plan", "reference"],
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        value_parser = finite_f64
     )]
     latitude_deg: Option<f64>,
 }
@@ -173,7 +180,7 @@ struct LadderArgs {
     #[arg(long)]
     json: bool,
     #[command(flatten)]
-    csv: imu_analysis::cli::CsvArgs,
+    csv: imu_cli::CsvArgs,
 }
 
 /// One ranked candidate, flattened for JSON consumers.
@@ -210,6 +217,9 @@ struct DiagnoseJson<'a> {
     candidates: Vec<CandidateRow>,
     diagnoses: [&'a TriadDiagnosis; 2],
     report: Option<String>,
+    /// Present when the recording was read without its footer: how far the read got.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    input_unfinished: Option<serde_json::Value>,
 }
 
 #[derive(Debug, Serialize)]
@@ -225,6 +235,9 @@ struct LadderJson<'a> {
     steps: &'a [LadderStep],
     verdict: Verdicts,
     calibration: &'a Calibration,
+    /// Present when the recording was read without its footer: how far the read got.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    input_unfinished: Option<serde_json::Value>,
 }
 
 /// The model file's accel and gyro effects (a triad without effects gets the base model), and
@@ -270,13 +283,14 @@ fn input_file(path: &Path) -> Result<InputFile> {
 fn read_inputs(
     recording: &Path,
     r: &RefArgs,
-    csv: &imu_analysis::cli::CsvArgs,
+    csv: &imu_cli::CsvArgs,
 ) -> Result<(ImuSeries, Option<Reference>)> {
     let options = csv
         .options_for(&[recording.to_path_buf()], 0)
-        .map_err(anyhow::Error::msg)?;
+        .map_err(imu_cli::UsageError)?;
     let series = read_any(recording, Source::Raw, &options)
         .with_context(|| format!("reading {}", recording.display()))?;
+    imu_cli::unfinished::warn("imu-diagnose", recording, series.unfinished.as_ref());
     if series.is_empty() {
         bail!("{}: no samples", recording.display());
     }
@@ -461,7 +475,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     let mut model = load_model(a.model.as_deref())?;
     let mut added = Vec::new();
     for spec in &a.add {
-        for (t, k) in imu_analysis::cli::parse_effect(spec, "--add").map_err(anyhow::Error::msg)? {
+        for (t, k) in imu_cli::parse_effect(spec, "--add").map_err(imu_cli::UsageError)? {
             let m = if t == Triad::Gyro {
                 &mut model.gyro
             } else {
@@ -511,6 +525,10 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
                 .collect(),
             diagnoses: [&accel, &gyro],
             report: a.report.as_ref().map(|p| p.display().to_string()),
+            input_unfinished: series
+                .unfinished
+                .as_ref()
+                .map(|u| imu_cli::unfinished::json(recording, u)),
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -628,6 +646,10 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
                 gyro: final_diagnoses[1].verdict.clone(),
             },
             calibration: &calibration,
+            input_unfinished: series
+                .unfinished
+                .as_ref()
+                .map(|u| imu_cli::unfinished::json(&a.recording, u)),
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -651,20 +673,9 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
     Ok(())
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match &cli.command {
+fn main() -> std::process::ExitCode {
+    imu_cli::main("imu-diagnose", |cli: Cli| match &cli.command {
         Some(Command::Ladder(a)) => run_ladder(a),
         None => run_diagnose(&cli.diagnose),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            if imu_analysis::cli::is_broken_pipe(e.chain()) {
-                return ExitCode::SUCCESS;
-            }
-            eprintln!("imu-diagnose: error: {e:#}");
-            ExitCode::from(1)
-        }
-    }
+    })
 }

@@ -12,7 +12,8 @@
 //! the receive rate and the samples missed (gaps in `seq`) on stderr.
 //!
 //! It may start before the daemon (it waits `--timeout-s` for it). Exit codes: 0 after
-//! `--count` samples or when stdout is closed (`| head`), 130 on SIGINT/SIGTERM, 1 on error.
+//! `--count` samples or when stdout is closed (`| head`), 130 on SIGINT/SIGTERM, 64 on a bad
+//! command line, 1 on other errors (the codes every imud tool shares, `imu-cli`).
 
 mod format;
 
@@ -51,7 +52,7 @@ struct Args {
     #[arg(long, value_name = "N")]
     count: Option<u64>,
     /// Seconds to wait for the daemon's services to appear.
-    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0, value_parser = imu_cli::finite_f64)]
     timeout_s: f64,
     /// Do not print rate and drop statistics on stderr.
     #[arg(long, short)]
@@ -79,23 +80,11 @@ enum Outcome {
 }
 
 fn main() -> ExitCode {
-    let args = Args::parse();
-    match run(&args) {
-        Ok(Outcome::Done) => ExitCode::SUCCESS,
-        Ok(Outcome::Interrupted) => ExitCode::from(130),
-        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("imu-echo: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|cause| {
-        cause
-            .downcast_ref::<io::Error>()
-            .is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
+    imu_cli::main("imu-echo", |args: Args| {
+        Ok(match run(&args)? {
+            Outcome::Done => ExitCode::SUCCESS,
+            Outcome::Interrupted => ExitCode::from(130),
+        })
     })
 }
 
@@ -267,7 +256,7 @@ mod tests {
     fn a_broken_pipe_is_recognised_through_context() {
         let e = anyhow::Error::from(io::Error::from(io::ErrorKind::BrokenPipe))
             .context("writing to stdout");
-        assert!(is_broken_pipe(&e));
-        assert!(!is_broken_pipe(&anyhow::anyhow!("other")));
+        assert!(imu_cli::is_broken_pipe(e.chain()));
+        assert!(!imu_cli::is_broken_pipe(anyhow::anyhow!("other").chain()));
     }
 }

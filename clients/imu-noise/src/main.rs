@@ -3,14 +3,13 @@
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use imu_analysis::input::{AccelUnit, GyroUnit};
-use imu_analysis::progress::read_any;
 use imu_analysis::render::svg::{Chart, Series, Style, write_svg};
 use imu_analysis::{ImuSeries, Source};
+use imu_cli::progress::read_any;
 use imu_stats::allan::{self, Kind, Options, TauSet};
 use imu_stats::noise_terms::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
 use serde::Serialize;
@@ -43,7 +42,7 @@ struct Cli {
     #[arg(long, default_value = "/imu/data")]
     rostopic: String,
     #[command(flatten)]
-    csv: imu_analysis::cli::CsvArgs,
+    csv: imu_cli::CsvArgs,
     /// CSV: accelerometer columns are in g (the same as `--csv-accel g`).
     #[arg(long, hide = true)]
     csv_accel_g: bool,
@@ -76,6 +75,10 @@ struct AxisReport {
     /// micro-g/sqrt(Hz), micro-g, micro-g*sqrt(Hz) (accel).
     display: Display,
     curve: allan::DevCurve,
+    /// Present when the recording was read without its footer (a killed writer): how far the
+    /// read got (the same facts as the warning on stderr).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    input_unfinished: Option<serde_json::Value>,
 }
 
 #[derive(Debug, Serialize)]
@@ -151,6 +154,7 @@ fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
                 display: display(sensor, &fit),
                 fit,
                 curve,
+                input_unfinished: None,
             });
         }
     }
@@ -311,7 +315,7 @@ fn run(cli: &Cli) -> Result<()> {
     let mut csv = cli
         .csv
         .options_for(std::slice::from_ref(&cli.recording), 0)
-        .map_err(anyhow::Error::msg)?;
+        .map_err(imu_cli::UsageError)?;
     if cli.csv_accel_g {
         csv.accel = AccelUnit::G;
     }
@@ -327,10 +331,15 @@ fn run(cli: &Cli) -> Result<()> {
     }
     let series = read_any(&cli.recording, source, &csv)
         .with_context(|| format!("reading {}", cli.recording.display()))?;
+    let unfinished =
+        imu_cli::unfinished::warn("imu-noise", &cli.recording, series.unfinished.as_ref());
     if let Some(w) = series.motion_warning() {
         eprintln!("imu-noise: warning: {}: {w}", cli.recording.display());
     }
-    let reports = analyse(&series, cli.taus)?;
+    let mut reports = analyse(&series, cli.taus)?;
+    for r in &mut reports {
+        r.input_unfinished.clone_from(&unfinished);
+    }
     if let Some(dir) = &cli.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for r in &reports {
@@ -352,16 +361,6 @@ fn run(cli: &Cli) -> Result<()> {
     Ok(())
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(&cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            if imu_analysis::cli::is_broken_pipe(e.chain()) {
-                return ExitCode::SUCCESS;
-            }
-            eprintln!("imu-noise: error: {e:#}");
-            ExitCode::from(1)
-        }
-    }
+fn main() -> std::process::ExitCode {
+    imu_cli::main("imu-noise", |cli: Cli| run(&cli))
 }

@@ -78,6 +78,8 @@ pub struct ImuSeries {
     pub origin: String,
     /// `Some(reason)` if the input ended early (truncated recording).
     pub stopped_early: Option<String>,
+    /// The same as data for an MCAP input: footer missing, messages and last log time read.
+    pub unfinished: Option<imu_bus::Unfinished>,
 }
 
 impl ImuSeries {
@@ -228,6 +230,7 @@ pub fn read_mcap_with_progress(
         Ok(())
     })?;
     series.stopped_early = report.stopped_early.clone();
+    series.unfinished = report.unfinished.clone();
     if source == Source::Raw {
         let dev = report.metadata.get("imud.device");
         let gain = |key: &str| -> Result<u16, InputError> {

@@ -17,10 +17,7 @@
 
 pub mod calibrate;
 pub mod characterize;
-pub mod cli;
 pub mod input;
-#[cfg(feature = "progress")]
-pub mod progress;
 pub mod provenance;
 pub mod reference;
 pub mod render;

@@ -438,6 +438,7 @@ mod tests {
             t0_ns: 0,
             origin: "synthetic".into(),
             stopped_early: None,
+            unfinished: None,
         }
     }
 

@@ -8,14 +8,16 @@
 //! - [`truth`]: the simulator's ground-truth recording (`/truth/sample`, `/truth/segment`,
 //!   metadata with the scenario and the truth error model), keyed by the device's timer ticks.
 //! - [`mcap_read`]: a tolerant streaming MCAP reader that reads a truncated file (a process killed
-//!   mid-write) up to its last good record and says where it stopped.
+//!   mid-write) up to its last good record and says where it stopped ([`mcap_read::Unfinished`]).
+//! - [`recover`]: repairs such a file (summary, indexes, footer) so every reader opens it.
 
 pub mod mcap_read;
 pub mod recording;
+pub mod recover;
 pub mod ros2;
 pub mod sample;
 pub mod shm;
 pub mod truth;
 
-pub use mcap_read::{McapReadError, ReadReport};
+pub use mcap_read::{McapReadError, ReadReport, Unfinished};
 pub use sample::{CorrectedSample, DaemonStatus, RawSample};

@@ -75,6 +75,25 @@ pub struct ReadReport {
     /// `Some(reason)` when the file ended before its footer (truncated or damaged): every message
     /// before the damage was still delivered.
     pub stopped_early: Option<String>,
+    /// The same fact as data, with how far the read got (`None` for a complete file).
+    pub unfinished: Option<Unfinished>,
+}
+
+/// A recording read only up to its last good record: its writer was killed before writing the
+/// footer (summary and index), or a record is damaged. Readers that need the summary (Python
+/// `mcap`'s default `make_reader(f).iter_messages()`) cannot open such a file until it is
+/// repaired ([`crate::recover`], `imud recover FILE`).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Unfinished {
+    /// True when the file ends before its footer (the writer never closed it); false when a
+    /// damaged record stopped the read.
+    pub footer_missing: bool,
+    /// Why the read stopped.
+    pub reason: String,
+    /// Messages read before the stop.
+    pub n_messages: u64,
+    /// Latest log time among the messages read, Unix epoch ns (`None` when none was read).
+    pub last_log_time_ns: Option<u64>,
 }
 
 /// Reads every message of `path` in file order and hands it to `on_message`.
@@ -116,6 +135,7 @@ pub fn for_each_message_with_progress(
     let mut schemas: BTreeMap<u16, (String, String)> = BTreeMap::new();
     let mut saw_record = false;
     let mut hit_eof = false;
+    let mut last_log_time_ns: Option<u64> = None;
     while let Some(event) = reader.next_event() {
         let event = match event {
             Ok(ev) => ev,
@@ -188,6 +208,7 @@ pub fn for_each_message_with_progress(
                             }
                         })?;
                         report.n_messages += 1;
+                        last_log_time_ns = last_log_time_ns.max(Some(header.log_time));
                     }
                     Record::Metadata(m) => {
                         report.metadata.insert(m.name, m.metadata);
@@ -203,6 +224,14 @@ pub fn for_each_message_with_progress(
             message: "no records".into(),
         });
     }
+    report.unfinished = report.stopped_early.as_ref().map(|reason| Unfinished {
+        // The read may stop at damage before the end (a killed writer's last chunk is often
+        // cut short); whether the file has its footer is read from its end.
+        footer_missing: hit_eof || !crate::recover::is_finished(path).unwrap_or(false),
+        reason: reason.clone(),
+        n_messages: report.n_messages,
+        last_log_time_ns,
+    });
     if read_bytes < total_bytes && report.stopped_early.is_none() {
         // The reader had all it needed before the end of the file (trailing bytes).
         on_progress(total_bytes, total_bytes);

@@ -309,6 +309,12 @@ pub fn file_sink_opener() -> SinkOpener {
             std::fs::create_dir_all(dir)?;
         }
         let file = File::options().write(true).create_new(true).open(path)?;
+        // An advisory lock for as long as the file is open: a repair at start-up
+        // (`recover::recover_dir`) skips a file some live process is still writing. A file
+        // system without locks only loses that protection.
+        if let Err(e) = file.try_lock() {
+            tracing::debug!(path = %path.display(), error = %e, "cannot lock the recording");
+        }
         Ok(Box::new(file) as Box<dyn RecordingSink>)
     })
 }

@@ -53,7 +53,7 @@ struct Args {
     #[arg(long)]
     fast: bool,
     /// Seconds to wait at the end of the scenario for the host to read the last bytes.
-    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = imu_cli::finite_f64)]
     linger_s: f64,
     /// Print the scenario's segments and duration and exit without opening a device.
     #[arg(long)]
@@ -61,13 +61,7 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
-    match run(Args::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("imu-sim: error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    imu_cli::main("imu-sim", run)
 }
 
 fn run(args: Args) -> anyhow::Result<()> {

@@ -1,8 +1,8 @@
-//! What the command-line clients share beyond the analyses: telling a closed output pipe
-//! (`imu-noise rec.mcap --json | head`) from a real failure, and (feature `cli`) the arguments
-//! that say how to read CSV recordings.
+//! The arguments the clients share: how to read CSV recordings (`CsvArgs`, feature `analysis`), the `--add EFFECT`
+//! parser, the one value parser for every float flag ([`finite_f64`]), and telling a closed
+//! output pipe (`imu-noise rec.mcap --json | head`) from a real failure.
 
-#[cfg(feature = "cli")]
+#[cfg(feature = "analysis")]
 pub use csv_args::CsvArgs;
 
 use imu_model::{EffectKind, Triad};
@@ -36,17 +36,17 @@ pub fn parse_effect(spec: &str, flag: &str) -> Result<Vec<(Triad, EffectKind)>, 
     Ok(out)
 }
 
-#[cfg(feature = "cli")]
+#[cfg(feature = "analysis")]
 mod csv_args {
     use std::path::{Path, PathBuf};
 
-    use crate::input::{AccelUnit, CsvOptions, GyroUnit};
+    use imu_analysis::input::{AccelUnit, CsvOptions, GyroUnit};
 
     /// How to read CSV recordings (MCAP recordings carry their own units).
     #[derive(Clone, Debug, clap::Args)]
     pub struct CsvArgs {
         /// CSV recordings: seconds per unit of the time column (1 for s, 1e-9 for ns).
-        #[arg(long, default_value_t = 1.0, value_name = "S")]
+        #[arg(long, default_value_t = 1.0, value_name = "S", value_parser = super::finite_f64)]
         pub csv_time_scale_s: f64,
         /// CSV recordings: unit of the accelerometer columns: m/s2, g, or counts:SCALE (raw
         /// counts times SCALE m/s^2 per count).
@@ -101,6 +101,20 @@ mod csv_args {
     }
 }
 
+/// The value parser of every float flag: a number, refused at parse time when it is NaN or
+/// infinite (`--csv-time-scale-s nan` is a usage error, not a silently empty analysis).
+pub fn finite_f64(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|e| format!("`{s}` is not a number: {e}"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("`{s}` is not a finite number"))
+    }
+}
+
 /// True if any error in `chain` (an error and its sources) is an I/O error of kind
 /// `BrokenPipe`, directly or inside a JSON writer's error: the reader went away, which is not
 /// the tool's failure.
@@ -121,6 +135,15 @@ pub fn is_broken_pipe<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn float_flags_refuse_nan_and_infinities() {
+        assert_eq!(finite_f64("1e-9"), Ok(1e-9));
+        assert_eq!(finite_f64(" -2.5 "), Ok(-2.5));
+        for bad in ["nan", "NaN", "inf", "-inf", "infinity", "1e999", "x"] {
+            assert!(finite_f64(bad).is_err(), "{bad} accepted");
+        }
+    }
 
     #[derive(Debug, thiserror::Error)]
     #[error("writing the table")]

@@ -1,4 +1,4 @@
-//! Progress bars for long reads in the command-line clients (feature `progress`): bytes of the
+//! Progress bars for long reads in the command-line clients: bytes of the
 //! input file read so far, on stderr, shown only when stderr is a terminal and the input is
 //! large or the read has already taken a while. Scripts, tests and pipes never see one, and
 //! stdout (where `--json` goes) is never touched.
@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::input::{CsvOptions, ImuSeries, InputError, Source};
+use imu_analysis::input::{CsvOptions, ImuSeries, InputError, Source};
 
 /// Inputs at least this large get a bar from the start, bytes.
 pub const SHOW_ABOVE_BYTES: u64 = 20 * 1024 * 1024;
@@ -67,16 +67,17 @@ impl ReadProgress {
     }
 }
 
-/// [`crate::input::read_any`] with a bar of the bytes read (see [`should_show`]).
+/// [`imu_analysis::input::read_any`] with a bar of the bytes read (see [`should_show`]).
 pub fn read_any(path: &Path, source: Source, csv: &CsvOptions) -> Result<ImuSeries, InputError> {
     let name = path
         .file_name()
         .unwrap_or(path.as_os_str())
         .to_string_lossy();
     let mut progress = ReadProgress::new(format!("reading {name}"));
-    let series = crate::input::read_any_with_progress(path, source, csv, &mut |done, total| {
-        progress.update(done, total)
-    });
+    let series =
+        imu_analysis::input::read_any_with_progress(path, source, csv, &mut |done, total| {
+            progress.update(done, total)
+        });
     progress.finish();
     series
 }

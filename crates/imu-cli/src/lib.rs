@@ -1,0 +1,25 @@
+//! What every imud command-line tool shares, so the five clients and the daemon behave alike:
+//!
+//! - [`args`]: the CSV arguments every offline client flattens (`CsvArgs`, feature `analysis`), the `--add EFFECT`
+//!   parser, [`finite_f64`] (the value parser of every float flag: NaN and infinities are
+//!   usage errors), the broken-pipe check;
+//! - `progress` (feature `analysis`, on by default; the daemon goes without it): the bytes-read
+//!   progress bar of long reads (stderr, terminals only);
+//! - [`exit`]: the one `main` ([`main`], [`main_with_matches`]) that prints an error chain once and
+//!   maps it to a sysexits-style code (64 usage, 65 unusable data, 66 cannot open an input, 1
+//!   otherwise; a closed output pipe exits 0);
+//! - [`generate`]: man pages and shell completions from the clap command (`--generate`), used
+//!   by `scripts/install`;
+//! - [`unfinished`]: the one-line warning for an MCAP input read without its footer.
+
+pub mod args;
+pub mod exit;
+pub mod generate;
+#[cfg(feature = "analysis")]
+pub mod progress;
+pub mod unfinished;
+
+#[cfg(feature = "analysis")]
+pub use args::CsvArgs;
+pub use args::{finite_f64, is_broken_pipe, parse_effect};
+pub use exit::{DataError, Outcome, UsageError, main, main_with_matches};
