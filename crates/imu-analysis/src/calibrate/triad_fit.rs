@@ -382,138 +382,34 @@ pub fn fit_triad_sessions(
     sessions: &Sessions,
     opts: &FitOptions,
 ) -> Result<FitResult, FitError> {
-    for (index, pt) in points.iter().enumerate() {
-        let ok = (0..3).all(|a| {
-            pt.true_input[a].is_finite()
-                && pt.measured[a].is_finite()
-                && pt.std_error[a].is_finite()
-                && pt.std_error[a] > 0.0
-        });
-        if !ok {
-            return Err(FitError::BadObservation { triad, index });
-        }
-    }
+    check_points(triad, points)?;
     let mut m = model.clone();
     let names = m.param_names(triad);
     let units = m.param_units(triad);
     let np = m.n_params();
-    if !opts.fixed.is_empty() && opts.fixed.len() != np {
-        return Err(FitError::MaskLength {
-            triad,
-            got: opts.fixed.len(),
-            expected: np,
-        });
-    }
     let mut p = m.params();
-    let mut free: Vec<usize> = (0..np)
-        .filter(|&i| !opts.fixed.get(i).copied().unwrap_or(false))
-        .collect();
-    let lsq = lsq_options(opts);
-    // Observability is judged on the white errors alone (secondary effects such as
-    // g-sensitivity follow the bias in canonical order, so a g-sensitivity column collinear with
-    // a bias goes, not the bias).
-    let white = Whitener::new(points, &Sessions::default(), &[SharedNoise::default(); 3]);
-    let unobservable = find_unobservable(
-        &mut triad_residuals(&mut m, points, Some(&white)),
-        &p,
-        &mut free,
-        &names,
-        &lsq,
-    );
-    m.set_params(&p);
-    if free.is_empty() {
-        return Err(FitError::NothingToFit { triad });
-    }
+    let (free, unobservable) = free_parameters(&mut m, triad, points, opts, &names, &p)?;
     let n_obs = 3 * points.len();
-    if n_obs <= free.len() {
-        return Err(FitError::TooFewObservations {
-            triad,
-            n_points: points.len(),
-            n_obs,
-            n_free: free.len(),
-        });
-    }
 
-    // Fit with white errors; then, if the scatter exceeds them and the drift model is on,
-    // estimate per-axis random-walk drift, re-weight and refit until the drift settles.
-    let mut q = shared_noise(opts, points);
-    let mut w = Whitener::new(points, sessions, &q);
-    let first = minimize(
-        &mut triad_residuals(&mut m, points, Some(&w)),
-        &mut p,
-        &free,
-        &lsq,
-    );
-    let (mut cost, mut iterations, mut converged) = (first.cost, first.iterations, first.converged);
-    if opts.drift_model {
-        let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
-        for _ in 0..8 {
-            let raw = raw_residuals(&mut m, &p, points);
-            let next: [f64; 3] =
-                std::array::from_fn(|a| drift_q(points, sessions, &raw, q, a, dof_axis));
-            let settled =
-                (0..3).all(|a| (next[a] - q[a].random_walk_q).abs() <= 1e-3 * next[a].max(1e-300));
-            for (s, v) in q.iter_mut().zip(next) {
-                s.random_walk_q = v;
-            }
-            w = Whitener::new(points, sessions, &q);
-            let next = minimize(
-                &mut triad_residuals(&mut m, points, Some(&w)),
-                &mut p,
-                &free,
-                &lsq,
-            );
-            cost = next.cost;
-            iterations += next.iterations;
-            converged = next.converged;
-            if settled {
-                break;
-            }
-        }
-    }
+    let WeightedFit {
+        q,
+        w,
+        cost,
+        iterations,
+        converged,
+    } = fit_weighted(&mut m, points, sessions, opts, &mut p, &free);
 
     let dof = n_obs - free.len();
     let reduced_chi2 = cost / dof as f64;
     let j = jacobian(&mut triad_residuals(&mut m, points, Some(&w)), &p, &free);
     m.set_params(&p);
     let mut warnings = Vec::new();
-    // Scale by the reduced chi-square only upwards: below 1 the white errors are trusted.
-    let mut cov = match covariance(&j, reduced_chi2) {
-        Some(cov) => cov,
-        None => {
-            warnings.push("normal matrix not invertible: no standard errors".into());
-            DMatrix::from_element(free.len(), free.len(), f64::NAN)
-        }
-    };
-    let drift = opts.bias_drift.filter(|_| opts.noise.is_none());
-    let ids = m.param_ids();
-    for extra in [drift, opts.bias_input_uncertainty].into_iter().flatten() {
-        for (c, &i) in free.iter().enumerate() {
-            let axis = Some(&ids[i])
-                .filter(|id| id.effect == EffectKind::Bias)
-                .and_then(|id| id.role.axis());
-            if let Some(axis) = axis {
-                cov[(c, c)] += extra[axis].powi(2);
-            }
-        }
-    }
+    let cov = parameter_covariance(&j, reduced_chi2, &m.param_ids(), &free, opts, &mut warnings);
     let mut std_errors = vec![None; np];
     for (c, &i) in free.iter().enumerate() {
         std_errors[i] = Some(cov[(c, c)].max(0.0).sqrt());
     }
-    let nf = free.len();
-    let mut correlation = vec![vec![0.0; nf]; nf];
-    for a_ in 0..nf {
-        for b in 0..nf {
-            correlation[a_][b] = cov[(a_, b)] / (cov[(a_, a_)] * cov[(b, b)]).sqrt();
-            if a_ < b && correlation[a_][b].abs() > 0.99 {
-                warnings.push(format!(
-                    "{} and {} are correlated {:.3}: poorly separated by these data",
-                    names[free[a_]], names[free[b]], correlation[a_][b]
-                ));
-            }
-        }
-    }
+    let correlation = correlations(&cov, &free, &names, &mut warnings);
     for u in &unobservable {
         warnings.push(format!("{} not fitted: {}", u.name, u.reason));
     }
@@ -521,28 +417,12 @@ pub fn fit_triad_sessions(
         warnings.push(format!("not converged after {iterations} iterations"));
     }
 
-    let mut residuals_u = Vec::with_capacity(points.len());
-    let mut sq = [0.0; 3];
-    for pt in points {
-        let d = m.forward(pt.true_input, &pt.conditions) - pt.measured;
-        for a_ in 0..3 {
-            sq[a_] += d[a_] * d[a_];
-        }
-        residuals_u.push([d[0], d[1], d[2]]);
-    }
-    let residual_rms = sq.map(|s| (s / points.len() as f64).sqrt());
+    let (residuals_u, residual_rms) = unit_residuals(&m, points);
     let raw_final = raw_residuals(&mut m, &p, points);
     let chi2_axis = std::array::from_fn(|a| w.axis_chi2(&raw_final, a));
     let jacobian_raw = jacobian(&mut triad_residuals(&mut m, points, None), &p, &free);
     m.set_params(&p);
-    // Standard errors go into the model per effect; an effect with a held parameter gets none
-    // (a 0 would claim the held value is exact).
-    let mut rest = std_errors.as_slice();
-    for e in m.effects_mut() {
-        let (mine, tail) = rest.split_at(e.n_params().min(rest.len()));
-        rest = tail;
-        e.set_std_errors(mine.iter().copied().collect::<Option<Vec<f64>>>());
-    }
+    set_effect_std_errors(&mut m, &std_errors);
     m.residual_rms = Some(residual_rms);
 
     Ok(FitResult {
@@ -567,6 +447,214 @@ pub fn fit_triad_sessions(
         converged,
         warnings,
     })
+}
+
+/// The free parameters (not held by `opts.fixed`, and observable with white errors from
+/// the start `p`) and the unobservable ones; errors for a mask of the wrong length, nothing
+/// to fit, or too few observations.
+fn free_parameters(
+    m: &mut TriadModel,
+    triad: Triad,
+    points: &[FitPoint],
+    opts: &FitOptions,
+    names: &[String],
+    p: &[f64],
+) -> Result<(Vec<usize>, Vec<Unobservable>), FitError> {
+    let np = m.n_params();
+    if !opts.fixed.is_empty() && opts.fixed.len() != np {
+        return Err(FitError::MaskLength {
+            triad,
+            got: opts.fixed.len(),
+            expected: np,
+        });
+    }
+    let mut free: Vec<usize> = (0..np)
+        .filter(|&i| !opts.fixed.get(i).copied().unwrap_or(false))
+        .collect();
+    let lsq = lsq_options(opts);
+    // Observability is judged on the white errors alone (secondary effects such as
+    // g-sensitivity follow the bias in canonical order, so a g-sensitivity column collinear with
+    // a bias goes, not the bias).
+    let white = Whitener::new(points, &Sessions::default(), &[SharedNoise::default(); 3]);
+    let unobservable = find_unobservable(
+        &mut triad_residuals(m, points, Some(&white)),
+        p,
+        &mut free,
+        names,
+        &lsq,
+    );
+    m.set_params(p);
+    if free.is_empty() {
+        return Err(FitError::NothingToFit { triad });
+    }
+    let n_obs = 3 * points.len();
+    if n_obs <= free.len() {
+        return Err(FitError::TooFewObservations {
+            triad,
+            n_points: points.len(),
+            n_obs,
+            n_free: free.len(),
+        });
+    }
+    Ok((free, unobservable))
+}
+
+/// An error naming the first point with a non-finite value or a standard error that is not
+/// positive.
+fn check_points(triad: Triad, points: &[FitPoint]) -> Result<(), FitError> {
+    for (index, pt) in points.iter().enumerate() {
+        let ok = (0..3).all(|a| {
+            pt.true_input[a].is_finite()
+                && pt.measured[a].is_finite()
+                && pt.std_error[a].is_finite()
+                && pt.std_error[a] > 0.0
+        });
+        if !ok {
+            return Err(FitError::BadObservation { triad, index });
+        }
+    }
+    Ok(())
+}
+
+/// The weighted fit: the noise it ends with, and the minimizer's totals.
+struct WeightedFit {
+    /// Shared noise per axis (random walk estimated when the drift model is on).
+    q: [SharedNoise; 3],
+    /// The whitener of the last fit.
+    w: Whitener,
+    /// Final cost (chi-square).
+    cost: f64,
+    /// Iterations over all fits.
+    iterations: usize,
+    /// Whether the last fit converged.
+    converged: bool,
+}
+
+/// Fits `p` (the `free` ones) with white errors; then, if the scatter exceeds them and the
+/// drift model is on, estimates per-axis random-walk drift, re-weights and refits until the
+/// drift settles (at most 8 times).
+fn fit_weighted(
+    m: &mut TriadModel,
+    points: &[FitPoint],
+    sessions: &Sessions,
+    opts: &FitOptions,
+    p: &mut Vec<f64>,
+    free: &[usize],
+) -> WeightedFit {
+    let lsq = lsq_options(opts);
+    let mut q = shared_noise(opts, points);
+    let mut w = Whitener::new(points, sessions, &q);
+    let first = minimize(&mut triad_residuals(m, points, Some(&w)), p, free, &lsq);
+    let (mut cost, mut iterations, mut converged) = (first.cost, first.iterations, first.converged);
+    if opts.drift_model {
+        let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
+        for _ in 0..8 {
+            let raw = raw_residuals(m, p, points);
+            let next: [f64; 3] =
+                std::array::from_fn(|a| drift_q(points, sessions, &raw, q, a, dof_axis));
+            let settled =
+                (0..3).all(|a| (next[a] - q[a].random_walk_q).abs() <= 1e-3 * next[a].max(1e-300));
+            for (s, v) in q.iter_mut().zip(next) {
+                s.random_walk_q = v;
+            }
+            w = Whitener::new(points, sessions, &q);
+            let next = minimize(&mut triad_residuals(m, points, Some(&w)), p, free, &lsq);
+            cost = next.cost;
+            iterations += next.iterations;
+            converged = next.converged;
+            if settled {
+                break;
+            }
+        }
+    }
+    WeightedFit {
+        q,
+        w,
+        cost,
+        iterations,
+        converged,
+    }
+}
+
+/// Covariance of the `free` parameters from the Jacobian `j`, scaled by the reduced
+/// chi-square only upwards (below 1 the white errors are trusted), with the bias drift and
+/// input uncertainty of `opts` added to the biases.
+fn parameter_covariance(
+    j: &DMatrix<f64>,
+    reduced_chi2: f64,
+    ids: &[imu_model::ParamId],
+    free: &[usize],
+    opts: &FitOptions,
+    warnings: &mut Vec<String>,
+) -> DMatrix<f64> {
+    let mut cov = match covariance(j, reduced_chi2) {
+        Some(cov) => cov,
+        None => {
+            warnings.push("normal matrix not invertible: no standard errors".into());
+            DMatrix::from_element(free.len(), free.len(), f64::NAN)
+        }
+    };
+    let drift = opts.bias_drift.filter(|_| opts.noise.is_none());
+    for extra in [drift, opts.bias_input_uncertainty].into_iter().flatten() {
+        for (c, &i) in free.iter().enumerate() {
+            let axis = Some(&ids[i])
+                .filter(|id| id.effect == EffectKind::Bias)
+                .and_then(|id| id.role.axis());
+            if let Some(axis) = axis {
+                cov[(c, c)] += extra[axis].powi(2);
+            }
+        }
+    }
+    cov
+}
+
+/// Correlation matrix of the free parameters, with a warning for each pair beyond 0.99.
+fn correlations(
+    cov: &DMatrix<f64>,
+    free: &[usize],
+    names: &[String],
+    warnings: &mut Vec<String>,
+) -> Vec<Vec<f64>> {
+    let nf = free.len();
+    let mut correlation = vec![vec![0.0; nf]; nf];
+    for a_ in 0..nf {
+        for b in 0..nf {
+            correlation[a_][b] = cov[(a_, b)] / (cov[(a_, a_)] * cov[(b, b)]).sqrt();
+            if a_ < b && correlation[a_][b].abs() > 0.99 {
+                warnings.push(format!(
+                    "{} and {} are correlated {:.3}: poorly separated by these data",
+                    names[free[a_]], names[free[b]], correlation[a_][b]
+                ));
+            }
+        }
+    }
+    correlation
+}
+
+/// Residual (model output - measured, in the triad's units) of each point, and their RMS per
+/// axis.
+fn unit_residuals(m: &TriadModel, points: &[FitPoint]) -> (Vec<[f64; 3]>, [f64; 3]) {
+    let mut residuals_u = Vec::with_capacity(points.len());
+    let mut sq = [0.0; 3];
+    for pt in points {
+        let d = m.forward(pt.true_input, &pt.conditions) - pt.measured;
+        for a_ in 0..3 {
+            sq[a_] += d[a_] * d[a_];
+        }
+        residuals_u.push([d[0], d[1], d[2]]);
+    }
+    (residuals_u, sq.map(|s| (s / points.len() as f64).sqrt()))
+}
+
+/// Standard errors go into the model per effect; an effect with a held parameter gets none
+/// (a 0 would claim the held value is exact).
+fn set_effect_std_errors(m: &mut TriadModel, std_errors: &[Option<f64>]) {
+    let mut rest = std_errors;
+    for e in m.effects_mut() {
+        let (mine, tail) = rest.split_at(e.n_params().min(rest.len()));
+        rest = tail;
+        e.set_std_errors(mine.iter().copied().collect::<Option<Vec<f64>>>());
+    }
 }
 
 /// The parameter name (`effect.name.x`) of a validation error's key (`effect.name[0]`).

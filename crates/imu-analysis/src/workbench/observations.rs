@@ -62,39 +62,11 @@ impl<'a> Workbench<'a> {
         latitude_deg: Option<f64>,
         opts: DiagnoseOptions,
     ) -> Result<Workbench<'a>, DiagnoseError> {
-        use crate::calibrate::reference_free::{local_gravity, mean_se, pose_conditions};
-        use imu_model::units::EARTH_RATE_RAD_S;
+        use crate::calibrate::reference_free::local_gravity;
         let segmentation =
             crate::segment::detect(series, &opts.segment).map_err(CalibrateError::from)?;
         let (g_m_s2, gravity_note) = local_gravity(gravity_m_s2, latitude_deg);
-        let (vertical_rad_s, earth_note) = match latitude_deg {
-            Some(lat) => {
-                let (vertical, horizontal) = imu_model::earth::earth_rate_split_rad_s(lat);
-                (
-                    vertical,
-                    format!(
-                        "gyro: Earth's vertical rate at latitude {lat} deg is the true rate along \
-                         the calibrated up direction of each pose; its horizontal part \
-                         ({horizontal:.1e} rad/s, heading unknown) is counted as noise of each pose \
-                         mean"
-                    ),
-                )
-            }
-            None => (
-                0.0,
-                format!(
-                    "gyro: Earth's rate ({EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
-                     frame without latitude and heading) is counted as noise of each pose mean; \
-                     give the latitude to remove its vertical part"
-                ),
-            ),
-        };
-        // Variance of the unknown part of Earth's rate on axis `a` of a pose whose up
-        // direction is `u`: a horizontal vector at a random heading, or, without a latitude,
-        // a vector in a random direction.
-        let earth_var = |u: &Vec3, a: usize| {
-            imu_model::earth::unknown_heading_variance_rad2_s2(latitude_deg, u[a])
-        };
+        let (vertical_rad_s, earth_note) = earth_rate_truth(latitude_deg);
         let poses: Vec<usize> = (0..segmentation.segments.len())
             .filter(|&i| segmentation.segments[i].kind == SegmentKind::Static)
             .collect();
@@ -102,52 +74,11 @@ impl<'a> Workbench<'a> {
             .iter()
             .map(|&i| segmentation.segments[i].mean_accel().normalize())
             .collect();
-        let point = |i: usize, up: &Vec3, gyro: bool| -> FitPoint {
-            let s = &segmentation.segments[i];
-            let c = pose_conditions(series, s);
-            FitPoint {
-                true_input: if gyro {
-                    up * vertical_rad_s
-                } else {
-                    up * g_m_s2
-                },
-                measured: if gyro { s.mean_gyro() } else { s.mean_accel() },
-                std_error: mean_se(
-                    if gyro {
-                        s.std_gyro_rad_s
-                    } else {
-                        s.std_accel_m_s2
-                    },
-                    s.n,
-                ),
-                conditions: imu_model::Conditions {
-                    specific_force_m_s2: up * g_m_s2,
-                    ..c
-                },
-                t_s: 0.5 * (s.start_s + s.end_s),
-                duration_s: s.end_s - s.start_s,
-            }
+        let truth = PoseTruth {
+            g_m_s2,
+            vertical_rad_s,
         };
-        let unknown = crate::calibrate::SegmentTruth {
-            specific_force_m_s2: [f64::NAN; 3],
-            angular_rate_rad_s: [f64::NAN; 3],
-            temp_c: f64::NAN,
-            time_since_power_on_s: f64::NAN,
-        };
-        let mut obs = Observations {
-            segment_truth: vec![unknown; segmentation.segments.len()],
-            accel: poses
-                .iter()
-                .zip(&dirs)
-                .map(|(&i, u)| (i, point(i, u, false)))
-                .collect(),
-            gyro: poses
-                .iter()
-                .zip(&dirs)
-                .map(|(&i, u)| (i, point(i, u, true)))
-                .collect(),
-            segmentation,
-        };
+        let mut obs = truth.observations(series, segmentation, &poses, &dirs);
         let rate = series.sample_rate_hz();
         let (accel_floor, gyro_floor) = floors(series, &obs, &opts)?;
         let n: Vec<usize> = poses
@@ -182,34 +113,45 @@ impl<'a> Workbench<'a> {
             },
             notes: vec![
                 gravity_note,
-                "accel: held against the gravity magnitude at each still pose; misalignment xy, \
-                 xz, yz held at 0 (the magnitude cannot see a rotation of the whole frame: the \
-                 accelerometer axes define the frame)"
-                    .into(),
+                ACCEL_MAGNITUDE_NOTE.into(),
                 earth_note,
-                "gyro gains (scale, misalignment, asymmetry, nonlinearity, temperature scale) \
-                 are held against the rotations integrated over the moves between poses, the \
-                 gyro offsets against the still poses"
-                    .into(),
+                GYRO_MOVES_NOTE.into(),
             ],
         };
-        // The calibrated up direction of each pose, from a bias + scale + misalignment fit of
-        // the magnitudes (the measured direction if that fit fails).
+        let up = wb.calibrated_up(dirs);
+        wb.set_up(&mut obs, &up, &truth);
+        let mut gyro_points = floored_points(&obs.points(Triad::Gyro), &wb.gyro_floor, rate, &n);
+        add_unknown_earth_rate(&mut gyro_points, &up, latitude_deg);
+        wb.gyro_points = gyro_points;
+        wb.set_moves(&obs, &poses, &up, g_m_s2);
+        wb.obs = obs;
+        Ok(wb)
+    }
+
+    /// The calibrated up direction of each pose, from a bias + scale + misalignment fit of
+    /// the magnitudes (the measured directions `dirs` if that fit fails).
+    fn calibrated_up(&self, dirs: Vec<Vec3>) -> Vec<Vec3> {
         let first = TriadModel::with_effects(&TriadModel::PAPER_BASE);
-        let mag = wb.reference_free_magnitude().expect("set above").clone();
-        let up: Vec<Vec3> = match wb.fit_magnitude(&mag, &first, None) {
-            Ok(f) => wb
+        let mag = self.reference_free_magnitude().expect("set above").clone();
+        match self.fit_magnitude(&mag, &first, None) {
+            Ok(f) => self
                 .accel_points
                 .iter()
                 .map(|p| f.fit.model.inverse(p.measured, &p.conditions).normalize())
                 .collect(),
             Err(_) => dirs,
-        };
+        }
+    }
+
+    /// Sets the true inputs of the poses (in `obs` and the accel points) along the calibrated
+    /// `up` directions, and the segments' truth to match.
+    fn set_up(&mut self, obs: &mut Observations, up: &[Vec3], truth: &PoseTruth) {
+        let (g_m_s2, vertical_rad_s) = (truth.g_m_s2, truth.vertical_rad_s);
         for (k, (_, p)) in obs.accel.iter_mut().enumerate() {
             p.true_input = up[k] * g_m_s2;
             p.conditions.specific_force_m_s2 = up[k] * g_m_s2;
-            wb.accel_points[k].true_input = p.true_input;
-            wb.accel_points[k].conditions.specific_force_m_s2 = p.true_input;
+            self.accel_points[k].true_input = p.true_input;
+            self.accel_points[k].conditions.specific_force_m_s2 = p.true_input;
         }
         for (k, (i, p)) in obs.gyro.iter_mut().enumerate() {
             p.true_input = up[k] * vertical_rad_s;
@@ -221,13 +163,13 @@ impl<'a> Workbench<'a> {
                 time_since_power_on_s: p.conditions.time_since_power_on_s,
             };
         }
-        let mut gyro_points = floored_points(&obs.points(Triad::Gyro), &wb.gyro_floor, rate, &n);
-        for (p, u) in gyro_points.iter_mut().zip(&up) {
-            for a in 0..3 {
-                p.std_error[a] = (p.std_error[a].powi(2) + earth_var(u, a)).sqrt();
-            }
-        }
-        wb.gyro_points = gyro_points;
+    }
+
+    /// Prepares the moves between the `poses` (segment indices) with their calibrated `up`
+    /// directions, for the gyro gains.
+    fn set_moves(&mut self, obs: &Observations, poses: &[usize], up: &[Vec3], g_m_s2: f64) {
+        use crate::calibrate::reference_free::pose_conditions;
+        let series = self.series;
         let pose_segs: Vec<&crate::segment::Segment> = poses
             .iter()
             .map(|&i| &obs.segmentation.segments[i])
@@ -239,7 +181,7 @@ impl<'a> Workbench<'a> {
         let (prepared, skipped) = crate::calibrate::reference_free::prepare_moves(
             series,
             &pose_segs,
-            &up,
+            up,
             &conditions,
             g_m_s2,
         );
@@ -247,11 +189,140 @@ impl<'a> Workbench<'a> {
             moves,
             moves_skipped,
             ..
-        } = &mut wb.mode
+        } = &mut self.mode
         {
             (*moves, *moves_skipped) = (prepared, skipped);
         }
-        wb.obs = obs;
-        Ok(wb)
+    }
+}
+
+/// How the accel is held without a reference, for the workbench's notes.
+const ACCEL_MAGNITUDE_NOTE: &str = "accel: held against the gravity magnitude at each still pose; misalignment xy, \
+     xz, yz held at 0 (the magnitude cannot see a rotation of the whole frame: the \
+     accelerometer axes define the frame)";
+
+/// How the gyro is held without a reference, for the workbench's notes.
+const GYRO_MOVES_NOTE: &str = "gyro gains (scale, misalignment, asymmetry, nonlinearity, temperature scale) \
+     are held against the rotations integrated over the moves between poses, the \
+     gyro offsets against the still poses";
+
+/// The true rate along up at a still pose (Earth's vertical rate at `latitude_deg`, 0
+/// without it), rad/s, with the note on how the rest of Earth's rate is counted.
+fn earth_rate_truth(latitude_deg: Option<f64>) -> (f64, String) {
+    use imu_model::units::EARTH_RATE_RAD_S;
+    match latitude_deg {
+        Some(lat) => {
+            let (vertical, horizontal) = imu_model::earth::earth_rate_split_rad_s(lat);
+            (
+                vertical,
+                format!(
+                    "gyro: Earth's vertical rate at latitude {lat} deg is the true rate along \
+                     the calibrated up direction of each pose; its horizontal part \
+                     ({horizontal:.1e} rad/s, heading unknown) is counted as noise of each pose \
+                     mean"
+                ),
+            )
+        }
+        None => (
+            0.0,
+            format!(
+                "gyro: Earth's rate ({EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
+                 frame without latitude and heading) is counted as noise of each pose mean; \
+                 give the latitude to remove its vertical part"
+            ),
+        ),
+    }
+}
+
+/// Adds to each gyro point's standard error the variance of the unknown part of Earth's rate
+/// on each axis of a pose whose up direction is `up`: a horizontal vector at a random
+/// heading, or, without a latitude, a vector in a random direction.
+fn add_unknown_earth_rate(points: &mut [FitPoint], up: &[Vec3], latitude_deg: Option<f64>) {
+    let earth_var =
+        |u: &Vec3, a: usize| imu_model::earth::unknown_heading_variance_rad2_s2(latitude_deg, u[a]);
+    for (p, u) in points.iter_mut().zip(up) {
+        for a in 0..3 {
+            p.std_error[a] = (p.std_error[a].powi(2) + earth_var(u, a)).sqrt();
+        }
+    }
+}
+
+/// The true inputs at a still pose, along its up direction.
+struct PoseTruth {
+    /// Local gravity, m/s^2.
+    g_m_s2: f64,
+    /// Earth's rate along up, rad/s (0 without a latitude).
+    vertical_rad_s: f64,
+}
+
+impl PoseTruth {
+    /// The fit point of pose segment `s` with up direction `up`: its gyro or accel mean
+    /// against the true input.
+    fn point(
+        &self,
+        series: &ImuSeries,
+        s: &crate::segment::Segment,
+        up: &Vec3,
+        gyro: bool,
+    ) -> FitPoint {
+        use crate::calibrate::reference_free::{mean_se, pose_conditions};
+        let (g_m_s2, vertical_rad_s) = (self.g_m_s2, self.vertical_rad_s);
+        let c = pose_conditions(series, s);
+        FitPoint {
+            true_input: if gyro {
+                up * vertical_rad_s
+            } else {
+                up * g_m_s2
+            },
+            measured: if gyro { s.mean_gyro() } else { s.mean_accel() },
+            std_error: mean_se(
+                if gyro {
+                    s.std_gyro_rad_s
+                } else {
+                    s.std_accel_m_s2
+                },
+                s.n,
+            ),
+            conditions: imu_model::Conditions {
+                specific_force_m_s2: up * g_m_s2,
+                ..c
+            },
+            t_s: 0.5 * (s.start_s + s.end_s),
+            duration_s: s.end_s - s.start_s,
+        }
+    }
+
+    /// Observations of the still `poses` (segment indices) along their measured directions
+    /// `dirs`; the segments' truth is unknown until the up directions are calibrated.
+    fn observations(
+        &self,
+        series: &ImuSeries,
+        segmentation: crate::segment::Segmentation,
+        poses: &[usize],
+        dirs: &[Vec3],
+    ) -> Observations {
+        let point = |i: usize, up: &Vec3, gyro: bool| {
+            self.point(series, &segmentation.segments[i], up, gyro)
+        };
+        let unknown = crate::calibrate::SegmentTruth {
+            specific_force_m_s2: [f64::NAN; 3],
+            angular_rate_rad_s: [f64::NAN; 3],
+            temp_c: f64::NAN,
+            time_since_power_on_s: f64::NAN,
+        };
+        Observations {
+            segment_truth: vec![unknown; segmentation.segments.len()],
+            accel: poses
+                .iter()
+                .zip(dirs)
+                .map(|(&i, u)| (i, point(i, u, false)))
+                .collect(),
+            gyro: poses
+                .iter()
+                .zip(dirs)
+                .map(|(&i, u)| (i, point(i, u, true)))
+                .collect(),
+            segmentation,
+        }
     }
 }

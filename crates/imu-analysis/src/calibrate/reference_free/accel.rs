@@ -9,6 +9,9 @@ pub(super) struct AccelOutcome {
     pub(super) magnitude_error_m_s2: Vec<f64>,
 }
 
+/// Fits the accel model of `opts` to the gravity magnitude `g_m_s2` at the still `poses`,
+/// with the rotation gauge (misalignment xy, xz, yz) held at 0. `still_s` is the shortest
+/// still pose detection accepts, for messages.
 pub(super) fn fit_accel(
     series: &ImuSeries,
     poses: &[&Segment],
@@ -29,49 +32,13 @@ pub(super) fn fit_accel(
         fixed[i] = true;
     }
     let n_free = fixed.iter().filter(|f| !**f).count();
-    if poses.len() <= n_free {
-        return Err(ReferenceFreeError::TooFewPoses {
-            triad,
-            found: poses.len(),
-            needed: n_free + 1,
-            n_free,
-            what: model
-                .kinds()
-                .iter()
-                .map(|k| k.id())
-                .collect::<Vec<_>>()
-                .join(", "),
-            still_s,
-        });
-    }
+    check_enough_poses(&model, poses.len(), n_free, still_s)?;
     let measured: Vec<Vec3> = poses.iter().map(|s| s.mean_accel()).collect();
     let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
-    // The error of |mean| is the mean's error along the gravity direction.
-    let sigma_m_s2: Vec<f64> = poses
-        .iter()
-        .zip(&measured)
-        .map(|(s, m)| {
-            let u = m.normalize();
-            let se = mean_se(s.std_accel_m_s2, s.n);
-            (0..3)
-                .map(|a| (u[a] * se[a]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-                .max(1e-12)
-        })
-        .collect();
+    let sigma_m_s2 = magnitude_sigma_m_s2(poses, &measured);
     let mut work = model.clone();
-    let residual = |p: &[f64]| {
-        work.set_params(p);
-        DVector::from_iterator(
-            measured.len(),
-            measured
-                .iter()
-                .zip(&conditions)
-                .zip(&sigma_m_s2)
-                .map(|((m, c), s)| (work.inverse(*m, c).norm() - g_m_s2) / s),
-        )
-    };
+    let residual =
+        |p: &[f64]| magnitude_residuals(&mut work, p, &measured, &conditions, &sigma_m_s2, g_m_s2);
     let sol =
         least_squares(residual, &p0, &fixed, &names, &opts.lsq).map_err(|source| match source {
             LsqError::TooFewResiduals { n_free, .. } => ReferenceFreeError::TooFewPoses {
@@ -85,59 +52,15 @@ pub(super) fn fit_accel(
             source => ReferenceFreeError::Lsq { triad, source },
         })?;
     let ids = model.param_ids();
-    let effect_of = |name: &str| ids.iter().find(|id| id.name == name).map(|id| id.effect);
-    let primary: Vec<&Unobservable> = sol
-        .unobservable
-        .iter()
-        .filter(|u| {
-            matches!(
-                effect_of(&u.name),
-                Some(EffectKind::Bias | EffectKind::Scale | EffectKind::Misalignment)
-            )
-        })
-        .collect();
-    if !primary.is_empty() {
-        return Err(ReferenceFreeError::Unobservable {
-            names: primary
-                .iter()
-                .map(|u| u.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-            reason: primary[0].reason.clone(),
-        });
-    }
+    check_primary_observable(&ids, &sol)?;
 
     model.set_params(&sol.params);
-    let mut std_errors = sol.std_errors.clone();
-    if let Some(drift) = opts.accel_bias_drift_m_s2 {
-        for (i, id) in ids.iter().enumerate() {
-            if id.effect == EffectKind::Bias
-                && let Some(a) = id.role.axis()
-                && let Some(se) = std_errors[i].as_mut()
-            {
-                *se = (*se * *se + drift[a] * drift[a]).sqrt();
-            }
-        }
-    }
+    let std_errors = with_bias_drift(&ids, &sol.std_errors, opts.accel_bias_drift_m_s2);
     store_std_errors(&mut model, &std_errors, &gauge);
 
-    let corrected: Vec<Vec3> = measured
-        .iter()
-        .zip(&conditions)
-        .map(|(m, c)| model.inverse(*m, c))
-        .collect();
-    let magnitude_error_m_s2: Vec<f64> = corrected.iter().map(|f| f.norm() - g_m_s2).collect();
-    let up: Vec<Vec3> = corrected.iter().map(|f| f.normalize()).collect();
-    let n = corrected.len() as f64;
-    let rms = (magnitude_error_m_s2.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
-    // Per axis: the magnitude error as a vector along gravity.
-    let mut sq = [0.0; 3];
-    for (u, e) in up.iter().zip(&magnitude_error_m_s2) {
-        for a in 0..3 {
-            sq[a] += (u[a] * e).powi(2) / n;
-        }
-    }
-    model.residual_rms = Some(sq.map(f64::sqrt));
+    let pose_fit = PoseMagnitudes::of(&model, &measured, &conditions, g_m_s2);
+    let (up, magnitude_error_m_s2, rms) = (pose_fit.up, pose_fit.error_m_s2, pose_fit.rms_m_s2);
+    model.residual_rms = Some(pose_fit.axis_rms_m_s2);
 
     let mut warnings = conditioning_warnings(triad, &sol, &names, opts.weak_eigenvalue, "poses");
     if poses.len() < 2 * n_free {
@@ -146,37 +69,8 @@ pub(super) fn fit_accel(
             poses.len()
         ));
     }
-    let axis = ["x", "y", "z"];
-    for a in 0..3 {
-        let hi = up.iter().map(|u| u[a]).fold(f64::NEG_INFINITY, f64::max);
-        let lo = up.iter().map(|u| u[a]).fold(f64::INFINITY, f64::min);
-        // 0.7 ~ cos 45 degrees.
-        if hi < 0.7 || lo > -0.7 {
-            warnings.push(format!(
-                "accel {}: the axis never pointed within 45 degrees of {} (its gravity component \
-                 spans {lo:.2}..{hi:.2} g): {POSE_ADVICE}",
-                axis[a],
-                if hi < 0.7 && lo > -0.7 {
-                    "up or down"
-                } else if hi < 0.7 {
-                    "up"
-                } else {
-                    "down"
-                },
-            ));
-        }
-    }
-    let mut unobservable: Vec<Unobservable> = gauge
-        .iter()
-        .map(|&i| Unobservable {
-            name: names[i].clone(),
-            reason: "gauge: the gravity magnitude cannot see a rotation of the whole frame; held \
-                     at 0 so that the accelerometer axes define the body frame"
-                .into(),
-        })
-        .collect();
-    unobservable.extend(held_entries(&names, &requested));
-    unobservable.extend(sol.unobservable.iter().cloned());
+    push_axis_coverage_warnings(&up, &mut warnings);
+    let unobservable = accel_unobservable(&gauge, &names, &requested, &sol);
     Ok(AccelOutcome {
         fit: TriadFit {
             triad,
@@ -203,4 +97,205 @@ pub(super) fn fit_accel(
         up,
         magnitude_error_m_s2,
     })
+}
+
+/// The standard error of each pose's |mean accel|: the mean's error along the gravity
+/// direction (at least 1e-12 m/s^2).
+fn magnitude_sigma_m_s2(poses: &[&Segment], measured: &[Vec3]) -> Vec<f64> {
+    poses
+        .iter()
+        .zip(measured)
+        .map(|(s, m)| {
+            let u = m.normalize();
+            let se = mean_se(s.std_accel_m_s2, s.n);
+            (0..3)
+                .map(|a| (u[a] * se[a]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                .max(1e-12)
+        })
+        .collect()
+}
+
+/// An error when the fit cannot observe a bias, scale or misalignment parameter.
+fn check_primary_observable(
+    ids: &[imu_model::ParamId],
+    sol: &LsqSolution,
+) -> Result<(), ReferenceFreeError> {
+    let effect_of = |name: &str| ids.iter().find(|id| id.name == name).map(|id| id.effect);
+    let primary: Vec<&Unobservable> = sol
+        .unobservable
+        .iter()
+        .filter(|u| {
+            matches!(
+                effect_of(&u.name),
+                Some(EffectKind::Bias | EffectKind::Scale | EffectKind::Misalignment)
+            )
+        })
+        .collect();
+    if !primary.is_empty() {
+        return Err(ReferenceFreeError::Unobservable {
+            names: primary
+                .iter()
+                .map(|u| u.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            reason: primary[0].reason.clone(),
+        });
+    }
+    Ok(())
+}
+
+/// The fit's standard errors with the bias drift between poses (`drift`, m/s^2 per axis)
+/// added in quadrature to the bias errors.
+fn with_bias_drift(
+    ids: &[imu_model::ParamId],
+    std_errors: &[Option<f64>],
+    drift: Option<[f64; 3]>,
+) -> Vec<Option<f64>> {
+    let mut std_errors = std_errors.to_vec();
+    if let Some(drift) = drift {
+        for (i, id) in ids.iter().enumerate() {
+            if id.effect == EffectKind::Bias
+                && let Some(a) = id.role.axis()
+                && let Some(se) = std_errors[i].as_mut()
+            {
+                *se = (*se * *se + drift[a] * drift[a]).sqrt();
+            }
+        }
+    }
+    std_errors
+}
+
+/// The corrected poses under the fitted model.
+struct PoseMagnitudes {
+    /// Corrected up direction of each pose.
+    up: Vec<Vec3>,
+    /// |corrected specific force| - g at each pose, m/s^2.
+    error_m_s2: Vec<f64>,
+    /// RMS of `error_m_s2`, m/s^2.
+    rms_m_s2: f64,
+    /// Per axis: RMS of the magnitude error as a vector along gravity, m/s^2.
+    axis_rms_m_s2: [f64; 3],
+}
+
+impl PoseMagnitudes {
+    /// Corrects each pose's `measured` mean under `model` and compares its magnitude with
+    /// `g_m_s2`.
+    fn of(model: &TriadModel, measured: &[Vec3], conditions: &[Conditions], g_m_s2: f64) -> Self {
+        let corrected: Vec<Vec3> = measured
+            .iter()
+            .zip(conditions)
+            .map(|(m, c)| model.inverse(*m, c))
+            .collect();
+        let magnitude_error_m_s2: Vec<f64> = corrected.iter().map(|f| f.norm() - g_m_s2).collect();
+        let up: Vec<Vec3> = corrected.iter().map(|f| f.normalize()).collect();
+        let n = corrected.len() as f64;
+        let rms = (magnitude_error_m_s2.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+        // Per axis: the magnitude error as a vector along gravity.
+        let mut sq = [0.0; 3];
+        for (u, e) in up.iter().zip(&magnitude_error_m_s2) {
+            for a in 0..3 {
+                sq[a] += (u[a] * e).powi(2) / n;
+            }
+        }
+        PoseMagnitudes {
+            up,
+            error_m_s2: magnitude_error_m_s2,
+            rms_m_s2: rms,
+            axis_rms_m_s2: sq.map(f64::sqrt),
+        }
+    }
+}
+
+/// Warns of each accel axis that never pointed within 45 degrees of up or of down.
+fn push_axis_coverage_warnings(up: &[Vec3], warnings: &mut Vec<String>) {
+    let axis = ["x", "y", "z"];
+    for a in 0..3 {
+        let hi = up.iter().map(|u| u[a]).fold(f64::NEG_INFINITY, f64::max);
+        let lo = up.iter().map(|u| u[a]).fold(f64::INFINITY, f64::min);
+        // 0.7 ~ cos 45 degrees.
+        if hi < 0.7 || lo > -0.7 {
+            warnings.push(format!(
+                "accel {}: the axis never pointed within 45 degrees of {} (its gravity component \
+                 spans {lo:.2}..{hi:.2} g): {POSE_ADVICE}",
+                axis[a],
+                if hi < 0.7 && lo > -0.7 {
+                    "up or down"
+                } else if hi < 0.7 {
+                    "up"
+                } else {
+                    "down"
+                },
+            ));
+        }
+    }
+}
+
+/// The whitened magnitude residual `(|corrected mean| - g) / sigma` of each pose with
+/// parameters `p` set in `work`.
+fn magnitude_residuals(
+    work: &mut TriadModel,
+    p: &[f64],
+    measured: &[Vec3],
+    conditions: &[Conditions],
+    sigma_m_s2: &[f64],
+    g_m_s2: f64,
+) -> DVector<f64> {
+    work.set_params(p);
+    DVector::from_iterator(
+        measured.len(),
+        measured
+            .iter()
+            .zip(conditions)
+            .zip(sigma_m_s2)
+            .map(|((m, c), s)| (work.inverse(*m, c).norm() - g_m_s2) / s),
+    )
+}
+
+/// The parameters the fit does not give: the gauge held at 0, those held on request, and
+/// those the poses cannot observe.
+fn accel_unobservable(
+    gauge: &[usize],
+    names: &[String],
+    requested: &[bool],
+    sol: &LsqSolution,
+) -> Vec<Unobservable> {
+    let mut unobservable: Vec<Unobservable> = gauge
+        .iter()
+        .map(|&i| Unobservable {
+            name: names[i].clone(),
+            reason: "gauge: the gravity magnitude cannot see a rotation of the whole frame; held \
+                     at 0 so that the accelerometer axes define the body frame"
+                .into(),
+        })
+        .collect();
+    unobservable.extend(held_entries(names, requested));
+    unobservable.extend(sol.unobservable.iter().cloned());
+    unobservable
+}
+
+/// An error when there are no more poses than free parameters.
+fn check_enough_poses(
+    model: &TriadModel,
+    n_poses: usize,
+    n_free: usize,
+    still_s: f64,
+) -> Result<(), ReferenceFreeError> {
+    if n_poses <= n_free {
+        return Err(ReferenceFreeError::TooFewPoses {
+            triad: Triad::Accel,
+            found: n_poses,
+            needed: n_free + 1,
+            n_free,
+            what: model
+                .kinds()
+                .iter()
+                .map(|k| k.id())
+                .collect::<Vec<_>>()
+                .join(", "),
+            still_s,
+        });
+    }
+    Ok(())
 }

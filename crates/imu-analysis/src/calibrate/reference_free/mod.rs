@@ -411,14 +411,7 @@ fn calibrate_reference_free_once(
     series: &ImuSeries,
     opts: &ReferenceFreeOptions,
 ) -> Result<ReferenceFreeFit, ReferenceFreeError> {
-    for h in &opts.hold {
-        let known = [(Triad::Accel, &opts.accel), (Triad::Gyro, &opts.gyro)]
-            .iter()
-            .any(|(t, m)| m.param_names(*t).iter().any(|n| *h == format!("{t}.{n}")));
-        if !known {
-            return Err(ReferenceFreeError::UnknownHold(h.clone()));
-        }
-    }
+    check_holds(opts)?;
     let segmentation = crate::segment::detect(series, &opts.segment)?;
     let mut notes = Vec::new();
     let (g_m_s2, gravity_note) = local_gravity(opts.gravity_m_s2, opts.latitude_deg);
@@ -442,18 +435,100 @@ fn calibrate_reference_free_once(
 
     let accel = fit_accel(series, &poses, opts, g_m_s2, still_s)?;
     if accel.fit.model.has(EffectKind::Misalignment) {
-        notes.push(
-            "gauge: accel misalignment xy, xz, yz held at 0 (the gravity magnitude cannot see a \
-             rotation of the whole frame): the accelerometer axes define the body frame (accel \
-             x = body x, accel y in the body x-y plane) and the gyro is calibrated into that \
-             frame"
-                .into(),
-        );
+        notes.push(GAUGE_NOTE.into());
     }
     let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
 
     // Gyro: split the model into offsets (still poses) and gains (moves).
     let gyro_model = opts.gyro.effects_only();
+    let (offsets, mut gains) = split_gyro_model(&gyro_model);
+
+    let gyro_static = if offsets.n_params() > 0 {
+        Some(fit_gyro_static(
+            &poses,
+            &accel.up,
+            &conditions,
+            &offsets,
+            opts,
+            g_m_s2,
+        )?)
+    } else {
+        None
+    };
+    notes.push(gyro_bias_note(opts.latitude_deg));
+
+    let (moves, skipped) = prepare_moves(series, &poses, &accel.up, &conditions, g_m_s2);
+    if skipped > 0 {
+        notes.push(format!(
+            "{skipped} move(s) skipped: lost samples (the rate over a gap is unknown)"
+        ));
+    }
+    let gain_fit = fit_move_gains(&moves, skipped, &mut gains, opts)?;
+    let move_out = moves_out(&moves, &gains);
+    let mut gyro = merge_gyro(
+        &gyro_model,
+        gyro_static.as_ref(),
+        gain_fit.as_ref(),
+        &move_out,
+        opts.weak_eigenvalue,
+    );
+    let gyro_held = held(Triad::Gyro, &gyro.names, &opts.hold);
+    gyro.unobservable
+        .splice(0..0, held_entries(&gyro.names, &gyro_held));
+    push_gyro_notes(&gyro_model, &mut notes);
+
+    let poses_out = poses_out(&poses, &pose_index, &accel);
+    let calibration = fitted_calibration(&accel.fit.model, &gyro.model, &poses_out, &move_out);
+    Ok(ReferenceFreeFit {
+        segmentation,
+        gravity_m_s2: g_m_s2,
+        poses: poses_out,
+        moves: move_out,
+        accel: accel.fit,
+        gyro,
+        gyro_static,
+        calibration,
+        notes,
+    })
+}
+
+/// Why the accel misalignment is held: the gauge of the body frame.
+const GAUGE_NOTE: &str = "gauge: accel misalignment xy, xz, yz held at 0 (the gravity magnitude \
+                          cannot see a rotation of the whole frame): the accelerometer axes \
+                          define the body frame (accel x = body x, accel y in the body x-y \
+                          plane) and the gyro is calibrated into that frame";
+
+/// Each still pose's summary: its segment, time, up direction and magnitude error.
+fn poses_out(poses: &[&Segment], pose_index: &[usize], accel: &AccelOutcome) -> Vec<Pose> {
+    poses
+        .iter()
+        .enumerate()
+        .map(|(k, s)| Pose {
+            segment: pose_index[k],
+            t_s: 0.5 * (s.start_s + s.end_s),
+            duration_s: s.end_s - s.start_s,
+            up: accel.up[k].into(),
+            magnitude_error_m_s2: accel.magnitude_error_m_s2[k],
+        })
+        .collect()
+}
+
+/// Checks that every held parameter names one of the models' parameters.
+fn check_holds(opts: &ReferenceFreeOptions) -> Result<(), ReferenceFreeError> {
+    for h in &opts.hold {
+        let known = [(Triad::Accel, &opts.accel), (Triad::Gyro, &opts.gyro)]
+            .iter()
+            .any(|(t, m)| m.param_names(*t).iter().any(|n| *h == format!("{t}.{n}")));
+        if !known {
+            return Err(ReferenceFreeError::UnknownHold(h.clone()));
+        }
+    }
+    Ok(())
+}
+
+/// The gyro model split into (offsets, gains): the effects the still poses fit and those the
+/// moves fit, each starting from the model's values.
+fn split_gyro_model(gyro_model: &TriadModel) -> (TriadModel, TriadModel) {
     let mut offsets = TriadModel::default();
     let mut gains = TriadModel::default();
     for k in gyro_model.kinds() {
@@ -475,20 +550,12 @@ fn calibrate_reference_free_once(
     };
     start_of(&mut offsets);
     start_of(&mut gains);
+    (offsets, gains)
+}
 
-    let gyro_static = if offsets.n_params() > 0 {
-        Some(fit_gyro_static(
-            &poses,
-            &accel.up,
-            &conditions,
-            &offsets,
-            opts,
-            g_m_s2,
-        )?)
-    } else {
-        None
-    };
-    notes.push(match opts.latitude_deg {
+/// The note on how Earth's rate enters the gyro bias, with or without the latitude.
+fn gyro_bias_note(latitude_deg: Option<f64>) -> String {
+    match latitude_deg {
         Some(lat) => format!(
             "gyro bias: Earth's vertical rate at latitude {lat} deg removed at each pose; the \
              horizontal part ({:.1e} rad/s, direction unknown without a heading) is carried in \
@@ -500,44 +567,49 @@ fn calibrate_reference_free_once(
              frame without latitude and heading) is carried in the bias standard errors; give \
              --latitude-deg to remove its vertical part"
         ),
-    });
-
-    let (moves, skipped) = prepare_moves(series, &poses, &accel.up, &conditions, g_m_s2);
-    if skipped > 0 {
-        notes.push(format!(
-            "{skipped} move(s) skipped: lost samples (the rate over a gap is unknown)"
-        ));
     }
+}
+
+/// Fits the gain model `gains` to the moves (setting its values); `None` when it has no
+/// parameters, an error when there are too few moves for them.
+fn fit_move_gains(
+    moves: &[MoveData],
+    skipped: usize,
+    gains: &mut TriadModel,
+    opts: &ReferenceFreeOptions,
+) -> Result<Option<LsqSolution>, ReferenceFreeError> {
     let gain_names = gains.param_names(Triad::Gyro);
-    let gain_fit = if gains.n_params() > 0 {
-        let n_free = gains.n_params();
-        // Two residuals per move.
-        let needed = n_free / 2 + 1;
-        if moves.len() < needed {
-            return Err(ReferenceFreeError::TooFewMoves {
-                found: moves.len(),
-                skipped,
-                needed,
-                n_free,
-            });
-        }
-        let fixed = held(Triad::Gyro, &gain_names, &opts.hold);
-        let sol = fit_gains(&moves, &gains, &fixed, &opts.lsq).map_err(|source| {
-            ReferenceFreeError::Lsq {
-                triad: Triad::Gyro,
-                source,
-            }
+    if gains.n_params() == 0 {
+        return Ok(None);
+    }
+    let n_free = gains.n_params();
+    // Two residuals per move.
+    let needed = n_free / 2 + 1;
+    if moves.len() < needed {
+        return Err(ReferenceFreeError::TooFewMoves {
+            found: moves.len(),
+            skipped,
+            needed,
+            n_free,
+        });
+    }
+    let fixed = held(Triad::Gyro, &gain_names, &opts.hold);
+    let sol =
+        fit_gains(moves, gains, &fixed, &opts.lsq).map_err(|source| ReferenceFreeError::Lsq {
+            triad: Triad::Gyro,
+            source,
         })?;
-        gains.set_params(&sol.params);
-        Some(sol)
-    } else {
-        None
-    };
-    let move_out: Vec<Move> = moves
+    gains.set_params(&sol.params);
+    Ok(Some(sol))
+}
+
+/// Each move's summary under the fitted gains.
+fn moves_out(moves: &[MoveData], gains: &TriadModel) -> Vec<Move> {
+    moves
         .iter()
         .map(|m| {
-            let q = m.rotation(&gains);
-            let [a, b] = m.residual(&gains);
+            let q = m.rotation(gains);
+            let [a, b] = m.residual(gains);
             Move {
                 from_pose: m.from_pose,
                 to_pose: m.to_pose,
@@ -547,17 +619,12 @@ fn calibrate_reference_free_once(
                 std_rad: m.sigma_rad,
             }
         })
-        .collect();
-    let mut gyro = merge_gyro(
-        &gyro_model,
-        gyro_static.as_ref(),
-        gain_fit.as_ref(),
-        &move_out,
-        opts.weak_eigenvalue,
-    );
-    let gyro_held = held(Triad::Gyro, &gyro.names, &opts.hold);
-    gyro.unobservable
-        .splice(0..0, held_entries(&gyro.names, &gyro_held));
+        .collect()
+}
+
+/// Notes on the gyro fit: temperature and warm-up effects fitted only as far as excited, and
+/// how the gains are found.
+fn push_gyro_notes(gyro_model: &TriadModel, notes: &mut Vec<String>) {
     let not_fitted: Vec<&str> = gyro_model
         .kinds()
         .into_iter()
@@ -581,38 +648,25 @@ fn calibrate_reference_free_once(
          uncertainty is not propagated into them"
             .into(),
     );
+}
 
-    let poses_out: Vec<Pose> = poses
-        .iter()
-        .enumerate()
-        .map(|(k, s)| Pose {
-            segment: pose_index[k],
-            t_s: 0.5 * (s.start_s + s.end_s),
-            duration_s: s.end_s - s.start_s,
-            up: accel.up[k].into(),
-            magnitude_error_m_s2: accel.magnitude_error_m_s2[k],
-        })
-        .collect();
+/// The calibration of the fitted accel and gyro models, described by its poses and moves.
+fn fitted_calibration(
+    accel: &TriadModel,
+    gyro: &TriadModel,
+    poses: &[Pose],
+    moves: &[Move],
+) -> Calibration {
     let mut calibration = Calibration::identity();
-    calibration.accel = accel.fit.model.clone();
-    calibration.gyro = gyro.model.clone();
+    calibration.accel = accel.clone();
+    calibration.gyro = gyro.clone();
     calibration.provenance.procedure = Some(PROCEDURE.into());
     calibration.description = Some(format!(
         "reference-free multi-pose calibration from {} still poses and {} moves",
-        poses_out.len(),
-        move_out.len()
+        poses.len(),
+        moves.len()
     ));
-    Ok(ReferenceFreeFit {
-        segmentation,
-        gravity_m_s2: g_m_s2,
-        poses: poses_out,
-        moves: move_out,
-        accel: accel.fit,
-        gyro,
-        gyro_static,
-        calibration,
-        notes,
-    })
+    calibration
 }
 
 /// A truth model re-expressed in the body frame this procedure's gauge defines (accel axes:

@@ -254,6 +254,47 @@ impl Plan {
         let used: Vec<usize> = (0..self.entries.len())
             .filter(|&e| with_skips || !self.entries[e].skip)
             .collect();
+        let ne = used.len();
+        let path = self.align_segments(segments, &used);
+
+        let mut problems = Vec::new();
+        let mut pairs = Vec::new();
+        // The segment that came last before a gap, for saying where a missing one should be.
+        let mut last_segment: Option<usize> = None;
+        for step in &path {
+            match *step {
+                AlignStep::Pair(e, s) => {
+                    problems.extend(self.problems(&self.entries[e], &segments[s], s));
+                    pairs.push((e, s));
+                    last_segment = Some(s);
+                }
+                AlignStep::NoSegment(e) => {
+                    problems.push(missing_segment_problem(
+                        &self.entries[e].name(),
+                        segments,
+                        last_segment,
+                    ));
+                }
+                AlignStep::NoEntry(s) => {
+                    problems.push(unplanned_segment_problem(s, &segments[s]));
+                    last_segment = Some(s);
+                }
+            }
+        }
+        if problems.is_empty() {
+            return Ok(pairs);
+        }
+        let summary = self.mismatch_summary(segments, ne, with_skips, problems.len());
+        Err(PlanMismatch {
+            file: self.file.clone(),
+            summary,
+            problems,
+        })
+    }
+
+    /// The Needleman-Wunsch alignment of the `used` entries with `segments`, in order
+    /// (entry indices into `self.entries`).
+    fn align_segments(&self, segments: &[Segment], used: &[usize]) -> Vec<AlignStep> {
         let (ne, ns) = (used.len(), segments.len());
         let cost = |e: usize, s: usize| -> f64 {
             let (pe, sg) = (&self.entries[used[e]], &segments[s]);
@@ -283,94 +324,37 @@ impl Plan {
             }
         }
         // Trace back, preferring matches; collect the alignment in order.
-        enum Step {
-            Pair(usize, usize),
-            NoSegment(usize),
-            NoEntry(usize),
-        }
         let mut path = Vec::new();
         let (mut i, mut j) = (ne, ns);
         while i > 0 || j > 0 {
             if i > 0 && j > 0 && (d[i][j] - (d[i - 1][j - 1] + cost(i - 1, j - 1))).abs() < 1e-9 {
-                path.push(Step::Pair(used[i - 1], j - 1));
+                path.push(AlignStep::Pair(used[i - 1], j - 1));
                 i -= 1;
                 j -= 1;
             } else if i > 0 && (j == 0 || (d[i][j] - (d[i - 1][j] + GAP)).abs() < 1e-9) {
-                path.push(Step::NoSegment(used[i - 1]));
+                path.push(AlignStep::NoSegment(used[i - 1]));
                 i -= 1;
             } else {
-                path.push(Step::NoEntry(j - 1));
+                path.push(AlignStep::NoEntry(j - 1));
                 j -= 1;
             }
         }
         path.reverse();
+        path
+    }
 
-        let mut problems = Vec::new();
-        let mut pairs = Vec::new();
-        // The segment that came last before a gap, for saying where a missing one should be.
-        let mut last_segment: Option<usize> = None;
-        for step in &path {
-            match *step {
-                Step::Pair(e, s) => {
-                    problems.extend(self.problems(&self.entries[e], &segments[s], s));
-                    pairs.push((e, s));
-                    last_segment = Some(s);
-                }
-                Step::NoSegment(e) => {
-                    let after = match last_segment {
-                        Some(s) => format!(
-                            "after segment {} ({:.1}-{:.1} s)",
-                            s + 1,
-                            segments[s].start_s,
-                            segments[s].end_s
-                        ),
-                        None => "before the first segment".into(),
-                    };
-                    let next = segments.get(last_segment.map_or(0, |s| s + 1)).map_or_else(
-                        || " (the recording has no more segments)".to_string(),
-                        |n| {
-                            format!(
-                                " and before the segment at {:.1}-{:.1} s",
-                                n.start_s, n.end_s
-                            )
-                        },
-                    );
-                    problems.push(format!(
-                        "{} has no segment: expected {after}{next}",
-                        self.entries[e].name()
-                    ));
-                }
-                Step::NoEntry(s) => {
-                    let sg = &segments[s];
-                    let what = match sg.kind {
-                        SegmentKind::Static => format!(
-                            "static, measured up {}",
-                            format_direction(&sg.mean_accel().normalize())
-                        ),
-                        SegmentKind::Plateau => {
-                            let w = sg.mean_gyro();
-                            format!(
-                                "rate plateau, {:.2} deg/s about {}",
-                                w.norm().to_degrees(),
-                                format_direction(&w.normalize())
-                            )
-                        }
-                    };
-                    problems.push(format!(
-                        "segment {} at {:.1}-{:.1} s ({what}) is not in the plan",
-                        s + 1,
-                        sg.start_s,
-                        sg.end_s
-                    ));
-                    last_segment = Some(s);
-                }
-            }
-        }
-        if problems.is_empty() {
-            return Ok(pairs);
-        }
+    /// The headline of a failed check: the counts when the plan expects `ne` segments and
+    /// the recording has another number, else the number of mismatches.
+    fn mismatch_summary(
+        &self,
+        segments: &[Segment],
+        ne: usize,
+        with_skips: bool,
+        n_problems: usize,
+    ) -> String {
+        let ns = segments.len();
         let count = |k: SegmentKind| segments.iter().filter(|s| s.kind == k).count();
-        let summary = if ne != ns {
+        if ne != ns {
             let skips = if with_skips && self.count_skips() > 0 {
                 format!(", {} skip", self.count_skips())
             } else {
@@ -388,19 +372,14 @@ impl Plan {
         } else {
             format!(
                 "the recording does not follow the plan ({ne} segments each; {} {})",
-                problems.len(),
-                if problems.len() == 1 {
+                n_problems,
+                if n_problems == 1 {
                     "mismatch"
                 } else {
                     "mismatches"
                 }
             )
-        };
-        Err(PlanMismatch {
-            file: self.file.clone(),
-            summary,
-            problems,
-        })
+        }
     }
 
     /// Earth's rate in sensor axes for an orientation, and the per-axis standard deviation of
@@ -498,4 +477,65 @@ impl Plan {
 pub(super) struct Resolved {
     pub(super) truth: SegmentTruth,
     pub(super) rate_std_rad_s: [f64; 3],
+}
+
+/// One step of the alignment of plan entries with segments.
+enum AlignStep {
+    /// Entry and segment matched.
+    Pair(usize, usize),
+    /// An entry without a segment.
+    NoSegment(usize),
+    /// A segment without an entry.
+    NoEntry(usize),
+}
+
+/// `entry` has no segment: where it was expected, after the `last_segment` matched.
+fn missing_segment_problem(
+    entry: &str,
+    segments: &[Segment],
+    last_segment: Option<usize>,
+) -> String {
+    let after = match last_segment {
+        Some(s) => format!(
+            "after segment {} ({:.1}-{:.1} s)",
+            s + 1,
+            segments[s].start_s,
+            segments[s].end_s
+        ),
+        None => "before the first segment".into(),
+    };
+    let next = segments.get(last_segment.map_or(0, |s| s + 1)).map_or_else(
+        || " (the recording has no more segments)".to_string(),
+        |n| {
+            format!(
+                " and before the segment at {:.1}-{:.1} s",
+                n.start_s, n.end_s
+            )
+        },
+    );
+    format!("{entry} has no segment: expected {after}{next}")
+}
+
+/// Segment `s` (`sg`) is in no plan entry: what it measured.
+fn unplanned_segment_problem(s: usize, sg: &Segment) -> String {
+    let what = match sg.kind {
+        SegmentKind::Static => format!(
+            "static, measured up {}",
+            format_direction(&sg.mean_accel().normalize())
+        ),
+        SegmentKind::Plateau => {
+            let w = sg.mean_gyro();
+            format!(
+                "rate plateau, {:.2} deg/s about {}",
+                w.norm().to_degrees(),
+                format_direction(&w.normalize())
+            )
+        }
+    };
+    format!(
+        "segment {} at {:.1}-{:.1} s ({what}) is not in the plan",
+        s + 1,
+        sg.start_s,
+        sg.end_s
+    )
 }

@@ -338,75 +338,165 @@ pub(super) fn expand_step(
     any_explicit: Option<usize>,
     entries: &mut Vec<PlanEntry>,
 ) -> Result<(), PlanError> {
-    let n = i + 1;
-    let bad = |k: &str, m: String| PlanError::Invalid {
-        file: file.to_string(),
-        line: imu_model::line_of_key(text, &format!("step[{i}].{k}"))
-            .or_else(|| imu_model::line_of_key(text, &format!("step[{i}]"))),
-        context: format!("step {n} ({})", s.kind.name()),
-        message: m,
+    let step = StepExpansion {
+        file,
+        text,
+        i,
+        s,
+        label: String::new(),
+        up: Vec3::zeros(),
+        north: None,
     };
-    let allowed = keys_of(s.kind);
-    for k in s.present() {
-        if !allowed.contains(&k) {
-            return Err(bad(
-                k,
-                format!(
-                    "`{k}` does not apply to a {} step (its keys: {})",
-                    s.kind.name(),
-                    ["kind", "label"]
-                        .iter()
-                        .chain(allowed)
-                        .copied()
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            ));
-        }
-    }
-    let line = imu_model::line_of_key(text, &format!("step[{i}]"));
-    if s.kind == StepKind::Skip
-        && let Some(first) = any_explicit
-    {
-        return Err(bad(
-            "kind",
-            format!(
-                "a skip step matches a detected segment, but step {} gives its time range by \
-                 hand (so no segment is detected); leave the segment's range out instead",
-                first + 1
-            ),
-        ));
-    }
-    if let Some(first) = any_explicit
-        && !s.has_windows()
-    {
-        return Err(bad(
-            "kind",
-            format!(
-                "step {} gives its time range by hand, so every step must (start-s/end-s, or \
-                 windows-s with one [start, end] per position or rate); detection is used only \
-                 when no step gives one",
-                first + 1
-            ),
-        ));
-    }
+    step.check_keys(any_explicit)?;
     // A skip step has no orientation: its entry matches any segment and is never checked.
     let (up, north) = if s.kind == StepKind::Skip {
         (Vec3::zeros(), None)
     } else {
-        step_frame(s).map_err(|m| bad("up", m))?
+        step_frame(s).map_err(|m| step.bad("up", m))?
     };
     let label = s
         .label
         .as_deref()
         .map(|l| format!("{l}: "))
         .unwrap_or_default();
-    let windows = |count: usize| -> Result<Vec<Option<[f64; 2]>>, PlanError> {
-        let Some(w) = &s.windows_s else {
+    let step = StepExpansion {
+        label,
+        up,
+        north,
+        ..step
+    };
+    let base = step.base_entry();
+    match s.kind {
+        StepKind::Skip => entries.push(PlanEntry {
+            skip: true,
+            description: format!("{}skip", step.label),
+            ..base
+        }),
+        StepKind::Static => entries.push(step.static_entry(base)?),
+        StepKind::IndexTable => step.push_index_table(base, entries)?,
+        StepKind::RateSteps => step.push_rate_steps(base, entries)?,
+    }
+    Ok(())
+}
+
+/// `up +z, north +x`, or `up +z` when north is not fixed.
+fn frame_text(up: &Vec3, north: &Option<Vec3>) -> String {
+    match north {
+        Some(nv) => format!(
+            "up {}, north {}",
+            format_direction(up),
+            format_direction(nv)
+        ),
+        None => format!("up {}", format_direction(up)),
+    }
+}
+
+/// One plan step being expanded into entries: where it is, and its frame once read.
+struct StepExpansion<'a> {
+    /// The plan file's name, for messages.
+    file: &'a str,
+    /// The plan file's text, to find lines of keys.
+    text: &'a str,
+    /// 0-based index of the step.
+    i: usize,
+    /// The step as read.
+    s: &'a StepFile,
+    /// `label: ` prefix of descriptions (empty without a label).
+    label: String,
+    /// Sensor direction pointing up (zero for a skip step).
+    up: Vec3,
+    /// Sensor direction pointing north, when the step fixes it.
+    north: Option<Vec3>,
+}
+
+impl StepExpansion<'_> {
+    /// An error about key `k` of this step (at its line, else the step's line).
+    fn bad(&self, k: &str, m: String) -> PlanError {
+        let (i, text) = (self.i, self.text);
+        PlanError::Invalid {
+            file: self.file.to_string(),
+            line: imu_model::line_of_key(text, &format!("step[{i}].{k}"))
+                .or_else(|| imu_model::line_of_key(text, &format!("step[{i}]"))),
+            context: format!("step {} ({})", i + 1, self.s.kind.name()),
+            message: m,
+        }
+    }
+
+    /// Checks that the step gives only keys of its kind, and that it agrees with the other
+    /// steps on time ranges given by hand (`any_explicit`: the first step that gives one).
+    fn check_keys(&self, any_explicit: Option<usize>) -> Result<(), PlanError> {
+        let s = self.s;
+        let allowed = keys_of(s.kind);
+        for k in s.present() {
+            if !allowed.contains(&k) {
+                return Err(self.bad(
+                    k,
+                    format!(
+                        "`{k}` does not apply to a {} step (its keys: {})",
+                        s.kind.name(),
+                        ["kind", "label"]
+                            .iter()
+                            .chain(allowed)
+                            .copied()
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            }
+        }
+        if s.kind == StepKind::Skip
+            && let Some(first) = any_explicit
+        {
+            return Err(self.bad(
+                "kind",
+                format!(
+                    "a skip step matches a detected segment, but step {} gives its time range by \
+                     hand (so no segment is detected); leave the segment's range out instead",
+                    first + 1
+                ),
+            ));
+        }
+        if let Some(first) = any_explicit
+            && !s.has_windows()
+        {
+            return Err(self.bad(
+                "kind",
+                format!(
+                    "step {} gives its time range by hand, so every step must (start-s/end-s, or \
+                     windows-s with one [start, end] per position or rate); detection is used only \
+                     when no step gives one",
+                    first + 1
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The entry every entry of the step starts from: a static entry in the step's frame.
+    fn base_entry(&self) -> PlanEntry {
+        PlanEntry {
+            step: self.i + 1,
+            position: None,
+            of: 1,
+            line: imu_model::line_of_key(self.text, &format!("step[{}]", self.i)),
+            kind: SegmentKind::Static,
+            skip: false,
+            description: String::new(),
+            up_sensor: self.up.into(),
+            north_sensor: self.north.map(Into::into),
+            axis_sensor: None,
+            rate_rad_s: 0.0,
+            window_s: None,
+        }
+    }
+
+    /// The `windows-s` of a step that expands to `count` segments (`None` each without it).
+    fn windows(&self, count: usize) -> Result<Vec<Option<[f64; 2]>>, PlanError> {
+        let Some(w) = &self.s.windows_s else {
             return Ok(vec![None; count]);
         };
         if w.len() != count {
-            return Err(bad(
+            return Err(self.bad(
                 "windows-s",
                 format!(
                     "windows-s has {} [start, end] pairs, the step expands to {count} segments",
@@ -415,168 +505,165 @@ pub(super) fn expand_step(
             ));
         }
         if let Some(p) = w.iter().find(|p| !(p[0].is_finite() && p[1] > p[0])) {
-            return Err(bad(
+            return Err(self.bad(
                 "windows-s",
                 format!("window {p:?} must have start < end (seconds)"),
             ));
         }
         Ok(w.iter().map(|p| Some(*p)).collect())
-    };
-    let axis = |what: &str| {
-        s.axis.map(|a| a.0).ok_or_else(|| {
-            bad(
+    }
+
+    /// The table axis of the step; `what` gives examples for the message when it is missing.
+    fn axis(&self, what: &str) -> Result<Vec3, PlanError> {
+        self.s.axis.map(|a| a.0).ok_or_else(|| {
+            self.bad(
                 "axis",
                 format!("missing `axis` (the table axis in sensor axes, e.g. {what})"),
             )
         })
-    };
-    let frame_text = |up: &Vec3, north: &Option<Vec3>| match north {
-        Some(nv) => format!(
-            "up {}, north {}",
-            format_direction(up),
-            format_direction(nv)
-        ),
-        None => format!("up {}", format_direction(up)),
-    };
-    let base = PlanEntry {
-        step: n,
-        position: None,
-        of: 1,
-        line,
-        kind: SegmentKind::Static,
-        skip: false,
-        description: String::new(),
-        up_sensor: up.into(),
-        north_sensor: north.map(Into::into),
-        axis_sensor: None,
-        rate_rad_s: 0.0,
-        window_s: None,
-    };
-    match s.kind {
-        StepKind::Skip => entries.push(PlanEntry {
-            skip: true,
-            description: format!("{label}skip"),
-            ..base
-        }),
-        StepKind::Static => {
-            let window_s = match (s.start_s, s.end_s) {
-                (None, None) => None,
-                (Some(a), Some(b)) if a.is_finite() && b > a => Some([a, b]),
-                (Some(_), Some(_)) => {
-                    return Err(bad("start-s", "start-s must be before end-s".into()));
-                }
-                _ => {
-                    return Err(bad(
-                        "start-s",
-                        "give both start-s and end-s (seconds from the recording's first \
-                         sample), or neither"
-                            .into(),
-                    ));
-                }
-            };
-            entries.push(PlanEntry {
-                description: format!("{label}static, {}", frame_text(&up, &north)),
-                window_s,
-                ..base
-            });
-        }
-        StepKind::IndexTable => {
-            let axis = axis("\"x\" or \"-y\"")?;
-            let step_deg = s.step_deg.filter(|x| x.is_finite()).ok_or_else(|| {
-                bad(
-                    "step-deg",
-                    "missing `step-deg` (the angle between positions, degrees)".into(),
-                )
-            })?;
-            let positions = s.positions.filter(|&p| p > 0).ok_or_else(|| {
-                bad(
-                    "positions",
-                    "missing or zero `positions` (the number of table positions, 12 for a \
-                     full turn in 30-degree steps)"
-                        .into(),
-                )
-            })? as usize;
-            let start_deg = s.start_deg.unwrap_or(0.0);
-            let unit = Unit::new_normalize(axis);
-            for (p, window_s) in windows(positions)?.into_iter().enumerate() {
-                let angle_deg = start_deg + step_deg * p as f64;
-                // The unit turns by +angle about its own axis (as the simulator's index
-                // table does: enu_from_sensor = q0 * R(axis, angle)), so directions fixed in
-                // space turn by -angle in sensor axes.
-                let r = Rotation3::from_axis_angle(&unit, -angle_deg.to_radians());
-                let (up_p, north_p) = (r * up, north.map(|nv| r * nv));
-                entries.push(PlanEntry {
-                    position: Some(p + 1),
-                    of: positions,
-                    description: format!(
-                        "{label}index-table, {angle_deg} deg about {}: {}",
-                        format_direction(&axis),
-                        frame_text(&up_p, &north_p)
-                    ),
-                    up_sensor: up_p.into(),
-                    north_sensor: north_p.map(Into::into),
-                    window_s,
-                    ..base.clone()
-                });
+    }
+
+    /// The one entry of a static step, with its time range when given by hand.
+    fn static_entry(&self, base: PlanEntry) -> Result<PlanEntry, PlanError> {
+        let s = self.s;
+        let window_s = match (s.start_s, s.end_s) {
+            (None, None) => None,
+            (Some(a), Some(b)) if a.is_finite() && b > a => Some([a, b]),
+            (Some(_), Some(_)) => {
+                return Err(self.bad("start-s", "start-s must be before end-s".into()));
             }
-        }
-        StepKind::RateSteps => {
-            let axis = axis("\"z\"")?;
-            let rates = s.rates_deg_s.clone().unwrap_or_default();
-            if rates.is_empty() || rates.iter().any(|r| !r.is_finite()) {
-                return Err(bad(
-                    "rates-deg-s",
-                    "missing or empty `rates-deg-s` (the plateau rates in order, deg/s; 0 for \
-                     a stop)"
+            _ => {
+                return Err(self.bad(
+                    "start-s",
+                    "give both start-s and end-s (seconds from the recording's first \
+                     sample), or neither"
                         .into(),
                 ));
             }
-            let vertical = axis.dot(&up).abs() > 1f64.to_radians().cos();
-            if !vertical && rates.contains(&0.0) {
-                return Err(bad(
-                    "rates-deg-s",
-                    format!(
-                        "the table axis {} is not vertical (up is {}), so where the table \
-                         stops (rate 0) gravity is at an unknown angle; plan the stops as \
-                         separate static steps",
+        };
+        Ok(PlanEntry {
+            description: format!(
+                "{}static, {}",
+                self.label,
+                frame_text(&self.up, &self.north)
+            ),
+            window_s,
+            ..base
+        })
+    }
+
+    /// Appends one static entry per position of an index-table step, the frame turned by
+    /// each position's angle about the table axis.
+    fn push_index_table(
+        &self,
+        base: PlanEntry,
+        entries: &mut Vec<PlanEntry>,
+    ) -> Result<(), PlanError> {
+        let (s, label, up, north) = (self.s, &self.label, self.up, self.north);
+        let axis = self.axis("\"x\" or \"-y\"")?;
+        let step_deg = s.step_deg.filter(|x| x.is_finite()).ok_or_else(|| {
+            self.bad(
+                "step-deg",
+                "missing `step-deg` (the angle between positions, degrees)".into(),
+            )
+        })?;
+        let positions = s.positions.filter(|&p| p > 0).ok_or_else(|| {
+            self.bad(
+                "positions",
+                "missing or zero `positions` (the number of table positions, 12 for a \
+                 full turn in 30-degree steps)"
+                    .into(),
+            )
+        })? as usize;
+        let start_deg = s.start_deg.unwrap_or(0.0);
+        let unit = Unit::new_normalize(axis);
+        for (p, window_s) in self.windows(positions)?.into_iter().enumerate() {
+            let angle_deg = start_deg + step_deg * p as f64;
+            // The unit turns by +angle about its own axis (as the simulator's index
+            // table does: enu_from_sensor = q0 * R(axis, angle)), so directions fixed in
+            // space turn by -angle in sensor axes.
+            let r = Rotation3::from_axis_angle(&unit, -angle_deg.to_radians());
+            let (up_p, north_p) = (r * up, north.map(|nv| r * nv));
+            entries.push(PlanEntry {
+                position: Some(p + 1),
+                of: positions,
+                description: format!(
+                    "{label}index-table, {angle_deg} deg about {}: {}",
+                    format_direction(&axis),
+                    frame_text(&up_p, &north_p)
+                ),
+                up_sensor: up_p.into(),
+                north_sensor: north_p.map(Into::into),
+                window_s,
+                ..base.clone()
+            });
+        }
+        Ok(())
+    }
+
+    /// Appends one entry per rate of a rate-steps step: a plateau about the table axis, or
+    /// a static entry with north unknown where the rate is 0.
+    fn push_rate_steps(
+        &self,
+        base: PlanEntry,
+        entries: &mut Vec<PlanEntry>,
+    ) -> Result<(), PlanError> {
+        let (label, up) = (&self.label, self.up);
+        let axis = self.axis("\"z\"")?;
+        let rates = self.s.rates_deg_s.clone().unwrap_or_default();
+        if rates.is_empty() || rates.iter().any(|r| !r.is_finite()) {
+            return Err(self.bad(
+                "rates-deg-s",
+                "missing or empty `rates-deg-s` (the plateau rates in order, deg/s; 0 for \
+                 a stop)"
+                    .into(),
+            ));
+        }
+        let vertical = axis.dot(&up).abs() > 1f64.to_radians().cos();
+        if !vertical && rates.contains(&0.0) {
+            return Err(self.bad(
+                "rates-deg-s",
+                format!(
+                    "the table axis {} is not vertical (up is {}), so where the table \
+                     stops (rate 0) gravity is at an unknown angle; plan the stops as \
+                     separate static steps",
+                    format_direction(&axis),
+                    format_direction(&up)
+                ),
+            ));
+        }
+        for (p, (r, window_s)) in rates.iter().zip(self.windows(rates.len())?).enumerate() {
+            let entry = PlanEntry {
+                position: Some(p + 1),
+                of: rates.len(),
+                window_s,
+                ..base.clone()
+            };
+            entries.push(if *r == 0.0 {
+                // The table stopped at an angle nobody logged: north is lost (the axis is
+                // vertical here, so north is never along it).
+                PlanEntry {
+                    description: format!(
+                        "{label}rate-steps stop (0 deg/s) about {}: up {}, north unknown",
                         format_direction(&axis),
                         format_direction(&up)
                     ),
-                ));
-            }
-            for (p, (r, window_s)) in rates.iter().zip(windows(rates.len())?).enumerate() {
-                let entry = PlanEntry {
-                    position: Some(p + 1),
-                    of: rates.len(),
-                    window_s,
-                    ..base.clone()
-                };
-                entries.push(if *r == 0.0 {
-                    // The table stopped at an angle nobody logged: north is lost (the axis is
-                    // vertical here, so north is never along it).
-                    PlanEntry {
-                        description: format!(
-                            "{label}rate-steps stop (0 deg/s) about {}: up {}, north unknown",
-                            format_direction(&axis),
-                            format_direction(&up)
-                        ),
-                        north_sensor: None,
-                        ..entry
-                    }
-                } else {
-                    PlanEntry {
-                        kind: SegmentKind::Plateau,
-                        description: format!(
-                            "{label}rate-steps, {r} deg/s about {}",
-                            format_direction(&axis)
-                        ),
-                        axis_sensor: Some(axis.into()),
-                        rate_rad_s: r.to_radians(),
-                        ..entry
-                    }
-                });
-            }
+                    north_sensor: None,
+                    ..entry
+                }
+            } else {
+                PlanEntry {
+                    kind: SegmentKind::Plateau,
+                    description: format!(
+                        "{label}rate-steps, {r} deg/s about {}",
+                        format_direction(&axis)
+                    ),
+                    axis_sensor: Some(axis.into()),
+                    rate_rad_s: r.to_radians(),
+                    ..entry
+                }
+            });
         }
+        Ok(())
     }
-    Ok(())
 }
