@@ -1,0 +1,46 @@
+//! The standard messages built from samples (`sensor_msgs/msg/Imu`, `MagneticField`) and their
+//! headers, shared by the writer and the readers' tests.
+
+use super::*;
+
+pub(super) fn header(t_ns: u64, frame_id: &str) -> Header {
+    Header {
+        stamp: Time::from_ns(t_ns),
+        frame_id: frame_id.to_string(),
+    }
+}
+
+/// The `/imu/data` message of a corrected sample: no orientation estimate (covariance element
+/// 0 = -1, identity quaternion), rates and accelerations with diagonal covariances from `noise`
+/// (all zeros, "unknown", without).
+pub fn imu_message(
+    sample: &CorrectedSample,
+    frame_id: &str,
+    noise: Option<&ImuNoiseVariances>,
+) -> Imu {
+    let diag = |v: Option<[f64; 3]>| v.map(ros2::diagonal_covariance).unwrap_or([0.0; 9]);
+    Imu {
+        header: header(sample.t_wall_ns, frame_id),
+        orientation: Quaternion::default(),
+        orientation_covariance: ros2::NOT_PROVIDED_COVARIANCE,
+        angular_velocity: sample.gyro_rad_s.into(),
+        angular_velocity_covariance: diag(noise.map(|n| n.gyro_var_rad2_s2)),
+        linear_acceleration: sample.accel_m_s2.into(),
+        linear_acceleration_covariance: diag(noise.map(|n| n.accel_var_m2_s4)),
+    }
+}
+
+/// The `/imu/mag` message of a corrected sample (gauss converted to tesla).
+pub fn magnetic_field_message(
+    sample: &CorrectedSample,
+    frame_id: &str,
+    noise: Option<&ImuNoiseVariances>,
+) -> MagneticField {
+    MagneticField {
+        header: header(sample.t_wall_ns, frame_id),
+        magnetic_field: sample.mag_gauss.map(|g| g * TESLA_PER_GAUSS).into(),
+        magnetic_field_covariance: noise
+            .map(|n| ros2::diagonal_covariance(n.mag_var_t2))
+            .unwrap_or([0.0; 9]),
+    }
+}
