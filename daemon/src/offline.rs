@@ -228,10 +228,6 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
     };
     let mut pipeline = Pipeline::new(gains, config.device.tick_period_s, None);
     pipeline.new_session(gains);
-    // The simulated device streams continuously: sample positions from the learned tick step
-    // (not whole ticks, which are coarser than the sample interval at 100 Hz), as in a live
-    // continuous session.
-    pipeline.set_continuous(true);
     if let Some(cal) = calibration {
         pipeline.set_calibration(Some(cal.clone()));
         sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));
