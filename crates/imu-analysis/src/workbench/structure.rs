@@ -98,7 +98,6 @@ pub(super) fn residual_structure(
 /// blocks of every static segment, each bin compared with the median of its neighbourhood; a
 /// bin standing out at a false-alarm probability of 1e-6 over all bins is a line.
 pub fn spectral_lines(series: &ImuSeries, obs: &Observations, triad: Triad) -> Vec<SpectralLine> {
-    let rate = series.sample_rate_hz();
     let data = if triad == Triad::Gyro {
         &series.gyro_rad_s
     } else {
@@ -107,6 +106,23 @@ pub fn spectral_lines(series: &ImuSeries, obs: &Observations, triad: Triad) -> V
     let statics: Vec<_> = obs.segmentation.of_kind(SegmentKind::Static).collect();
     let Some(shortest) = statics.iter().map(|s| s.n).min() else {
         return Vec::new();
+    };
+    // The data rate from the static segments' spans (intervals over time), not the median
+    // interval: stamps quantized to device ticks coarser than the sample interval (a 100 Hz
+    // stream on 6.5536 ms ticks) have a median interval of two ticks, which would put every
+    // line at 0.76 of its frequency.
+    let (intervals, span_s) = statics.iter().fold((0usize, 0.0), |(n, span), seg| {
+        let r = seg.range();
+        let t = &series.t_s[r];
+        match (t.first(), t.last()) {
+            (Some(a), Some(b)) if t.len() > 1 => (n + t.len() - 1, span + (b - a)),
+            _ => (n, span),
+        }
+    });
+    let rate = if span_s > 0.0 {
+        intervals as f64 / span_s
+    } else {
+        series.sample_rate_hz()
     };
     let mut len = 1usize;
     while len * 2 <= shortest.min(1024) {
