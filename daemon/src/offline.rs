@@ -19,7 +19,7 @@ use imu_proto::reply::Reply;
 use imu_sim::{DeviceCore, SimOptions};
 
 use crate::config::Config;
-use crate::pipeline::{ActiveCalibration, GainFallback, Gains, Pipeline, Sinks};
+use crate::pipeline::{ActiveCalibration, GainFallback, Gains, Pipeline, SampleClock, Sinks};
 
 /// What an offline run produced.
 #[derive(Debug, Clone)]
@@ -228,6 +228,9 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
     };
     let mut pipeline = Pipeline::new(gains, config.device.tick_period_s, None);
     pipeline.new_session(gains);
+    // The synthetic host time is the scenario's exact sample time: stamp with it (the clock fit
+    // would place samples on whole 6.5536 ms ticks, coarser than a 100 Hz sample interval).
+    pipeline.set_sample_clock(SampleClock::Host);
     if let Some(cal) = calibration {
         pipeline.set_calibration(Some(cal.clone()));
         sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));

@@ -328,8 +328,20 @@ impl GapAccounting {
     }
 }
 
+/// Where a sample's time stamp comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SampleClock {
+    /// The device's ticks mapped onto the host clock by the clock fit (a real link).
+    #[default]
+    DeviceFit,
+    /// The host time the frame is handed over with, as is: the offline path, whose "host" time
+    /// is the simulated device's exact sample time.
+    Host,
+}
+
 /// The per-frame state machine.
 pub struct Pipeline {
+    sample_clock: SampleClock,
     gains: Gains,
     tick_period_s: f64,
     unwrapper: TickUnwrapper,
@@ -354,6 +366,7 @@ impl Pipeline {
         calibration: Option<Arc<ActiveCalibration>>,
     ) -> Self {
         Self {
+            sample_clock: SampleClock::default(),
             gains,
             tick_period_s,
             unwrapper: TickUnwrapper::new(),
@@ -368,6 +381,11 @@ impl Pipeline {
             seq: 0,
             counters: PipelineCounters::default(),
         }
+    }
+
+    /// Chooses where sample stamps come from (default: the device clock fit).
+    pub fn set_sample_clock(&mut self, clock: SampleClock) {
+        self.sample_clock = clock;
     }
 
     /// Starts a new device session (after a reconnect): keeps the sequence numbering and the
@@ -502,9 +520,13 @@ impl Pipeline {
             // half a tick, so the fit starts again from exact positions.
             self.clock.restart_fit();
         }
-        let t_sample_ns = self
+        let fitted_ns = self
             .clock
             .update(step.position_ticks, step.spacing_ticks, t_mono_ns);
+        let t_sample_ns = match self.sample_clock {
+            SampleClock::DeviceFit => fitted_ns,
+            SampleClock::Host => t_mono_ns,
+        };
         let t_device_ns = (ticks_unwrapped as f64 * self.tick_period_s * 1e9) as u64;
         let mut flags = if counts.scaled {
             raw_flags::SCALED_COUNTS
