@@ -520,11 +520,12 @@ impl Pipeline {
             // half a tick, so the fit starts again from exact positions.
             self.clock.restart_fit();
         }
-        let fitted_ns = self
-            .clock
-            .update(step.position_ticks, step.spacing_ticks, t_mono_ns);
         let t_sample_ns = match self.sample_clock {
-            SampleClock::DeviceFit => fitted_ns,
+            SampleClock::DeviceFit => {
+                self.clock
+                    .update(step.position_ticks, step.spacing_ticks, t_mono_ns)
+            }
+            // Exact already: no fit to run (and none to report).
             SampleClock::Host => t_mono_ns,
         };
         let t_device_ns = (ticks_unwrapped as f64 * self.tick_period_s * 1e9) as u64;
