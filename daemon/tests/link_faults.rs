@@ -219,14 +219,16 @@ fn dropped_frames_are_counted_and_stamps_survive_a_one_second_stall() {
         "{burst_lines} loss lines: {log}"
     );
     // The clock fit through the stall: the test device's clock is the host's, so no drift. A
-    // few seconds of a Python device's millisecond wake-ups give a coarser rate than minutes
-    // would (+-100 ppm through stalls is checked over minutes in loss_accounting.rs); a fit
-    // bent by the stall or by host arrival times would be off by thousands of ppm.
+    // few seconds of a Python device's millisecond wake-ups give a coarse rate: five per-second
+    // minima, each late by up to a couple of ms on a loaded 2-core CI machine, bound the slope
+    // only to ~1000 ppm (CI saw -444 ppm). +-100 ppm through stalls is checked over minutes in
+    // loss_accounting.rs. A fit bent by the stall (arrivals up to 1 s late) or following host
+    // arrival times would be off by tens of thousands of ppm.
     eprintln!(
         "clock fit: drift {} ppm, residual {} s",
         status.clock_drift_ppm, status.clock_residual_s
     );
-    assert!(status.clock_drift_ppm.abs() < 300.0, "{status:?}");
+    assert!(status.clock_drift_ppm.abs() < 1000.0, "{status:?}");
     assert!(status.clock_residual_s < 2e-3, "{status:?}");
     assert!(status.clock_offset_s.is_finite(), "{status:?}");
 }
