@@ -7,8 +7,12 @@
 //! still shows up as motion). Quiet samples are those whose window std lies below a threshold
 //! chosen from the data: a multiple of a low quantile of the window std over the whole
 //! recording (the noise floor of the quietest stretches). Runs of quiet samples are trimmed at
-//! both ends, kept when long enough, and classified as static (small mean rate) or as a rate
-//! plateau (large, steady rate).
+//! both ends (less for a short run, down to the window's own margin), kept when long enough,
+//! and classified as static or as a rate plateau relative to the gyro's reading at rest: raw
+//! MEMS gyros read several deg/s when still, so a fixed threshold on |mean rate| would call
+//! every still pose a plateau. The reading at rest is estimated from the quiet runs themselves
+//! (the largest group whose mean rates agree, among those slow enough to be an offset), and
+//! reported with the segments.
 
 use imu_model::Vec3;
 
@@ -26,10 +30,39 @@ pub struct SegmentOptions {
     pub threshold_factor: f64,
     /// Time cut from each end of a quiet run (which already stops half a window short of the motion), s.
     pub trim_s: f64,
-    /// Shortest segment kept (after trimming), s.
+    /// Shortest segment kept (after trimming), s. A quiet run shorter than this plus both
+    /// trims is trimmed less (never below the half window the detector already keeps away
+    /// from motion), so still poses down to `min_duration_s + window_s` are used.
     pub min_duration_s: f64,
-    /// |mean gyro| above which a quiet run is a rate plateau instead of static, rad/s.
+    /// |mean gyro - reading at rest| above which a quiet run is a rate plateau instead of
+    /// static, rad/s.
     pub plateau_min_rate_rad_s: f64,
+    /// Largest |mean gyro| of a still run that can be a gyro offset (raw MEMS gyros: up to
+    /// ~10 deg/s), rad/s: the reading at rest is looked for among the quiet runs below it.
+    #[serde(default = "default_max_rest_rate_rad_s")]
+    pub max_rest_rate_rad_s: f64,
+    /// Shortest rate plateau kept (after the full trim), s: a table holds its rate for many
+    /// seconds, so a brief steady rotation is a move, not a plateau.
+    #[serde(default = "default_min_plateau_s")]
+    pub min_plateau_s: f64,
+}
+
+fn default_min_plateau_s() -> f64 {
+    3.0
+}
+
+/// 20 deg/s: twice the largest offset of an uncompensated MEMS gyro, below the slowest plateaus
+/// of the paper's rate-table test.
+fn default_max_rest_rate_rad_s() -> f64 {
+    20f64.to_radians()
+}
+
+impl SegmentOptions {
+    /// The shortest still pose that yields a segment, s (the minimum duration plus the window
+    /// the detector loses at the two motions around it).
+    pub fn shortest_still_s(&self) -> f64 {
+        self.min_duration_s + self.window_s
+    }
 }
 
 impl Default for SegmentOptions {
@@ -39,9 +72,11 @@ impl Default for SegmentOptions {
             floor_quantile: 0.1,
             threshold_factor: 2.0,
             trim_s: 0.5,
-            min_duration_s: 3.0,
-            // 3 deg/s: far above MEMS gyro biases (< 1 deg/s) and Earth rate.
+            min_duration_s: 1.0,
+            // 3 deg/s from the reading at rest: far above the noise of a 1 s mean and Earth rate.
             plateau_min_rate_rad_s: 0.05,
+            max_rest_rate_rad_s: default_max_rest_rate_rad_s(),
+            min_plateau_s: default_min_plateau_s(),
         }
     }
 }
@@ -134,6 +169,56 @@ pub struct Segmentation {
     /// Detected segments left out of the fit (by a plan's skip step), in time order.
     #[serde(default)]
     pub skipped: Vec<SkippedSegment>,
+    /// The gyro's reading at rest estimated from the quiet runs (the offset plateaus are
+    /// measured from), rad/s; None when no quiet run was slow enough to be one (then 0 is used).
+    #[serde(default)]
+    pub rest_rate_rad_s: Option<[f64; 3]>,
+    /// Quiet runs too short to use, in time order.
+    #[serde(default)]
+    pub dropped: Vec<DroppedRun>,
+}
+
+/// A quiet run that did not become a segment.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DroppedRun {
+    /// Time of its first quiet sample, s.
+    pub start_s: f64,
+    /// Time of its last quiet sample, s.
+    pub end_s: f64,
+    /// Why it was dropped.
+    pub reason: DropReason,
+}
+
+/// Why a quiet run was not used.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DropReason {
+    /// Shorter than the minimum duration even untrimmed.
+    TooShort,
+    /// A steady rotation shorter than a rate plateau.
+    ShortPlateau,
+}
+
+impl DroppedRun {
+    /// `0.8 s at 12.0 s (shorter than 1 s)`, for notes.
+    pub fn describe(&self, opts: &SegmentOptions) -> String {
+        let what = match self.reason {
+            DropReason::TooShort => format!(
+                "shorter than {} s (a still pose needs {} s)",
+                opts.min_duration_s,
+                opts.shortest_still_s()
+            ),
+            DropReason::ShortPlateau => format!(
+                "a steady rotation shorter than a {} s rate plateau",
+                opts.min_plateau_s
+            ),
+        };
+        format!(
+            "{:.1} s at {:.1} s ({what})",
+            self.end_s - self.start_s,
+            self.start_s
+        )
+    }
 }
 
 /// A detected segment that is not fitted.
@@ -173,6 +258,36 @@ impl Segmentation {
     /// Number of segments of one kind.
     pub fn count(&self, kind: SegmentKind) -> usize {
         self.of_kind(kind).count()
+    }
+
+    /// What detection saw and estimated, for a fit's notes: the gyro's reading at rest when it
+    /// is not negligible (plateaus are measured from it), and each quiet run dropped and why.
+    pub fn notes(&self) -> Vec<String> {
+        let mut notes = Vec::new();
+        if let Some(rest) = self.rest_rate_rad_s.map(Vec3::from)
+            && rest.norm().to_degrees() >= 0.5
+        {
+            let deg = rest.map(f64::to_degrees);
+            notes.push(format!(
+                "the gyro reads [{:.2}, {:.2}, {:.2}] deg/s at rest (estimated from the still \
+                 segments): static and plateau segments are told apart relative to it",
+                deg[0], deg[1], deg[2]
+            ));
+        }
+        if !self.dropped.is_empty() {
+            let seen = self.segments.len() + self.skipped.len() + self.dropped.len();
+            notes.push(format!(
+                "{seen} quiet interval(s) seen, {} used, {} dropped: {}",
+                self.segments.len(),
+                self.dropped.len(),
+                self.dropped
+                    .iter()
+                    .map(|d| d.describe(&self.options))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ));
+        }
+        notes
     }
 }
 
@@ -355,48 +470,38 @@ pub fn detect(series: &ImuSeries, opts: &SegmentOptions) -> Result<Segmentation,
     let sg = window_std(&series.gyro_rad_s, w);
     let thr_a = opts.threshold_factor * quantile(&sa, opts.floor_quantile);
     let thr_g = opts.threshold_factor * quantile(&sg, opts.floor_quantile);
-    // A quiet run already ends half a window before the motion; trim a little more.
-    let trim = (opts.trim_s * rate_hz).round() as usize;
-    let min_n = ((opts.min_duration_s * rate_hz).round() as usize).max(2);
-
-    let mut segments = Vec::new();
-    let n = series.len();
-    let mut i = 0;
-    while i < n {
-        if !(sa[i] <= thr_a && sg[i] <= thr_g) {
-            i += 1;
-            continue;
+    let quiet: Vec<bool> = sa
+        .iter()
+        .zip(&sg)
+        .map(|(a, g)| *a <= thr_a && *g <= thr_g)
+        .collect();
+    let (runs, mut dropped) = kept_runs(series, &quiet, opts, rate_hz);
+    let candidates: Vec<Segment> = runs
+        .iter()
+        .map(|r| Segment::from_samples(series, r.used.clone(), SegmentKind::Static))
+        .collect();
+    let rest = rest_reading(&candidates, opts);
+    let rest_v = rest.map_or(Vec3::zeros(), Vec3::from);
+    let min_plateau_n = ((opts.min_plateau_s * rate_hz).round() as usize).max(2);
+    let mut segments = Vec::with_capacity(candidates.len());
+    for (s, run) in candidates.into_iter().zip(runs) {
+        if (s.mean_gyro() - rest_v).norm() <= opts.plateau_min_rate_rad_s {
+            segments.push(s);
+        } else if run.fully_trimmed.len() >= min_plateau_n {
+            segments.push(Segment::from_samples(
+                series,
+                run.fully_trimmed,
+                SegmentKind::Plateau,
+            ));
+        } else {
+            dropped.push(DroppedRun {
+                start_s: series.t_s[run.quiet.start],
+                end_s: series.t_s[run.quiet.end - 1],
+                reason: DropReason::ShortPlateau,
+            });
         }
-        let start = i;
-        while i < n && sa[i] <= thr_a && sg[i] <= thr_g {
-            i += 1;
-        }
-        // The run is [start, i). Its ends (within half a window of motion) are trimmed, except
-        // at the ends of the recording, where there is no motion to keep away from.
-        let lo = if start == 0 { 0 } else { start + trim };
-        let hi = if i == n { n } else { i.saturating_sub(trim) };
-        if hi <= lo || hi - lo < min_n {
-            continue;
-        }
-        let (mean_a, std_a) = stats(&series.accel_m_s2[lo..hi]);
-        let (mean_g, std_g) = stats(&series.gyro_rad_s[lo..hi]);
-        let rate = Vec3::from(mean_g).norm();
-        segments.push(Segment {
-            kind: if rate > opts.plateau_min_rate_rad_s {
-                SegmentKind::Plateau
-            } else {
-                SegmentKind::Static
-            },
-            start_s: series.t_s[lo],
-            end_s: series.t_s[hi - 1],
-            first_sample: lo,
-            n: hi - lo,
-            mean_accel_m_s2: mean_a,
-            mean_gyro_rad_s: mean_g,
-            std_accel_m_s2: std_a,
-            std_gyro_rad_s: std_g,
-        });
     }
+    dropped.sort_by(|a, b| a.start_s.total_cmp(&b.start_s));
     Ok(Segmentation {
         segments,
         accel_std_threshold_m_s2: thr_a,
@@ -404,7 +509,113 @@ pub fn detect(series: &ImuSeries, opts: &SegmentOptions) -> Result<Segmentation,
         window_samples: w,
         options: opts.clone(),
         skipped: Vec::new(),
+        rest_rate_rad_s: rest,
+        dropped,
     })
+}
+
+/// One quiet run long enough to use.
+struct QuietRun {
+    /// The whole quiet run.
+    quiet: std::ops::Range<usize>,
+    /// Trimmed by `trim_s` at each end that borders motion (empty if too short for that).
+    fully_trimmed: std::ops::Range<usize>,
+    /// Trimmed as far as the minimum duration allows: the samples a still segment uses.
+    used: std::ops::Range<usize>,
+}
+
+/// The quiet runs long enough to use, and the runs dropped.
+/// A run's ends (within half a window of motion) are trimmed by `trim_s`, or by less when the
+/// run is short, so that it keeps `min_duration_s`; the ends of the recording are not trimmed
+/// (there is no motion to keep away from).
+fn kept_runs(
+    series: &ImuSeries,
+    quiet: &[bool],
+    opts: &SegmentOptions,
+    rate_hz: f64,
+) -> (Vec<QuietRun>, Vec<DroppedRun>) {
+    let trim = (opts.trim_s * rate_hz).round() as usize;
+    let min_n = ((opts.min_duration_s * rate_hz).round() as usize).max(2);
+    let n = quiet.len();
+    let (mut kept, mut dropped) = (Vec::new(), Vec::new());
+    let mut i = 0;
+    while i < n {
+        if !quiet[i] {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < n && quiet[i] {
+            i += 1;
+        }
+        // The run is [start, i).
+        let cut_lo = if start == 0 { 0 } else { trim };
+        let cut_hi = if i == n { 0 } else { trim };
+        let len = i - start;
+        if len < min_n {
+            // A lone quiet sample or two is noise crossing the threshold, not a pose.
+            if len >= 2 {
+                dropped.push(DroppedRun {
+                    start_s: series.t_s[start],
+                    end_s: series.t_s[i - 1],
+                    reason: DropReason::TooShort,
+                });
+            }
+            continue;
+        }
+        // Trim in proportion when both full trims would leave less than the minimum.
+        let spare = len - min_n;
+        let used = if cut_lo + cut_hi <= spare {
+            start + cut_lo..i - cut_hi
+        } else {
+            let lo_share = spare * cut_lo / (cut_lo + cut_hi);
+            start + lo_share..i - (spare - lo_share)
+        };
+        let full_lo = start + cut_lo;
+        let fully_trimmed = full_lo..i.saturating_sub(cut_hi).max(full_lo);
+        kept.push(QuietRun {
+            quiet: start..i,
+            fully_trimmed,
+            used,
+        });
+    }
+    (kept, dropped)
+}
+
+/// The gyro's reading at rest: among the runs whose mean rate is slow enough to be an offset,
+/// the one with the most samples within half the plateau threshold of it; the sample-weighted
+/// mean rate of that group. None when no run qualifies.
+fn rest_reading(segments: &[Segment], opts: &SegmentOptions) -> Option<[f64; 3]> {
+    let radius = 0.5 * opts.plateau_min_rate_rad_s;
+    let group = |centre: Vec3| {
+        segments
+            .iter()
+            .filter(move |s| (s.mean_gyro() - centre).norm() <= radius)
+    };
+    let best = segments
+        .iter()
+        .filter(|s| s.mean_gyro().norm() <= opts.max_rest_rate_rad_s)
+        .map(|s| {
+            let weight: usize = group(s.mean_gyro()).map(|g| g.n).sum();
+            (weight, s.mean_gyro())
+        })
+        // Most samples; among equals, the slowest.
+        .max_by(|a, b| a.0.cmp(&b.0).then(b.1.norm().total_cmp(&a.1.norm())))?;
+    Some(weighted_mean_rate(group(best.1)).into())
+}
+
+/// The sample-weighted mean rate of `segments`, rad/s.
+fn weighted_mean_rate<'a>(segments: impl Iterator<Item = &'a Segment>) -> Vec3 {
+    let (sum, n) = segments.fold((Vec3::zeros(), 0usize), |(sum, n), s| {
+        (sum + s.mean_gyro() * s.n as f64, n + s.n)
+    });
+    sum / n.max(1) as f64
+}
+
+/// The gyro's reading at rest from already classified segments (the sample-weighted mean rate
+/// of the static ones; zero when there are none), rad/s: what a plateau's rate is measured from.
+pub fn rest_rate(segments: &[Segment]) -> Vec3 {
+    weighted_mean_rate(segments.iter().filter(|s| s.kind == SegmentKind::Static))
 }
 
 #[cfg(test)]
@@ -475,5 +686,97 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("rate table"), "{e}");
+    }
+
+    #[test]
+    fn a_raw_gyro_offset_does_not_turn_still_poses_into_plateaus() {
+        // An uncompensated gyro reading [4, -6, 7] deg/s at rest (|w| 10 deg/s, over three
+        // times the fixed 3 deg/s threshold), and a 30 deg/s table plateau about z.
+        let rest = [4f64.to_radians(), -6f64.to_radians(), 7f64.to_radians()];
+        let spin = [rest[0], rest[1], rest[2] + 30f64.to_radians()];
+        let move_rate = [1.0, 0.5, 0.0];
+        let s = series(
+            &[
+                (10.0, [0.0, 0.0, 9.8], rest),
+                (2.0, [5.0, 3.0, 7.0], move_rate),
+                (10.0, [9.8, 0.0, 0.0], rest),
+                (1.0, [9.8, 0.0, 0.0], [0.0, 0.0, 0.5]),
+                (8.0, [9.8, 0.0, 0.0], spin),
+                (1.0, [9.8, 0.0, 0.0], [0.0, 0.0, 0.5]),
+                (10.0, [0.0, -9.8, 0.0], rest),
+            ],
+            100.0,
+        );
+        let seg = detect(&s, &SegmentOptions::default()).unwrap();
+        let kinds: Vec<_> = seg.segments.iter().map(|s| s.kind).collect();
+        use SegmentKind::*;
+        assert_eq!(kinds, [Static, Static, Plateau, Static], "{seg:#?}");
+        let est = Vec3::from(seg.rest_rate_rad_s.unwrap());
+        assert!((est - Vec3::from(rest)).norm() < 1e-3, "{est:?}");
+        let notes = seg.notes().join("\n");
+        assert!(notes.contains("reads [4.00, -6.00, "), "{notes}");
+        // The 2 s steady move is reported as dropped, not silently lost.
+        assert_eq!(seg.dropped.len(), 1, "{:?}", seg.dropped);
+        assert_eq!(seg.dropped[0].reason, DropReason::ShortPlateau);
+        assert!(
+            notes.contains("5 quiet interval(s) seen, 4 used, 1 dropped"),
+            "{notes}"
+        );
+        // Without the rest reading, all three still poses would read as plateaus.
+        let fixed = SegmentOptions {
+            max_rest_rate_rad_s: 0.0,
+            ..SegmentOptions::default()
+        };
+        let seg = detect(&s, &fixed).unwrap();
+        assert_eq!(seg.count(Static), 0, "{:?}", seg.segments);
+    }
+
+    #[test]
+    fn still_poses_down_to_two_seconds_are_used_and_shorter_ones_reported() {
+        let z = [0.0; 3];
+        let mv = [5.0, 3.0, 7.0];
+        let turn = [0.7, -0.4, 0.3];
+        let s = series(
+            &[
+                (6.0, [0.0, 0.0, 9.8], z),
+                (1.0, mv, turn),
+                (2.0, [9.8, 0.0, 0.0], z),
+                (1.0, mv, turn),
+                (3.0, [0.0, 9.8, 0.0], z),
+                (1.0, mv, turn),
+                (1.5, [0.0, 0.0, -9.8], z),
+                (1.0, mv, turn),
+                (6.0, [-9.8, 0.0, 0.0], z),
+            ],
+            100.0,
+        );
+        let seg = detect(&s, &SegmentOptions::default()).unwrap();
+        let ups: Vec<[i32; 3]> = seg
+            .segments
+            .iter()
+            .map(|s| s.mean_accel_m_s2.map(|a| (a / 9.8).round() as i32))
+            .collect();
+        assert_eq!(
+            ups,
+            [[0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0]],
+            "{seg:#?}"
+        );
+        assert!(seg.segments.iter().all(|s| s.kind == SegmentKind::Static));
+        // The 2 s pose keeps at least the minimum duration; the 3 s pose its full trim.
+        let two = &seg.segments[1];
+        assert!(two.end_s - two.start_s >= 0.98, "{two:?}");
+        let three = &seg.segments[2];
+        assert!(
+            (three.end_s - three.start_s - 1.0).abs() < 0.05,
+            "{three:?}"
+        );
+        // The 1.5 s pose is dropped, and the notes say so and why.
+        assert_eq!(seg.dropped.len(), 1, "{:?}", seg.dropped);
+        let notes = seg.notes().join("\n");
+        assert!(
+            notes.contains("5 quiet interval(s) seen, 4 used, 1 dropped"),
+            "{notes}"
+        );
+        assert!(notes.contains("a still pose needs 2 s"), "{notes}");
     }
 }

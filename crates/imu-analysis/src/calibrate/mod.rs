@@ -216,6 +216,8 @@ pub fn calibrate_recordings(
             String::new()
         };
         notes.extend(caveats.notes.iter().map(|n| format!("{prefix}{n}")));
+        let detected = o.segmentation.notes();
+        notes.extend(detected.iter().map(|n| format!("{prefix}{n}")));
         notes.extend(
             o.segmentation
                 .skipped

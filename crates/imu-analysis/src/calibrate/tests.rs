@@ -284,3 +284,60 @@ fn recovers_exact_parameters_and_flags_unobservable_g_sensitivity() {
         r.params[0]
     );
 }
+
+#[test]
+fn raw_offsets_and_percent_scales_converge_from_a_neutral_start() {
+    // Raw data as an uncompensated sensor gives it: a 1 g accel offset, 5 % scale errors,
+    // percent-level misalignment; the fit starts from the neutral model.
+    use EffectKind::*;
+    let mut truth = model(&[Bias, Scale, Misalignment]);
+    let names = truth.param_names(Triad::Accel);
+    let tp: Vec<f64> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| match n.split('.').next() {
+            Some("bias") => [9.5, -6.2, 3.9][i % 3],
+            Some("scale") => [0.048, -0.035, 0.021][i % 3],
+            _ => 0.01 * (i as f64 - 7.0),
+        })
+        .collect();
+    truth.set_params(&tp);
+    let g = 9.8;
+    let s = g / 2f64.sqrt();
+    let dirs = [
+        [g, 0.0, 0.0],
+        [-g, 0.0, 0.0],
+        [0.0, g, 0.0],
+        [0.0, -g, 0.0],
+        [0.0, 0.0, g],
+        [0.0, 0.0, -g],
+        [s, s, 0.0],
+        [0.0, s, -s],
+        [-s, 0.0, s],
+    ];
+    let points: Vec<FitPoint> = dirs
+        .iter()
+        .map(|d| {
+            let x = Vec3::from(*d);
+            FitPoint {
+                true_input: x,
+                measured: truth.forward(x, &Conditions::default()),
+                std_error: Vec3::repeat(1e-3),
+                conditions: Conditions::default(),
+                t_s: 0.0,
+                duration_s: 0.0,
+            }
+        })
+        .collect();
+    let r = fit_triad(
+        &model(&[Bias, Scale, Misalignment]),
+        Triad::Accel,
+        &points,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    assert!(r.converged);
+    for ((f, t), n) in r.params.iter().zip(&tp).zip(&names) {
+        assert!((f - t).abs() < 1e-9, "{n}: {f} vs {t}");
+    }
+}

@@ -7,6 +7,46 @@ pub(super) struct AccelOutcome {
     pub(super) fit: TriadFit,
     pub(super) up: Vec<Vec3>,
     pub(super) magnitude_error_m_s2: Vec<f64>,
+    /// Where the fit started, when not from the model as given.
+    pub(super) start_note: Option<String>,
+}
+
+/// Moves the free bias and scale parameters of `p0` to the closed-form ellipsoid through the
+/// poses when that fits the magnitudes better than `p0` does (raw data: offsets of a g, scale
+/// errors of percent, where a start at zero can diverge), and says so.
+fn start_from_ellipsoid(
+    model: &TriadModel,
+    fixed: &[bool],
+    measured: &[Vec3],
+    g_m_s2: f64,
+    p0: &mut [f64],
+    residual: &mut impl FnMut(&[f64]) -> DVector<f64>,
+) -> Option<String> {
+    use imu_model::ParamRole;
+    let start = ellipsoid::ellipsoid_start(measured, g_m_s2)?;
+    let mut candidate = p0.to_vec();
+    for (i, id) in model.param_ids().iter().enumerate() {
+        match (id.effect, id.role) {
+            (EffectKind::Bias, ParamRole::Axis(a)) if !fixed[i] => {
+                candidate[i] = start.bias_m_s2[a]
+            }
+            (EffectKind::Scale, ParamRole::Axis(a)) if !fixed[i] => candidate[i] = start.scale[a],
+            _ => {}
+        }
+    }
+    let cost = |r: DVector<f64>| r.norm_squared();
+    let (new_cost, old_cost) = (cost(residual(&candidate)), cost(residual(p0)));
+    // A NaN cost (a start the model cannot invert) never wins, and always loses.
+    if !(new_cost.is_finite() && new_cost.total_cmp(&old_cost).is_lt()) {
+        return None;
+    }
+    p0.copy_from_slice(&candidate);
+    let (b, s) = (start.bias_m_s2, start.scale);
+    Some(format!(
+        "accel fit started from the ellipsoid through the poses: offset [{:.4}, {:.4}, {:.4}] \
+         m/s^2, scale error [{:.4}, {:.4}, {:.4}]",
+        b.x, b.y, b.z, s.x, s.y, s.z
+    ))
 }
 
 /// Fits the accel model of `opts` to the gravity magnitude `g_m_s2` at the still `poses`,
@@ -37,8 +77,10 @@ pub(super) fn fit_accel(
     let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
     let sigma_m_s2 = magnitude_sigma_m_s2(poses, &measured);
     let mut work = model.clone();
-    let residual =
+    let mut residual =
         |p: &[f64]| magnitude_residuals(&mut work, p, &measured, &conditions, &sigma_m_s2, g_m_s2);
+    let start_note =
+        start_from_ellipsoid(&model, &fixed, &measured, g_m_s2, &mut p0, &mut residual);
     let sol =
         least_squares(residual, &p0, &fixed, &names, &opts.lsq).map_err(|source| match source {
             LsqError::TooFewResiduals { n_free, .. } => ReferenceFreeError::TooFewPoses {
@@ -96,6 +138,7 @@ pub(super) fn fit_accel(
         },
         up,
         magnitude_error_m_s2,
+        start_note,
     })
 }
 

@@ -41,6 +41,7 @@ use crate::segment::{Segment, SegmentError, SegmentKind, SegmentOptions, Segment
 use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution, least_squares, refit_holding};
 
 mod accel;
+mod ellipsoid;
 mod gyro;
 mod moves;
 mod poses;
@@ -413,11 +414,11 @@ fn calibrate_reference_free_once(
 ) -> Result<ReferenceFreeFit, ReferenceFreeError> {
     check_holds(opts)?;
     let segmentation = crate::segment::detect(series, &opts.segment)?;
-    let mut notes = Vec::new();
+    let mut notes = segmentation.notes();
     let (g_m_s2, gravity_note) = local_gravity(opts.gravity_m_s2, opts.latitude_deg);
     notes.push(gravity_note);
     let seg_opts = &segmentation.options;
-    let still_s = seg_opts.min_duration_s + seg_opts.window_s + 2.0 * seg_opts.trim_s;
+    let still_s = seg_opts.shortest_still_s();
     let pose_index: Vec<usize> = (0..segmentation.segments.len())
         .filter(|&i| segmentation.segments[i].kind == SegmentKind::Static)
         .collect();
@@ -434,6 +435,7 @@ fn calibrate_reference_free_once(
     }
 
     let accel = fit_accel(series, &poses, opts, g_m_s2, still_s)?;
+    notes.extend(accel.start_note.clone());
     if accel.fit.model.has(EffectKind::Misalignment) {
         notes.push(GAUGE_NOTE.into());
     }

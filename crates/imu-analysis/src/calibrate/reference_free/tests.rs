@@ -90,7 +90,17 @@ fn truth_in_the_accel_frame_is_the_same_sensor() {
 /// profile, tick-quantised timestamps, and a little deterministic noise so that
 /// segmentation finds its floor.
 fn synthetic(n_poses: usize, max_tilt_rad: Option<f64>, seed: u64) -> (ImuSeries, Calibration) {
-    let t = truth();
+    synthetic_sensor(truth(), 12.0, n_poses, max_tilt_rad, seed)
+}
+
+/// [`synthetic`] for the sensor `t`, still for `pose_s` at each pose.
+fn synthetic_sensor(
+    t: Calibration,
+    pose_s: f64,
+    n_poses: usize,
+    max_tilt_rad: Option<f64>,
+    seed: u64,
+) -> (ImuSeries, Calibration) {
     let mut rng = Lcg(seed);
     let rate_hz = 100.0;
     let dt = 1.0 / rate_hz;
@@ -118,7 +128,7 @@ fn synthetic(n_poses: usize, max_tilt_rad: Option<f64>, seed: u64) -> (ImuSeries
         series.gyro_rad_s.push(g.into());
     };
     for p in 0..n_poses {
-        for _ in 0..1200 {
+        for _ in 0..(pose_s * rate_hz).round() as usize {
             push(&mut series, &q, Vec3::zeros(), &mut rng);
         }
         if p + 1 == n_poses {
@@ -228,4 +238,67 @@ fn too_few_or_clustered_poses_say_what_to_record() {
         w.contains("accel z: the axis never pointed within 45 degrees of down"),
         "{w}"
     );
+}
+
+/// An uncompensated sensor as raw data shows it: accel offsets up to 1 g, scale errors up to
+/// 5 %, gyro offsets of 4-9 deg/s.
+fn raw_truth() -> Calibration {
+    Calibration::from_toml_str(
+        r#"
+format = "imud-calibration/1"
+[accel.misalignment]
+xy = 4.0e-3
+xz = -2.5e-3
+yx = 1.5e-3
+yz = 3.5e-3
+zx = -3.1e-3
+zy = 2.7e-3
+[accel.scale]
+value = [0.048, -0.035, 0.021]
+[accel.bias]
+value = [9.5, -6.2, 3.9]
+[gyro.misalignment]
+xy = -0.9e-3
+xz = 1.3e-3
+yx = 0.6e-3
+yz = -1.0e-3
+zx = 0.4e-3
+zy = 1.1e-3
+[gyro.scale]
+value = [0.045, -0.03, 0.012]
+[gyro.bias]
+value = [0.087, -0.157, 0.07]
+"#,
+        "raw-truth.toml",
+    )
+    .unwrap()
+}
+
+#[test]
+fn raw_offsets_and_short_poses_need_no_preprocessing() {
+    // 24 poses of 3 s (2 s of them usable) from a sensor with a 1 g accel offset and a
+    // 9 deg/s gyro offset: the fit starts from the closed-form ellipsoid and recovers the truth.
+    let (series, t) = synthetic_sensor(raw_truth(), 3.0, 24, None, 11);
+    let fit = calibrate_reference_free(&series, &ReferenceFreeOptions::default()).unwrap();
+    assert_eq!(fit.poses.len(), 24, "{:#?}", fit.segmentation.segments);
+    let want = in_accel_frame(&t);
+    for (fitted, truth) in [(&fit.accel, &want.accel), (&fit.gyro, &want.gyro)] {
+        let tv = truth.params();
+        let tn = truth.param_names(fitted.triad);
+        for (i, n) in fitted.names.iter().enumerate() {
+            let v = tn.iter().position(|x| x == n).map_or(0.0, |k| tv[k]);
+            // Held parameters (the gauge) have no standard error.
+            let Some(se) = fitted.std_errors[i] else {
+                continue;
+            };
+            assert!(
+                (fitted.params[i] - v).abs() < 4.0 * se + 1e-9,
+                "{} {n}: fit {:e} truth {v:e} se {se:e}",
+                fitted.triad,
+                fitted.params[i],
+            );
+        }
+    }
+    let notes = fit.notes.join("\n");
+    assert!(notes.contains("deg/s at rest"), "{notes}");
 }

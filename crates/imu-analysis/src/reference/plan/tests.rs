@@ -269,3 +269,39 @@ fn alignment_names_the_missing_and_the_wrong() {
         "{e}"
     );
 }
+
+#[test]
+fn plateau_rates_are_checked_after_removing_the_rest_reading() {
+    // A raw gyro reading -2.3 deg/s about z at rest: the +20 deg/s step reads 17.7 deg/s
+    // (11.5 % low, outside the 10 % tolerance unless the offset is removed first) and the
+    // -20 deg/s step -22.3 deg/s.
+    let p = Plan::from_toml_str(PLAN, "p.toml").unwrap();
+    let g = 9.8;
+    let w = 20f64.to_radians();
+    let rest = [
+        0.4f64.to_radians(),
+        -0.7f64.to_radians(),
+        -2.3f64.to_radians(),
+    ];
+    let plus = |v: [f64; 3], r: [f64; 3]| [v[0] + r[0], v[1] + r[1], v[2] + r[2]];
+    use SegmentKind::*;
+    let segs = vec![
+        segment(Static, 0.0, [0.0, 0.0, g], rest),
+        segment(Static, 20.0, [0.0, g, 0.0], rest),
+        segment(Static, 40.0, [0.0, 0.0, -g], rest),
+        segment(Static, 60.0, [0.0, -g, 0.0], rest),
+        segment(Static, 80.0, [0.0, 0.0, g], rest),
+        segment(Plateau, 100.0, [0.0, 0.0, g], plus([0.0, 0.0, w], rest)),
+        segment(Static, 120.0, [0.0, 0.0, g], rest),
+        segment(Plateau, 140.0, [0.0, 0.0, g], plus([0.0, 0.0, -w], rest)),
+    ];
+    assert_eq!(p.check(&segs, true).unwrap().len(), 8);
+    // A plateau truly 15 % fast is still refused, and the message says what was removed.
+    let mut fast = segs.clone();
+    fast[5].mean_gyro_rad_s = plus([0.0, 0.0, 1.15 * w], rest);
+    let e = p.check(&fast, true).unwrap_err().to_string();
+    assert!(
+        e.contains("measured 23.00 deg/s about +z after removing the rest reading of 2.44 deg/s"),
+        "{e}"
+    );
+}
