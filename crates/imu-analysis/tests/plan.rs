@@ -308,7 +308,7 @@ fn rate_table_options(run: &Run) -> CalibrateOptions {
         &[Bias, Scale],
         &[Bias, Scale, Misalignment, GSensitivity],
     );
-    opts.fit.drift_model = true;
+    opts.fit.excess_scatter = imu_analysis::calibrate::ExcessScatter::RandomWalk;
     opts
 }
 

@@ -35,11 +35,12 @@ pub struct CalibrateOptions {
     pub gyro: TriadModel,
     /// Segmentation settings.
     pub segment: crate::segment::SegmentOptions,
-    /// Fit settings (the `fixed` mask, `bias_drift` and `noise` are ignored here).
+    /// Fit settings (the `fixed` mask is ignored here, and `mean_noise` is set from the models'
+    /// noise and the drift below unless it gives shared noise).
     pub fit: FitOptions,
-    /// Accel bias wander over the recording (m/s^2), see [`FitOptions::bias_drift`].
+    /// Accel bias wander over the recording (m/s^2), see [`MeanNoise::White`].
     pub accel_bias_drift_m_s2: Option<[f64; 3]>,
-    /// Gyro bias wander over the recording (rad/s), see [`FitOptions::bias_drift`].
+    /// Gyro bias wander over the recording (rad/s), see [`MeanNoise::White`].
     pub gyro_bias_drift_rad_s: Option<[f64; 3]>,
     /// Accel noise for the weights of the segment means, see [`FitOptions::noise`].
     pub accel_noise: Option<imu_model::NoiseModel>,
@@ -241,11 +242,16 @@ pub fn calibrate_recordings(
         gyro_bias_std_rad_s,
         notes: Vec::new(),
     };
+    // A characterised noise carries the bias wander in the covariance of the means; without
+    // one, the wander is added to the bias standard errors. Known shared noise is kept.
     let fit_opts = |drift, input, noise: &Option<imu_model::NoiseModel>| FitOptions {
         fixed: Vec::new(),
-        bias_drift: drift,
         bias_input_uncertainty: input,
-        noise: noise.clone(),
+        mean_noise: match (&opts.fit.mean_noise, noise) {
+            (MeanNoise::Shared(s), _) => MeanNoise::Shared(*s),
+            (_, Some(n)) => MeanNoise::Characterised(n.clone()),
+            (_, None) => MeanNoise::White { bias_drift: drift },
+        },
         ..opts.fit.clone()
     };
 

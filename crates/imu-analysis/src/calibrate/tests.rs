@@ -194,7 +194,11 @@ fn the_unknown_input_widens_the_bias_with_or_without_a_noise_model() {
     let input = 7.3e-5;
     for with_noise in [false, true] {
         let base = FitOptions {
-            noise: with_noise.then(|| noise.clone()),
+            mean_noise: if with_noise {
+                MeanNoise::Characterised(noise.clone())
+            } else {
+                MeanNoise::White { bias_drift: None }
+            },
             ..FitOptions::default()
         };
         let widened = FitOptions {

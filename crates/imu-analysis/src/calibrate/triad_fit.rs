@@ -38,39 +38,15 @@ pub struct FitOptions {
     /// Parameters to hold at their starting values (layout of [`TriadModel::params`]); empty =
     /// all free.
     pub fixed: Vec<bool>,
-    /// Standard deviation of the bias's wander over the recording per axis (triad unit), added
-    /// in quadrature to the standard errors of `bias.*`. A drift common to every segment looks
-    /// exactly like bias, so no residual shows it: it must come from a noise characterisation
-    /// (see [`bias_drift_from_noise`]).
-    pub bias_drift: Option<[f64; 3]>,
     /// Uncertainty of the true input common to every segment per axis (triad unit; e.g.
     /// Earth's rate where the reference does not fix north), added in quadrature to the
-    /// standard errors of `bias.*` always, with or without a noise model: it is not noise of the
+    /// standard errors of `bias.*` always, whatever `mean_noise` says: it is not noise of the
     /// sensor, so no covariance of the segment means carries it.
     pub bias_input_uncertainty: Option<[f64; 3]>,
-    /// The triad's noise (from a noise characterisation such as imu-noise's), for the
-    /// covariance of the segment means: besides each mean's white standard error, the bias
-    /// wanders under bias instability `B` (flicker: correlated between nearby segments and more
-    /// different between distant ones, see [`segment_covariance`]) and random walk `K`
-    /// (`K^2 min(t_k, t_l)`, from the start of the recording). Without it
-    /// that wander shows only in the residuals, and the one reduced chi-square that scales the
-    /// covariance spreads it evenly over the axes and over near and distant segments: too small
-    /// standard errors on a noisy axis and for contrasts between distant segments, too large on
-    /// a quiet axis. The covariance carries the bias's wander over the recording too, so
-    /// `bias_drift` is not added when this is given.
-    pub noise: Option<imu_model::NoiseModel>,
-    /// Model excess scatter of the segment means as a random-walk drift in time (so contrasts
-    /// between early and late segments get the larger uncertainty they have) instead of white
-    /// scatter; the drift rate is estimated per axis from the residuals. Off by default: on
-    /// the simulated 3DM-GX1 (flicker-dominated drift, 12-24 segments) the estimated rate is
-    /// too noisy and the standard errors came out worse than with white scatter scaled by the
-    /// reduced chi-square.
-    pub drift_model: bool,
-    /// Known correlated noise of the segment means per axis (random walk, flicker): the means
-    /// are then weighted with the covariance `se_k^2 delta_kl + shared_kl` (see
-    /// [`segment_covariance`]) instead of white errors; takes precedence over `noise`. With
-    /// `drift_model` on, its random walk is estimated instead.
-    pub shared_noise: Option<[SharedNoise; 3]>,
+    /// What the segment means' errors are besides each mean's white standard error.
+    pub mean_noise: MeanNoise,
+    /// How scatter of the means beyond `mean_noise` is modelled.
+    pub excess_scatter: ExcessScatter,
 }
 
 /// Bias wander over a recording of `duration_s` from a noise model: bias instability `B` and
@@ -82,6 +58,47 @@ pub fn bias_drift_from_noise(noise: &imu_model::NoiseModel, duration_s: f64) -> 
     })
 }
 
+/// The noise of the segment means beyond their white standard errors: one of three sources,
+/// so the precedence between them is the type's, not a rule in a comment.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MeanNoise {
+    /// White errors only (the one reduced chi-square scales them); a drift common to every
+    /// segment looks exactly like bias, so no residual shows it: `bias_drift`, the standard
+    /// deviation of the bias's wander over the recording per axis (triad unit, e.g. from
+    /// [`bias_drift_from_noise`]), is added in quadrature to the standard errors of `bias.*`.
+    White {
+        /// The bias wander, when known.
+        bias_drift: Option<[f64; 3]>,
+    },
+    /// The triad's noise from a noise characterisation (such as imu-noise's), for the
+    /// covariance of the segment means: besides each mean's white standard error, the bias
+    /// wanders under bias instability `B` (flicker: correlated between nearby segments and more
+    /// different between distant ones, see [`segment_covariance`]) and random walk `K`
+    /// (`K^2 min(t_k, t_l)`, from the start of the recording). Without it that wander shows
+    /// only in the residuals, and the one reduced chi-square that scales the covariance spreads
+    /// it evenly over the axes and over near and distant segments: too small standard errors on
+    /// a noisy axis and for contrasts between distant segments, too large on a quiet axis. The
+    /// covariance carries the bias's wander over the recording, so no drift is added.
+    Characterised(imu_model::NoiseModel),
+    /// Known correlated noise of the segment means per axis (random walk, flicker): the means
+    /// are weighted with the covariance `se_k^2 delta_kl + shared_kl` (see
+    /// [`segment_covariance`]).
+    Shared([SharedNoise; 3]),
+}
+
+/// How scatter of the segment means beyond [`MeanNoise`] is modelled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExcessScatter {
+    /// As white scatter: the reduced chi-square scales the covariance (upwards only).
+    White,
+    /// As a random-walk drift in time, its rate estimated per axis from the residuals (so
+    /// contrasts between early and late segments get the larger uncertainty they have); it
+    /// replaces the random walk of [`MeanNoise`]. Not the default: on the simulated 3DM-GX1
+    /// (flicker-dominated drift, 12-24 segments) the estimated rate is too noisy and the
+    /// standard errors came out worse than with white scatter.
+    RandomWalk,
+}
+
 impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
@@ -89,11 +106,9 @@ impl Default for FitOptions {
             tolerance: 1e-12,
             min_eigenvalue: 1e-8,
             fixed: Vec::new(),
-            bias_drift: None,
             bias_input_uncertainty: None,
-            noise: None,
-            drift_model: false,
-            shared_noise: None,
+            mean_noise: MeanNoise::White { bias_drift: None },
+            excess_scatter: ExcessScatter::White,
         }
     }
 }
@@ -194,15 +209,14 @@ pub enum FitError {
     },
 }
 
-/// The shared noise of [`fit_triad`]: `opts.shared_noise` as given, else from `opts.noise` (a
-/// noise characterisation: flicker floor `(0.664 B)^2`, random walk `K^2` starting with the
-/// recording at t = 0, so the fitted bias is the bias at its start), else none.
+/// The shared noise of [`fit_triad`]: as given, or from a noise characterisation (flicker
+/// floor `(0.664 B)^2`, random walk `K^2` starting with the recording at t = 0, so the fitted
+/// bias is the bias at its start), or none for white errors.
 pub(super) fn shared_noise(opts: &FitOptions, points: &[FitPoint]) -> [SharedNoise; 3] {
-    if let Some(s) = opts.shared_noise {
-        return s;
-    }
-    let Some(n) = &opts.noise else {
-        return [SharedNoise::default(); 3];
+    let n = match &opts.mean_noise {
+        MeanNoise::Shared(s) => return *s,
+        MeanNoise::White { .. } => return [SharedNoise::default(); 3],
+        MeanNoise::Characterised(n) => n,
     };
     let t_first = points.iter().map(|p| p.t_s).fold(f64::INFINITY, f64::min);
     std::array::from_fn(|a| SharedNoise {
@@ -546,7 +560,7 @@ fn fit_weighted(
     let mut w = Whitener::new(points, sessions, &q);
     let first = minimize(&mut triad_residuals(m, points, Some(&w)), p, free, &lsq);
     let (mut cost, mut iterations, mut converged) = (first.cost, first.iterations, first.converged);
-    if opts.drift_model {
+    if opts.excess_scatter == ExcessScatter::RandomWalk {
         let dof_axis = (points.len() as f64 - free.len() as f64 / 3.0).max(1.0);
         for _ in 0..8 {
             let raw = raw_residuals(m, p, points);
@@ -594,7 +608,10 @@ fn parameter_covariance(
             DMatrix::from_element(free.len(), free.len(), f64::NAN)
         }
     };
-    let drift = opts.bias_drift.filter(|_| opts.noise.is_none());
+    let drift = match opts.mean_noise {
+        MeanNoise::White { bias_drift } => bias_drift,
+        MeanNoise::Characterised(_) | MeanNoise::Shared(_) => None,
+    };
     for extra in [drift, opts.bias_input_uncertainty].into_iter().flatten() {
         for (c, &i) in free.iter().enumerate() {
             let axis = Some(&ids[i])

@@ -29,9 +29,8 @@ impl<'a> Workbench<'a> {
     pub(super) fn fit_opts(&self, t: Triad) -> FitOptions {
         FitOptions {
             fixed: Vec::new(),
-            bias_drift: None,
-            drift_model: false,
-            shared_noise: Some(self.shared(t)),
+            excess_scatter: crate::calibrate::ExcessScatter::White,
+            mean_noise: crate::calibrate::MeanNoise::Shared(self.shared(t)),
             ..self.opts.fit.clone()
         }
     }
@@ -191,7 +190,7 @@ impl<'a> Workbench<'a> {
                 })
                 .collect();
             let opts = FitOptions {
-                shared_noise: Some(std::array::from_fn(|a| {
+                mean_noise: crate::calibrate::MeanNoise::Shared(std::array::from_fn(|a| {
                     wander[a].scaled(&shared[a], scale[a])
                 })),
                 ..self.fit_opts(triad)

@@ -74,7 +74,7 @@ pub use structure::*;
 pub struct DiagnoseOptions {
     /// Segmentation settings.
     pub segment: SegmentOptions,
-    /// Fit settings (`fixed`, `bias_drift` and `random_walk_q` are set here).
+    /// Fit settings (`fixed`, `mean_noise` and `excess_scatter` are set here).
     pub fit: FitOptions,
     /// Significance level of the candidate tests and of the goodness-of-fit verdict.
     pub alpha: f64,

@@ -38,11 +38,11 @@ pub(super) fn fit_gyro_static(
         tolerance: opts.lsq.tolerance,
         min_eigenvalue: opts.lsq.min_eigenvalue,
         fixed: held(Triad::Gyro, &model.param_names(Triad::Gyro), &opts.hold),
-        bias_drift: opts.gyro_bias_drift_rad_s,
         bias_input_uncertainty: Some([horizontal_rad_s; 3]),
-        drift_model: false,
-        noise: None,
-        shared_noise: None,
+        mean_noise: crate::calibrate::MeanNoise::White {
+            bias_drift: opts.gyro_bias_drift_rad_s,
+        },
+        excess_scatter: crate::calibrate::ExcessScatter::White,
     };
     fit_triad(model, Triad::Gyro, &points, &fit_opts)
 }
