@@ -1,4 +1,5 @@
 //! Sans-IO codec for the MicroStrain 3DM-GX1 serial protocol: bytes <-> typed frames, both ways.
+//! Its successor, the MIP protocol of today's MicroStrain devices, is in [`mip`].
 //!
 //! The same code serves the host (encode [`Command`]s, decode [`Reply`]s from a byte stream with
 //! [`ReplyDecoder`]) and the device side used by the simulator (decode commands with
@@ -59,6 +60,7 @@ pub mod command;
 pub mod decoder;
 pub mod device;
 pub mod error;
+pub mod mip;
 pub mod reply;
 pub mod scale;
 pub mod ticks;
