@@ -61,6 +61,7 @@ pub mod decoder;
 pub mod device;
 pub mod error;
 pub mod mip;
+pub mod protocol;
 pub mod reply;
 pub mod scale;
 pub mod ticks;
@@ -72,6 +73,7 @@ pub use decoder::{
 };
 pub use device::{DeviceParams, GainScales};
 pub use error::FrameError;
+pub use protocol::DeviceProtocol;
 pub use reply::{Filter, Reply, reply_len_for_code};
 pub use scale::Quantized;
 pub use ticks::TickUnwrapper;
