@@ -87,12 +87,15 @@ pub struct MessageFormat {
 }
 
 impl MessageFormat {
-    /// Most fields one packet can hold: a 253-byte field, less function and count, / 3.
+    /// Most fields a format carries: the reply's response field shares the packet with the
+    /// 4-byte ack, leaving 249 data bytes: the count and 82 x 3 bytes. Encoding writes at most
+    /// this many (the first ones).
     pub const MAX_FIELDS: usize = 82;
 
     pub(crate) fn encode(&self, w: &mut Writer) {
-        w.u8(self.fields.len() as u8);
-        for f in &self.fields {
+        let fields = &self.fields[..self.fields.len().min(Self::MAX_FIELDS)];
+        w.u8(fields.len() as u8);
+        for f in fields {
             w.u8(f.descriptor).u16(f.decimation);
         }
     }
@@ -180,11 +183,9 @@ impl MipCommand {
     /// [`MessageFormat::MAX_FIELDS`] is cut to that many fields.
     pub fn to_packet(&self) -> Packet {
         let (set, descriptor) = self.descriptor();
-        let mut data = self.encode_data();
-        data.truncate(super::MAX_PAYLOAD_LEN - 2);
         let mut b = PacketBuilder::new(set);
-        // Cannot fail: the data was cut to a field's capacity.
-        let _ = b.field(descriptor, &data);
+        // Cannot fail: the longest command, a full message format, is 2 + 2 + 82 x 3 bytes.
+        let _ = b.field(descriptor, &self.encode_data());
         b.build()
     }
 

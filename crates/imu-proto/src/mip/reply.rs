@@ -237,7 +237,8 @@ impl MipReply {
     /// The reply in one packet (device side). `unknown_fields` is not encoded.
     pub fn to_packet(&self) -> Packet {
         let mut b = PacketBuilder::new(self.descriptor_set);
-        // Cannot fail: an ack is 4 bytes and the longest response (device info) 84.
+        // Cannot fail: an ack is 4 bytes, the longest response 2 + 247 (a message format of
+        // `MessageFormat::MAX_FIELDS`; device info is 2 + 82).
         let _ = b.field(ACK_DESCRIPTOR, &[self.command, self.code.code()]);
         if let Some(r) = &self.response {
             let _ = b.field(r.descriptor().1, &r.encode());

@@ -259,6 +259,35 @@ fn nack_and_response_replies() {
 }
 
 #[test]
+fn an_overlong_message_format_is_cut_to_what_command_and_reply_both_carry() {
+    let rate = |descriptor| DescriptorRate {
+        descriptor,
+        decimation: 1,
+    };
+    let long = MessageFormat {
+        fields: (0..=255).map(rate).collect(),
+    };
+    let cut = MessageFormat {
+        fields: long.fields[..MessageFormat::MAX_FIELDS].to_vec(),
+    };
+    let cmd = MipCommand::ImuMessageFormat(Setting::Write(long.clone()));
+    let p = Packet::parse(cmd.to_packet().as_bytes()).unwrap();
+    let got: Vec<_> = MipCommand::decode_packet(&p).map(|(_, c)| c).collect();
+    assert_eq!(
+        got,
+        [Ok(MipCommand::ImuMessageFormat(Setting::Write(
+            cut.clone()
+        )))]
+    );
+    let reply = MipReply {
+        response: Some(Response::ImuMessageFormat(long)),
+        ..MipReply::ack((0x0C, 0x08), AckCode::Ok)
+    };
+    let decoded = MipReply::decode_packet(&reply.to_packet()).unwrap();
+    assert_eq!(decoded[0].response, Some(Response::ImuMessageFormat(cut)));
+}
+
+#[test]
 fn imu_data_skips_known_fields_of_the_wrong_size_and_unknown_fields() {
     let mut b = PacketBuilder::new(0x80);
     b.field(field::SCALED_GYRO, &[0; 8])
