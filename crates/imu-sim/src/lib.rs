@@ -1,5 +1,5 @@
-//! imu-sim: a virtual MicroStrain 3DM-GX1 on a pseudo-terminal, driven by known physics and a
-//! known error model, that writes down the truth behind every reply.
+//! imu-sim: a virtual MicroStrain 3DM-GX1 (or MIP unit) on a pseudo-terminal, driven by known
+//! physics and a known error model, that writes down the truth behind every reply.
 //!
 //! - [`scenario`]: the TOML scenario format (the paper's tests as segments).
 //! - [`motion`]: exact analytic motion (orientation, rates, specific force) over time.

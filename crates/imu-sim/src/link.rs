@@ -6,7 +6,8 @@
 //! unplugged cable too), and at the end of a scenario it can tell when the host has read the last
 //! byte before closing. Time runs in one of two modes:
 //! - real time: the scenario clock follows the wall clock from the first data request, samples go
-//!   out at the scenario rate and bytes are paced to the configured baud rate;
+//!   out at the scenario rate and bytes are paced to the configured baud rate (a 3DM-GX1; a MIP
+//!   unit's USB virtual serial port is not paced);
 //! - fast: a virtual clock advances one sample period per data reply and bytes go out as fast as
 //!   the host reads them, so hours of scenario run in seconds with identical content.
 

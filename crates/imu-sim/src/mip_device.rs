@@ -115,9 +115,9 @@ impl MipDevice {
         self.decoder.push(bytes);
     }
 
-    /// Host bytes not yet part of a command or a rejected run.
+    /// Host bytes not yet part of a packet or a rejected run.
     pub fn pending_len(&self) -> usize {
-        self.decoder.pending_len() + self.requests.len()
+        self.decoder.pending_len()
     }
 
     /// The host stopped sending inside a packet: report what is pending (the next
