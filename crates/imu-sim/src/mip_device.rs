@@ -479,4 +479,26 @@ mod tests {
             [MipReply::ack((BASE_COMMAND, base::PING), AckCode::Ok)]
         );
     }
+
+    #[test]
+    fn same_scenario_and_seed_give_the_gx1_s_measurements() {
+        let text = "name = \"same\"\nrate-hz = 200.0\n[[segment]]\nkind = \"rotate\"\naxis = \"x\"\n\
+                    angle-deg = 90.0\nduration-s = 2.0\n";
+        let scenario = Scenario::from_toml_str(text, "same.toml").unwrap();
+        let mut truth_model = Calibration::identity();
+        truth_model.accel.noise = Some(imu_model::NoiseModel {
+            white_density: [0.003; 3],
+            ..Default::default()
+        });
+        let mut gx1 = DeviceCore::new(scenario.clone(), truth_model.clone(), 9);
+        let mut mip = MipDevice::new(DeviceCore::new(scenario, truth_model, 9));
+        for k in 0..300 {
+            let t_s = k as f64 / 200.0;
+            let (_, a) = gx1.data_reply(imu_proto::Command::RawSensorBits, t_s);
+            let (_, b) = mip.data_packet(t_s);
+            assert_eq!(a.measured_accel_m_s2, b.measured_accel_m_s2, "sample {k}");
+            assert_eq!(a.measured_gyro_rad_s, b.measured_gyro_rad_s);
+            assert_eq!((a.seq, a.segment, a.t_s), (b.seq, b.segment, b.t_s));
+        }
+    }
 }

@@ -315,3 +315,96 @@ fn check_against_truth(data: &[ImuData], sim: &Sim) {
         "turned {turned} rad"
     );
 }
+
+/// Line noise over MIP: garbage injected between packets (some of it looking like a packet
+/// start) is rejected byte for byte, and no data packet is lost.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn injected_garbage_is_rejected_and_no_packet_is_lost() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario_path = dir.path().join("scenario.toml");
+    std::fs::write(
+        &scenario_path,
+        SCENARIO.replace("rate-hz = 1000.0", "rate-hz = 500.0"),
+    )
+    .unwrap();
+    let mut opts = imu_sim::SimOptions::from_files(&scenario_path, None).unwrap();
+    opts.scenario
+        .set_protocol(imu_proto::DeviceProtocol::Mip, "scenario.toml")
+        .unwrap();
+    opts.truth_out = Some(dir.path().join("truth.mcap"));
+    opts.pacing = imu_sim::Pacing::Fast;
+    opts.linger = Duration::from_secs(2);
+    let sim = imu_sim::spawn(opts).unwrap();
+    let port = tokio_serial::new(sim.device_path().to_string_lossy(), 921_600)
+        .open_native_async()
+        .unwrap();
+    let mut host = Host {
+        port,
+        decoder: MipDecoder::new(),
+        data: Vec::new(),
+    };
+    assert_eq!(host.ask(&MipCommand::Resume).await.code, AckCode::Ok);
+    let noise: [&[u8]; 3] = [
+        &[0x00, 0x75, 0x65, 0x80, 0x10, 0xAA, 0x75],
+        &[0x75, 0x65, 0x01, 0x02, 0x02, 0x01, 0x00, 0x00],
+        &[0xFF; 40],
+    ];
+    let mut injected = 0;
+    let mut next = 0;
+    let mut rejected = 0;
+    while let Ok(Some(_)) = tokio::time::timeout(Duration::from_secs(5), async {
+        let mut buf = [0u8; 4096];
+        let n = host.port.read(&mut buf).await.unwrap_or(0);
+        host.decoder.push(&buf[..n]);
+        (n > 0).then_some(n)
+    })
+    .await
+    {
+        while let Some(ev) = host.decoder.next_event() {
+            match ev {
+                MipEvent::Packet { packet, .. } => {
+                    host.data.push(ImuData::decode_packet(&packet).unwrap());
+                }
+                MipEvent::Rejected { bytes, .. } => rejected += bytes.len(),
+            }
+        }
+        // Every 100 packets, more noise.
+        if host.data.len() >= 100 * (next + 1) && next < 30 {
+            let bytes = noise[next % noise.len()];
+            sim.inject(bytes);
+            injected += bytes.len();
+            next += 1;
+        }
+    }
+    host.decoder.flush();
+    while let Some(ev) = host.decoder.next_event() {
+        assert!(matches!(ev, MipEvent::Rejected { .. }), "{ev:?}");
+        rejected += ev.bytes().len();
+    }
+    // Noise asked for after the last sample is never sent: compare with what was.
+    let report = sim.join().unwrap();
+    assert!(report.completed);
+    assert!(next >= 10, "noise asked for {next} times");
+    assert!(report.bytes_injected as usize >= injected / 2, "{report:?}");
+    assert_eq!(
+        rejected as u64, report.bytes_injected,
+        "exactly the injected bytes are rejected"
+    );
+    let truth = read_truth(&dir.path().join("truth.mcap")).unwrap();
+    assert_eq!(host.data.len(), truth.samples.len(), "no packet lost");
+    assert_eq!(host.data.len(), 1500, "3 s at 500 Hz");
+    let s = host.decoder.stats();
+    assert_eq!(s.bytes_in, s.frame_bytes + s.rejected_bytes);
+    // Noise asked for between two of the device's writes goes out as one run.
+    assert!((1..=next as u64).contains(&s.resyncs), "{s:?}");
+    let times: Vec<u64> = host
+        .data
+        .iter()
+        .map(|d| d.reference_time_ns.unwrap())
+        .collect();
+    assert!(
+        times
+            .windows(2)
+            .all(|w| (w[1] - w[0]).abs_diff(2_000_000) < 1_000)
+    );
+}
