@@ -17,6 +17,8 @@
 //!   time (0xD5) in ns since power-on, the internal timestamp (0x0E) in counts of
 //!   [`INTERNAL_TICK_HZ`]. The truth record's `ticks_unwrapped` is the internal timestamp
 //!   count (`ticks` its low 16 bits) and its `command` is the data set, 0x80.
+//! - It answers the legacy IMU commands (get IMU base rate 0x06, IMU message format 0x08) and
+//!   their generic forms for the IMU data set (get base rate 0x0E, message format 0x0F).
 //! - The unit streams only at the scenario's rate: a message format asking for another
 //!   decimation, or a field it cannot make, is nacked with "invalid parameter" and changes
 //!   nothing. Unknown commands are nacked with "unknown command".
@@ -26,7 +28,7 @@ use std::collections::VecDeque;
 use imu_bus::truth::TruthSample;
 use imu_proto::mip::command::cmd_3dm;
 use imu_proto::mip::data::{INTERNAL_TICK_HZ, field};
-use imu_proto::mip::descriptor_set::{COMMAND_3DM, IMU_DATA};
+use imu_proto::mip::descriptor_set::IMU_DATA;
 use imu_proto::mip::{
     AckCode, DescriptorRate, DeviceInfo, GpsTime, ImuData, MessageFormat, MipCommand, MipDecoder,
     MipError, MipEvent, MipReply, Packet, Response, Setting, TemperatureStats,
@@ -182,7 +184,21 @@ impl MipDevice {
             MipCommand::GetImuBaseRate => ok(Some(Response::ImuBaseRate {
                 rate_hz: MIP_IMU_BASE_RATE_HZ as u16,
             })),
-            MipCommand::ImuMessageFormat(setting) => self.message_format(setting),
+            MipCommand::GetBaseRate { descriptor_set } if descriptor_set == IMU_DATA => {
+                ok(Some(Response::BaseRate {
+                    descriptor_set,
+                    rate_hz: MIP_IMU_BASE_RATE_HZ as u16,
+                }))
+            }
+            MipCommand::ImuMessageFormat(setting) => self.message_format(setting, key),
+            MipCommand::MessageFormat {
+                descriptor_set,
+                setting,
+            } if descriptor_set == IMU_DATA => self.message_format(setting, key),
+            // Only the IMU data set exists here.
+            MipCommand::GetBaseRate { .. } | MipCommand::MessageFormat { .. } => {
+                MipReply::ack(key, AckCode::InvalidParameter)
+            }
             MipCommand::DataStream {
                 descriptor_set,
                 setting,
@@ -206,8 +222,8 @@ impl MipDevice {
         }
     }
 
-    fn message_format(&mut self, setting: Setting<MessageFormat>) -> MipReply {
-        let key = (COMMAND_3DM, cmd_3dm::IMU_MESSAGE_FORMAT);
+    /// The IMU message format, by the legacy (0x08) or the generic (0x0F) command `key`.
+    fn message_format(&mut self, setting: Setting<MessageFormat>, key: (u8, u8)) -> MipReply {
         match setting {
             Setting::Write(format) => {
                 let decimation = self.decimation();
@@ -220,8 +236,17 @@ impl MipDevice {
                 self.format = format;
             }
             Setting::Read => {
+                let format = self.format.clone();
+                let response = if key.1 == cmd_3dm::MESSAGE_FORMAT {
+                    Response::MessageFormat {
+                        descriptor_set: IMU_DATA,
+                        format,
+                    }
+                } else {
+                    Response::ImuMessageFormat(format)
+                };
                 return MipReply {
-                    response: Some(Response::ImuMessageFormat(self.format.clone())),
+                    response: Some(response),
                     ..MipReply::ack(key, AckCode::Ok)
                 };
             }
@@ -422,6 +447,53 @@ mod tests {
         assert_eq!(truth.command, IMU_DATA);
         assert_eq!(ask(&mut d, &MipCommand::SetToIdle).code, AckCode::Ok);
         assert!(!d.is_streaming());
+    }
+
+    #[test]
+    fn generic_base_rate_and_message_format_of_the_imu_set() {
+        let mut d = device(500.0);
+        let r = ask(
+            &mut d,
+            &MipCommand::GetBaseRate {
+                descriptor_set: 0x80,
+            },
+        );
+        assert_eq!(
+            r.response,
+            Some(Response::BaseRate {
+                descriptor_set: 0x80,
+                rate_hz: 1000
+            })
+        );
+        let format = MessageFormat {
+            fields: vec![DescriptorRate {
+                descriptor: field::SCALED_GYRO,
+                decimation: 2,
+            }],
+        };
+        let write = MipCommand::MessageFormat {
+            descriptor_set: 0x80,
+            setting: Setting::Write(format.clone()),
+        };
+        assert_eq!(ask(&mut d, &write).code, AckCode::Ok);
+        let read = MipCommand::MessageFormat {
+            descriptor_set: 0x80,
+            setting: Setting::Read,
+        };
+        assert_eq!(
+            ask(&mut d, &read).response,
+            Some(Response::MessageFormat {
+                descriptor_set: 0x80,
+                format: format.clone()
+            })
+        );
+        // The legacy read gives the same format.
+        let legacy = ask(&mut d, &MipCommand::ImuMessageFormat(Setting::Read));
+        assert_eq!(legacy.response, Some(Response::ImuMessageFormat(format)));
+        let other = MipCommand::GetBaseRate {
+            descriptor_set: 0x82,
+        };
+        assert_eq!(ask(&mut d, &other).code, AckCode::InvalidParameter);
     }
 
     #[test]

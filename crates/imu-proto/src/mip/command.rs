@@ -23,6 +23,10 @@ pub mod cmd_3dm {
     pub const GET_IMU_BASE_RATE: u8 = 0x06;
     /// Which IMU fields are streamed, each at base rate / decimation.
     pub const IMU_MESSAGE_FORMAT: u8 = 0x08;
+    /// The base rate of any data set, Hz (the 5- and 7-series' generic form of 0x06).
+    pub const GET_BASE_RATE: u8 = 0x0E;
+    /// The message format of any data set (the generic form of 0x08).
+    pub const MESSAGE_FORMAT: u8 = 0x0F;
     /// Turn the stream of one data set on or off.
     pub const DATA_STREAM: u8 = 0x11;
 }
@@ -59,7 +63,18 @@ impl<T> Setting<T> {
         r: &mut Reader<'_>,
         value: impl FnOnce(&mut Reader<'_>) -> Result<T, MipError>,
     ) -> Result<Self, MipError> {
-        Ok(match r.u8()? {
+        let selector = r.u8()?;
+        Self::from_selector(selector, r, value)
+    }
+
+    /// The setting of a selector already read (some commands put an argument between the
+    /// selector and the value); a write reads its value with `value`.
+    fn from_selector(
+        selector: u8,
+        r: &mut Reader<'_>,
+        value: impl FnOnce(&mut Reader<'_>) -> Result<T, MipError>,
+    ) -> Result<Self, MipError> {
+        Ok(match selector {
             1 => Setting::Write(value(r)?),
             2 => Setting::Read,
             3 => Setting::Save,
@@ -88,8 +103,8 @@ pub struct MessageFormat {
 
 impl MessageFormat {
     /// Most fields a format carries: the reply's response field shares the packet with the
-    /// 4-byte ack, leaving 249 data bytes: the count and 82 x 3 bytes. Encoding writes at most
-    /// this many (the first ones).
+    /// 4-byte ack, leaving 249 data bytes: a data set byte (0x8F), the count and 82 x 3 bytes.
+    /// Encoding writes at most this many (the first ones).
     pub const MAX_FIELDS: usize = 82;
 
     pub(crate) fn encode(&self, w: &mut Writer) {
@@ -132,6 +147,18 @@ pub enum MipCommand {
     GetImuBaseRate,
     /// 3DM 0x08: the IMU message format.
     ImuMessageFormat(Setting<MessageFormat>),
+    /// 3DM 0x0E: the base rate of a data set.
+    GetBaseRate {
+        /// Which data set (0x80 for the IMU).
+        descriptor_set: u8,
+    },
+    /// 3DM 0x0F: the message format of a data set.
+    MessageFormat {
+        /// Which data set (0x80 for the IMU).
+        descriptor_set: u8,
+        /// The format to write, or another function.
+        setting: Setting<MessageFormat>,
+    },
     /// 3DM 0x11: the stream of one data set on or off.
     DataStream {
         /// Which data set (0x80 for the IMU).
@@ -151,6 +178,8 @@ impl MipCommand {
             MipCommand::Resume => (BASE_COMMAND, base::RESUME),
             MipCommand::GetImuBaseRate => (COMMAND_3DM, cmd_3dm::GET_IMU_BASE_RATE),
             MipCommand::ImuMessageFormat(_) => (COMMAND_3DM, cmd_3dm::IMU_MESSAGE_FORMAT),
+            MipCommand::GetBaseRate { .. } => (COMMAND_3DM, cmd_3dm::GET_BASE_RATE),
+            MipCommand::MessageFormat { .. } => (COMMAND_3DM, cmd_3dm::MESSAGE_FORMAT),
             MipCommand::DataStream { .. } => (COMMAND_3DM, cmd_3dm::DATA_STREAM),
         }
     }
@@ -162,6 +191,18 @@ impl MipCommand {
             MipCommand::ImuMessageFormat(s) => {
                 w.u8(s.selector());
                 if let Setting::Write(format) = s {
+                    format.encode(&mut w);
+                }
+            }
+            MipCommand::GetBaseRate { descriptor_set } => {
+                w.u8(*descriptor_set);
+            }
+            MipCommand::MessageFormat {
+                descriptor_set,
+                setting,
+            } => {
+                w.u8(setting.selector()).u8(*descriptor_set);
+                if let Setting::Write(format) = setting {
                     format.encode(&mut w);
                 }
             }
@@ -184,7 +225,8 @@ impl MipCommand {
     pub fn to_packet(&self) -> Packet {
         let (set, descriptor) = self.descriptor();
         let mut b = PacketBuilder::new(set);
-        // Cannot fail: the longest command, a full message format, is 2 + 2 + 82 x 3 bytes.
+        // Cannot fail: the longest command, a full message format (0x0F), is 2 + 3 + 82 x 3
+        // bytes.
         let _ = b.field(descriptor, &self.encode_data());
         b.build()
     }
@@ -201,21 +243,25 @@ impl MipCommand {
             (COMMAND_3DM, cmd_3dm::IMU_MESSAGE_FORMAT) => {
                 MipCommand::ImuMessageFormat(Setting::decode(&mut r, MessageFormat::decode)?)
             }
+            (COMMAND_3DM, cmd_3dm::GET_BASE_RATE) => MipCommand::GetBaseRate {
+                descriptor_set: r.u8()?,
+            },
+            (COMMAND_3DM, cmd_3dm::MESSAGE_FORMAT) => {
+                let selector = r.u8()?;
+                let descriptor_set = r.u8()?;
+                MipCommand::MessageFormat {
+                    descriptor_set,
+                    setting: Setting::from_selector(selector, &mut r, MessageFormat::decode)?,
+                }
+            }
             (COMMAND_3DM, cmd_3dm::DATA_STREAM) => {
                 let selector = r.u8()?;
                 let descriptor_set = r.u8()?;
-                let setting = match selector {
-                    1 => match r.u8()? {
-                        0 => Setting::Write(false),
-                        1 => Setting::Write(true),
-                        _ => return Err(r.error("enable flag is not 0 or 1")),
-                    },
-                    2 => Setting::Read,
-                    3 => Setting::Save,
-                    4 => Setting::Load,
-                    5 => Setting::Reset,
-                    _ => return Err(r.error("function selector is not 1..=5")),
-                };
+                let setting = Setting::from_selector(selector, &mut r, |r| match r.u8()? {
+                    0 => Ok(false),
+                    1 => Ok(true),
+                    _ => Err(r.error("enable flag is not 0 or 1")),
+                })?;
                 MipCommand::DataStream {
                     descriptor_set,
                     setting,

@@ -16,7 +16,9 @@
 //!   big-endian; floats are IEEE-754.
 //! - Descriptor set 0x01 holds the base commands (ping 0x01, set to idle 0x02, get device info
 //!   0x03, resume 0x06), set 0x0C the 3DM commands (get IMU base rate 0x06, IMU message format
-//!   0x08, enable data stream 0x11), set 0x80 the IMU ("sensor") data ([`data`]). Settings
+//!   0x08, and their generic forms for any data set, get base rate 0x0E and message format
+//!   0x0F, which the 7-series use; enable data stream 0x11), set 0x80 the IMU ("sensor") data
+//!   ([`data`]). Settings
 //!   commands start with a function selector (write 1, read 2, save 3, load 4, reset 5).
 //! - A device answers a command packet with a packet of the same descriptor set whose first
 //!   field is 0xF1: the command's descriptor and an ack/nack code (0 ok, 1 unknown command, 2

@@ -19,6 +19,10 @@ pub mod response {
     pub const IMU_BASE_RATE: u8 = 0x83;
     /// 3DM set: data stream enabled.
     pub const DATA_STREAM: u8 = 0x85;
+    /// 3DM set: base rate of a data set.
+    pub const BASE_RATE: u8 = 0x8E;
+    /// 3DM set: message format of a data set.
+    pub const MESSAGE_FORMAT: u8 = 0x8F;
 }
 
 /// The ack/nack code (mip_sdk `mip_result.h`).
@@ -143,6 +147,20 @@ pub enum Response {
     },
     /// 3DM 0x80: the IMU message format in force.
     ImuMessageFormat(MessageFormat),
+    /// 3DM 0x8E: the base rate of a data set.
+    BaseRate {
+        /// The data set.
+        descriptor_set: u8,
+        /// Base rate, Hz.
+        rate_hz: u16,
+    },
+    /// 3DM 0x8F: the message format of a data set.
+    MessageFormat {
+        /// The data set.
+        descriptor_set: u8,
+        /// Its format.
+        format: MessageFormat,
+    },
     /// 3DM 0x85: whether a data set streams.
     DataStream {
         /// The data set.
@@ -160,6 +178,8 @@ impl Response {
             Response::ImuBaseRate { .. } => (COMMAND_3DM, response::IMU_BASE_RATE),
             Response::ImuMessageFormat(_) => (COMMAND_3DM, response::IMU_MESSAGE_FORMAT),
             Response::DataStream { .. } => (COMMAND_3DM, response::DATA_STREAM),
+            Response::BaseRate { .. } => (COMMAND_3DM, response::BASE_RATE),
+            Response::MessageFormat { .. } => (COMMAND_3DM, response::MESSAGE_FORMAT),
         }
     }
 
@@ -171,6 +191,19 @@ impl Response {
                 w.u16(*rate_hz);
             }
             Response::ImuMessageFormat(format) => format.encode(&mut w),
+            Response::BaseRate {
+                descriptor_set,
+                rate_hz,
+            } => {
+                w.u8(*descriptor_set).u16(*rate_hz);
+            }
+            Response::MessageFormat {
+                descriptor_set,
+                format,
+            } => {
+                w.u8(*descriptor_set);
+                format.encode(&mut w);
+            }
             Response::DataStream {
                 descriptor_set,
                 enabled,
@@ -192,6 +225,14 @@ impl Response {
             (COMMAND_3DM, response::IMU_MESSAGE_FORMAT) => {
                 Response::ImuMessageFormat(MessageFormat::decode(&mut r)?)
             }
+            (COMMAND_3DM, response::BASE_RATE) => Response::BaseRate {
+                descriptor_set: r.u8()?,
+                rate_hz: r.u16()?,
+            },
+            (COMMAND_3DM, response::MESSAGE_FORMAT) => Response::MessageFormat {
+                descriptor_set: r.u8()?,
+                format: MessageFormat::decode(&mut r)?,
+            },
             (COMMAND_3DM, response::DATA_STREAM) => Response::DataStream {
                 descriptor_set: r.u8()?,
                 enabled: match r.u8()? {
@@ -237,8 +278,8 @@ impl MipReply {
     /// The reply in one packet (device side). `unknown_fields` is not encoded.
     pub fn to_packet(&self) -> Packet {
         let mut b = PacketBuilder::new(self.descriptor_set);
-        // Cannot fail: an ack is 4 bytes, the longest response 2 + 247 (a message format of
-        // `MessageFormat::MAX_FIELDS`; device info is 2 + 82).
+        // Cannot fail: an ack is 4 bytes, the longest response 2 + 248 (a data set's message
+        // format of `MessageFormat::MAX_FIELDS`; device info is 2 + 82).
         let _ = b.field(ACK_DESCRIPTOR, &[self.command, self.code.code()]);
         if let Some(r) = &self.response {
             let _ = b.field(r.descriptor().1, &r.encode());

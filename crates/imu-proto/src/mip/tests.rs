@@ -396,6 +396,13 @@ fn arb_command() -> impl Strategy<Value = MipCommand> {
                 setting,
             }
         }),
+        any::<u8>().prop_map(|descriptor_set| MipCommand::GetBaseRate { descriptor_set }),
+        (any::<u8>(), arb_setting(arb_format())).prop_map(|(descriptor_set, setting)| {
+            MipCommand::MessageFormat {
+                descriptor_set,
+                setting,
+            }
+        }),
     ]
 }
 
@@ -427,6 +434,14 @@ fn arb_reply() -> impl Strategy<Value = MipReply> {
         (any::<u8>(), any::<bool>()).prop_map(|(descriptor_set, enabled)| Response::DataStream {
             descriptor_set,
             enabled
+        }),
+        (any::<u8>(), any::<u16>()).prop_map(|(descriptor_set, rate_hz)| Response::BaseRate {
+            descriptor_set,
+            rate_hz
+        }),
+        (any::<u8>(), arb_format()).prop_map(|(descriptor_set, format)| Response::MessageFormat {
+            descriptor_set,
+            format
         }),
     ];
     (any::<u8>(), any::<u8>(), prop::option::of(response)).prop_map(|(command, code, response)| {
