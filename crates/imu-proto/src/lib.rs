@@ -1,4 +1,5 @@
 //! Sans-IO codec for the MicroStrain 3DM-GX1 serial protocol: bytes <-> typed frames, both ways.
+//! Its successor, the MIP protocol of today's MicroStrain devices, is in [`mip`].
 //!
 //! The same code serves the host (encode [`Command`]s, decode [`Reply`]s from a byte stream with
 //! [`ReplyDecoder`]) and the device side used by the simulator (decode commands with
@@ -59,6 +60,8 @@ pub mod command;
 pub mod decoder;
 pub mod device;
 pub mod error;
+pub mod mip;
+pub mod protocol;
 pub mod reply;
 pub mod scale;
 pub mod ticks;
@@ -70,6 +73,7 @@ pub use decoder::{
 };
 pub use device::{DeviceParams, GainScales};
 pub use error::FrameError;
+pub use protocol::DeviceProtocol;
 pub use reply::{Filter, Reply, reply_len_for_code};
 pub use scale::Quantized;
 pub use ticks::TickUnwrapper;

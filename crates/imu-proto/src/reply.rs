@@ -308,6 +308,15 @@ impl Reply {
     pub fn encode(&self, out: &mut Vec<u8>) {
         let start = out.len();
         out.push(self.code());
+        if !self.encode_data_words(out) {
+            self.encode_short_words(out);
+        }
+        let sum = checksum(&out[start..]);
+        out.extend_from_slice(&sum.to_be_bytes());
+    }
+
+    /// The words of a data reply (vectors, orientation, ticks); `false` for the other replies.
+    fn encode_data_words(&self, out: &mut Vec<u8>) -> bool {
         match self {
             Reply::RawSensorBits {
                 mag,
@@ -369,6 +378,14 @@ impl Reply {
                 put_i16s(out, rate);
                 put_u16s(out, &[*ticks]);
             }
+            _ => return false,
+        }
+        true
+    }
+
+    /// The words of the replies that are not data (acknowledgements, EEPROM, identity).
+    fn encode_short_words(&self, out: &mut Vec<u8>) {
+        match self {
             Reply::Continuous { command, ticks } => {
                 out.extend_from_slice(&[0x00, *command]);
                 put_u16s(out, &[*ticks]);
@@ -384,9 +401,9 @@ impl Reply {
             Reply::FirmwareVersion { version: value } | Reply::SerialNumber { serial: value } => {
                 put_u16s(out, &[*value]);
             }
+            // Data replies: written by `encode_data_words`.
+            _ => {}
         }
-        let sum = checksum(&out[start..]);
-        out.extend_from_slice(&sum.to_be_bytes());
     }
 
     /// The whole frame as a new vector.

@@ -141,9 +141,14 @@ impl DeviceCore {
     /// The device's unwrapped timer ticks at scenario time `t_s`.
     pub fn ticks_unwrapped(&self, t_s: f64) -> u64 {
         let d = &self.scenario.device;
-        let device_time_s =
-            (t_s + self.scenario.power_on_before_s) * (1.0 + d.clock_drift_ppm * 1e-6);
-        d.initial_ticks + (device_time_s / d.tick_period_s).floor().max(0.0) as u64
+        d.initial_ticks + (self.device_time_s(t_s) / d.tick_period_s).floor().max(0.0) as u64
+    }
+
+    /// Time since power-on on the device's own oscillator (which runs `clock-drift-ppm` fast)
+    /// at scenario time `t_s`, seconds.
+    pub fn device_time_s(&self, t_s: f64) -> f64 {
+        let d = &self.scenario.device;
+        (t_s + self.scenario.power_on_before_s) * (1.0 + d.clock_drift_ppm * 1e-6)
     }
 
     fn ticks(&self, t_s: f64) -> u16 {
@@ -254,11 +259,21 @@ impl DeviceCore {
 
     /// Produces the data reply `cmd` (which must be a data command) at scenario time `t_s`.
     pub fn data_reply(&mut self, cmd: Command, t_s: f64) -> (Reply, TruthSample) {
-        let state = self.timeline.state(t_s);
-        let c = self.conditions(&state, t_s);
+        // Temperature polls do not consume noise, so the IMU noise sequence is the same whether
+        // or not the host interleaves temperature reads.
+        let m = self.measure(t_s, cmd != Command::Temperature);
         let ticks_unwrapped = self.ticks_unwrapped(t_s);
         let ticks = (ticks_unwrapped % 65_536) as u16;
-        let is_temperature = cmd == Command::Temperature;
+        let (reply, saturated) = self.gx1_reply(cmd, &m, ticks);
+        let truth = self.truth_sample(&m, cmd.code(), ticks_unwrapped, saturated);
+        (reply, truth)
+    }
+
+    /// The sensor output at scenario time `t_s` before any protocol's encoding: truth model,
+    /// disturbances and (when `with_noise`) the next noise sample of each triad.
+    pub fn measure(&mut self, t_s: f64, with_noise: bool) -> Measurement {
+        let state = self.timeline.state(t_s);
+        let conditions = self.conditions(&state, t_s);
         let (mut accel, mut gyro, mut mag) = self.deterministic(&state, t_s);
         for d in &self.scenario.disturbances {
             match d.triad {
@@ -267,9 +282,7 @@ impl DeviceCore {
                 imu_model::Triad::Mag => mag += d.at(t_s),
             }
         }
-        if !is_temperature {
-            // Temperature polls do not consume noise, so the IMU noise sequence is the same
-            // whether or not the host interleaves temperature reads.
+        if with_noise {
             for (v, n) in [&mut accel, &mut gyro, &mut mag]
                 .into_iter()
                 .zip(self.noise.iter_mut())
@@ -279,6 +292,18 @@ impl DeviceCore {
                 }
             }
         }
+        Measurement {
+            t_s,
+            state,
+            conditions,
+            accel_m_s2: accel,
+            gyro_rad_s: gyro,
+            mag_gauss: mag,
+        }
+    }
+
+    /// The 3DM-GX1 reply to data command `cmd` carrying `m`, and whether a channel saturated.
+    fn gx1_reply(&self, cmd: Command, m: &Measurement, ticks: u16) -> (Reply, bool) {
         let g0 = imu_model::units::STANDARD_GRAVITY_M_S2;
         let gains = self.gains();
         let mut saturated = false;
@@ -289,22 +314,10 @@ impl DeviceCore {
                 q.counts
             })
         };
-        let stab_gyro = gyro - self.gyro_offset_rad_s;
-        let accel_counts = scaled(accel / g0, gains.0);
-        let rate_counts = scaled(stab_gyro, gains.1);
-        let mag_counts = scaled(mag, gains.2);
-        let ned_from_sensor = match self.tare_ned_from_sensor {
-            Some(tare) => tare.inverse() * self.ned_from_sensor(&state),
-            None => self.ned_from_sensor(&state),
-        };
-        let qv = ned_from_sensor.quaternion();
-        let q = [qv.w, qv.i, qv.j, qv.k].map(|v| scale::value_to_quat_matrix_counts(v).counts);
-        let (roll, pitch, yaw) = ned_from_sensor.euler_angles();
-        let rpy = [roll, pitch, yaw].map(|a| scale::deg_to_euler_counts(a.to_degrees()).counts);
-        let sensor_from_ned = ned_from_sensor.inverse().to_rotation_matrix();
-        let m: [i16; 9] = std::array::from_fn(|k| {
-            scale::value_to_quat_matrix_counts(sensor_from_ned[(k / 3, k % 3)]).counts
-        });
+        let accel = scaled(m.accel_m_s2 / g0, gains.0);
+        let rate = scaled(m.gyro_rad_s - self.gyro_offset_rad_s, gains.1);
+        let mag = scaled(m.mag_gauss, gains.2);
+        let o = self.orientation_counts(&m.state);
         let reply = match cmd {
             Command::RawSensorBits => {
                 let mut raw = |v: Vector3<f64>, gain: u16| -> [u16; 3] {
@@ -315,90 +328,80 @@ impl DeviceCore {
                     })
                 };
                 Reply::RawSensorBits {
-                    mag: raw(mag, gains.2),
-                    accel: raw(accel / g0, gains.0),
-                    rate: raw(gyro, gains.1),
+                    mag: raw(m.mag_gauss, gains.2),
+                    accel: raw(m.accel_m_s2 / g0, gains.0),
+                    rate: raw(m.gyro_rad_s, gains.1),
                     ticks,
                 }
             }
-            Command::StabilizedVectors | Command::InstantaneousVectors => Reply::Vectors {
-                kind: filter_of(cmd),
-                mag: mag_counts,
-                accel: accel_counts,
-                rate: rate_counts,
-                ticks,
-            },
-            Command::InstantaneousQuaternion | Command::StabilizedQuaternion => Reply::Quaternion {
-                kind: filter_of(cmd),
-                q,
-                ticks,
-            },
             Command::Temperature => {
-                let t = scale::temp_c_to_raw(c.temp_c);
+                let t = scale::temp_c_to_raw(m.conditions.temp_c);
                 saturated |= t.saturated;
                 Reply::Temperature {
                     raw: t.counts,
                     ticks,
                 }
             }
-            Command::InstantaneousOrientationMatrix | Command::StabilizedOrientationMatrix => {
-                Reply::OrientationMatrix {
-                    kind: filter_of(cmd),
-                    m,
-                    ticks,
-                }
-            }
-            Command::StabilizedQuaternionVectors | Command::InstantaneousQuaternionVectors => {
-                Reply::QuaternionVectors {
-                    kind: filter_of(cmd),
-                    q,
-                    mag: mag_counts,
-                    accel: accel_counts,
-                    rate: rate_counts,
-                    ticks,
-                }
-            }
-            Command::InstantaneousEuler | Command::StabilizedEuler => Reply::Euler {
-                kind: filter_of(cmd),
-                rpy,
-                ticks,
-            },
-            Command::StabilizedEulerVectors => Reply::EulerVectors {
-                rpy,
-                accel: accel_counts,
-                rate: rate_counts,
-                ticks,
-            },
-            other => unreachable!("{other:?} is not a data command"),
+            _ => gx1_vector_reply(cmd, accel, rate, mag, &o, ticks),
         };
+        (reply, saturated)
+    }
+
+    /// The orientation replies' counts: after a tare, relative to the tared orientation.
+    fn orientation_counts(&self, state: &MotionState) -> OrientationCounts {
+        let ned_from_sensor = match self.tare_ned_from_sensor {
+            Some(tare) => tare.inverse() * self.ned_from_sensor(state),
+            None => self.ned_from_sensor(state),
+        };
+        let qv = ned_from_sensor.quaternion();
+        let q = [qv.w, qv.i, qv.j, qv.k].map(|v| scale::value_to_quat_matrix_counts(v).counts);
+        let (roll, pitch, yaw) = ned_from_sensor.euler_angles();
+        let rpy = [roll, pitch, yaw].map(|a| scale::deg_to_euler_counts(a.to_degrees()).counts);
+        let sensor_from_ned = ned_from_sensor.inverse().to_rotation_matrix();
+        let m = std::array::from_fn(|k| {
+            scale::value_to_quat_matrix_counts(sensor_from_ned[(k / 3, k % 3)]).counts
+        });
+        OrientationCounts { q, rpy, m }
+    }
+
+    /// The truth record of one data reply of header `command` made from `m` (the reply's
+    /// ticks are `ticks_unwrapped`), counted as a data reply.
+    pub fn truth_sample(
+        &mut self,
+        m: &Measurement,
+        command: u8,
+        ticks_unwrapped: u64,
+        saturated: bool,
+    ) -> TruthSample {
         self.stats.data_replies += 1;
         if saturated {
             self.stats.saturated_replies += 1;
         }
+        let state = &m.state;
         let q = state.enu_from_sensor.quaternion();
         let truth = TruthSample {
             seq: self.seq,
-            command: cmd.code(),
-            ticks,
+            command,
+            ticks: (ticks_unwrapped % 65_536) as u16,
             ticks_unwrapped,
-            t_s,
-            time_since_power_on_s: c.time_since_power_on_s,
+            t_s: m.t_s,
+            time_since_power_on_s: m.conditions.time_since_power_on_s,
             segment: state.segment,
             specific_force_m_s2: state.specific_force_m_s2.into(),
             angular_rate_rad_s: state.angular_rate_rad_s.into(),
             angular_accel_rad_s2: state.angular_accel_rad_s2.into(),
             mag_field_gauss: state.mag_field_gauss.into(),
-            temp_c: c.temp_c,
+            temp_c: m.conditions.temp_c,
             enu_from_sensor: [q.w, q.i, q.j, q.k],
             table_angle_rad: state.table_angle_rad,
             table_rate_rad_s: state.table_rate_rad_s,
-            measured_accel_m_s2: accel.into(),
-            measured_gyro_rad_s: gyro.into(),
-            measured_mag_gauss: mag.into(),
+            measured_accel_m_s2: m.accel_m_s2.into(),
+            measured_gyro_rad_s: m.gyro_rad_s.into(),
+            measured_mag_gauss: m.mag_gauss.into(),
             saturated,
         };
         self.seq += 1;
-        (reply, truth)
+        truth
     }
 
     /// GainScales currently in EEPROM (a host may rewrite them): (accel, gyro, mag).
@@ -415,6 +418,88 @@ impl DeviceCore {
             get(GYRO_GAIN_SCALE_ADDR),
             get(MAG_GAIN_SCALE_ADDR),
         )
+    }
+}
+
+/// One sensor output before encoding (see [`DeviceCore::measure`]).
+#[derive(Debug, Clone)]
+pub struct Measurement {
+    /// Scenario time, s.
+    pub t_s: f64,
+    /// The true motion.
+    pub state: MotionState,
+    /// Temperature and time since power-on.
+    pub conditions: Conditions,
+    /// Accelerometer output, m/s^2.
+    pub accel_m_s2: Vector3<f64>,
+    /// Gyro output, rad/s.
+    pub gyro_rad_s: Vector3<f64>,
+    /// Magnetometer output, gauss.
+    pub mag_gauss: Vector3<f64>,
+}
+
+/// Orientation in the GX1's count encodings.
+struct OrientationCounts {
+    /// Quaternion `[w, x, y, z]` of `ned_from_sensor`.
+    q: [i16; 4],
+    /// Euler roll, pitch, yaw.
+    rpy: [i16; 3],
+    /// `sensor_from_ned`, row order.
+    m: [i16; 9],
+}
+
+/// The GX1 replies made of scaled vectors and orientation.
+fn gx1_vector_reply(
+    cmd: Command,
+    accel: [i16; 3],
+    rate: [i16; 3],
+    mag: [i16; 3],
+    o: &OrientationCounts,
+    ticks: u16,
+) -> Reply {
+    let (q, rpy, m) = (o.q, o.rpy, o.m);
+    match cmd {
+        Command::StabilizedVectors | Command::InstantaneousVectors => Reply::Vectors {
+            kind: filter_of(cmd),
+            mag,
+            accel,
+            rate,
+            ticks,
+        },
+        Command::InstantaneousQuaternion | Command::StabilizedQuaternion => Reply::Quaternion {
+            kind: filter_of(cmd),
+            q,
+            ticks,
+        },
+        Command::InstantaneousOrientationMatrix | Command::StabilizedOrientationMatrix => {
+            Reply::OrientationMatrix {
+                kind: filter_of(cmd),
+                m,
+                ticks,
+            }
+        }
+        Command::StabilizedQuaternionVectors | Command::InstantaneousQuaternionVectors => {
+            Reply::QuaternionVectors {
+                kind: filter_of(cmd),
+                q,
+                mag,
+                accel,
+                rate,
+                ticks,
+            }
+        }
+        Command::InstantaneousEuler | Command::StabilizedEuler => Reply::Euler {
+            kind: filter_of(cmd),
+            rpy,
+            ticks,
+        },
+        Command::StabilizedEulerVectors => Reply::EulerVectors {
+            rpy,
+            accel,
+            rate,
+            ticks,
+        },
+        other => unreachable!("{other:?} is not a data command"),
     }
 }
 

@@ -1,9 +1,11 @@
-//! imu-sim: a virtual MicroStrain 3DM-GX1 on a pseudo-terminal, driven by known physics and a
-//! known error model, that writes down the truth behind every reply.
+//! imu-sim: a virtual MicroStrain 3DM-GX1 (or MIP unit) on a pseudo-terminal, driven by known
+//! physics and a known error model, that writes down the truth behind every reply.
 //!
 //! - [`scenario`]: the TOML scenario format (the paper's tests as segments).
 //! - [`motion`]: exact analytic motion (orientation, rates, specific force) over time.
-//! - [`device`]: the sans-IO device: commands in, replies and truth out.
+//! - [`device`]: the sans-IO device: commands in, replies and truth out (3DM-GX1), and the
+//!   physics and truth every protocol shares; [`mip_device`]: the same device speaking MIP;
+//!   [`virtual_device`]: the enum over the protocols that the link runs.
 //! - [`link`]: the pty and the loop that paces replies in real time or as fast as the host reads.
 //!
 //! [`spawn`] runs all of it on a thread and returns once the device path exists, so the daemon
@@ -11,8 +13,10 @@
 
 pub mod device;
 pub mod link;
+pub mod mip_device;
 pub mod motion;
 pub mod scenario;
+pub mod virtual_device;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -28,6 +32,7 @@ use imu_model::Calibration;
 pub use device::DeviceCore;
 pub use link::{LinkReport, Pacing};
 pub use scenario::Scenario;
+pub use virtual_device::VirtualDevice;
 
 /// Errors starting or running the simulator.
 #[derive(Debug, thiserror::Error)]
@@ -206,6 +211,7 @@ fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, Strin
             "clock-drift-ppm".into(),
             s.device.clock_drift_ppm.to_string(),
         ),
+        ("protocol".into(), s.device.protocol.to_string()),
         ("serial-number".into(), s.device.serial_number.to_string()),
         ("firmware".into(), s.device.firmware.to_string()),
         (
@@ -228,34 +234,10 @@ fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, Strin
 /// Starts a simulator on a new pty and returns once its device path is ready.
 pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
     let mut pty = link::Pty::open()?;
-    let slave = pty.slave_path().to_path_buf();
-    let device_path = match &opts.link {
-        Some(l) => {
-            link::make_link(l, &slave).map_err(|e| SimError::DeviceLink {
-                path: l.clone(),
-                message: e.to_string(),
-            })?;
-            l.clone()
-        }
-        None => slave.clone(),
-    };
-    let mut device = DeviceCore::new(opts.scenario.clone(), opts.truth.clone(), opts.seed);
-    let writer = match &opts.truth_out {
-        Some(path) => {
-            let mut w = TruthWriter::create(
-                path,
-                &run_metadata(&opts, &device_path),
-                &opts.scenario_text,
-                &opts.truth.to_toml_string(),
-            )?;
-            for s in device.timeline().segments() {
-                w.write_segment(&segment_record(s))?;
-            }
-            w.flush()?;
-            Some(w)
-        }
-        None => None,
-    };
+    let device_path = device_path(&opts, pty.slave_path())?;
+    let core = DeviceCore::new(opts.scenario.clone(), opts.truth.clone(), opts.seed);
+    let writer = open_truth(&opts, &core, &device_path)?;
+    let mut device = VirtualDevice::new(opts.scenario.device.protocol, core);
     let stop = Arc::new(AtomicBool::new(false));
     let stop_thread = stop.clone();
     let link_path = opts.link.clone();
@@ -272,26 +254,7 @@ pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
         .name("imu-sim".into())
         .spawn(move || {
             let (tx, rx) = mpsc::sync_channel(8192);
-            // The truth file is written on its own thread so that disk latency never delays a
-            // reply; it is flushed at least twice a second so a killed run leaves a readable file.
-            let writer_thread = writer.map(|mut w| {
-                std::thread::spawn(move || -> Result<(), SimError> {
-                    let mut last_flush = Instant::now();
-                    loop {
-                        match rx.recv_timeout(Duration::from_millis(200)) {
-                            Ok(sample) => w.write_sample(&sample)?,
-                            Err(mpsc::RecvTimeoutError::Timeout) => {}
-                            Err(mpsc::RecvTimeoutError::Disconnected) => break,
-                        }
-                        if last_flush.elapsed() >= Duration::from_millis(500) {
-                            w.flush()?;
-                            last_flush = Instant::now();
-                        }
-                    }
-                    w.finish()?;
-                    Ok(())
-                })
-            });
+            let writer_thread = writer.map(|w| truth_thread(w, rx));
             let sender = writer_thread.as_ref().map(|_| &tx);
             let result = link::run(&mut pty, &mut device, sender, link_options, &stop_thread);
             drop(tx);
@@ -316,5 +279,65 @@ pub fn spawn(opts: SimOptions) -> Result<SimHandle, SimError> {
         unplug_ms,
         inject,
         thread: Some(thread),
+    })
+}
+
+/// The path a host opens: the stable link (made now) if one was asked for, else the pty slave.
+fn device_path(opts: &SimOptions, slave: &Path) -> Result<PathBuf, SimError> {
+    match &opts.link {
+        Some(l) => {
+            link::make_link(l, slave).map_err(|e| SimError::DeviceLink {
+                path: l.clone(),
+                message: e.to_string(),
+            })?;
+            Ok(l.clone())
+        }
+        None => Ok(slave.to_path_buf()),
+    }
+}
+
+/// Creates the truth file, if one was asked for, with the run's identity and segments.
+fn open_truth(
+    opts: &SimOptions,
+    core: &DeviceCore,
+    device_path: &Path,
+) -> Result<Option<TruthWriter>, SimError> {
+    let Some(path) = &opts.truth_out else {
+        return Ok(None);
+    };
+    let mut w = TruthWriter::create(
+        path,
+        &run_metadata(opts, device_path),
+        &opts.scenario_text,
+        &opts.truth.to_toml_string(),
+    )?;
+    for s in core.timeline().segments() {
+        w.write_segment(&segment_record(s))?;
+    }
+    w.flush()?;
+    Ok(Some(w))
+}
+
+/// The truth file is written on its own thread so that disk latency never delays a reply; it
+/// is flushed at least twice a second so a killed run leaves a readable file.
+fn truth_thread(
+    mut w: TruthWriter,
+    rx: mpsc::Receiver<imu_bus::truth::TruthSample>,
+) -> JoinHandle<Result<(), SimError>> {
+    std::thread::spawn(move || -> Result<(), SimError> {
+        let mut last_flush = Instant::now();
+        loop {
+            match rx.recv_timeout(Duration::from_millis(200)) {
+                Ok(sample) => w.write_sample(&sample)?,
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Err(mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+            if last_flush.elapsed() >= Duration::from_millis(500) {
+                w.flush()?;
+                last_flush = Instant::now();
+            }
+        }
+        w.finish()?;
+        Ok(())
     })
 }

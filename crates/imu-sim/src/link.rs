@@ -6,7 +6,8 @@
 //! unplugged cable too), and at the end of a scenario it can tell when the host has read the last
 //! byte before closing. Time runs in one of two modes:
 //! - real time: the scenario clock follows the wall clock from the first data request, samples go
-//!   out at the scenario rate and bytes are paced to the configured baud rate;
+//!   out at the scenario rate and bytes are paced to the configured baud rate (a 3DM-GX1; a MIP
+//!   unit's USB virtual serial port is not paced);
 //! - fast: a virtual clock advances one sample period per data reply and bytes go out as fast as
 //!   the host reads them, so hours of scenario run in seconds with identical content.
 
@@ -21,13 +22,12 @@ use std::sync::mpsc::SyncSender;
 use std::time::{Duration, Instant};
 
 use imu_bus::truth::TruthSample;
-use imu_proto::decoder::{CommandDecoder, CommandEvent};
 use nix::fcntl::{FcntlArg, OFlag, fcntl};
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 use nix::pty::{PtyMaster, grantpt, posix_openpt, ptsname_r, unlockpt};
 use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
 
-use crate::device::DeviceCore;
+use crate::virtual_device::VirtualDevice;
 
 /// Errors setting up the virtual link.
 #[derive(Debug, thiserror::Error)]
@@ -174,7 +174,7 @@ pub fn make_link(link: &Path, target: &Path) -> Result<(), LinkError> {
 /// `truth` in the order their replies were queued.
 pub fn run(
     pty: &mut Pty,
-    device: &mut DeviceCore,
+    device: &mut VirtualDevice,
     truth: Option<&SyncSender<TruthSample>>,
     options: LinkOptions,
     stop: &Arc<AtomicBool>,
@@ -183,7 +183,6 @@ pub fn run(
         device,
         truth,
         options,
-        decoder: CommandDecoder::new(),
         out: Vec::with_capacity(64 * 1024),
         origin: None,
         virtual_t_s: 0.0,
@@ -198,10 +197,9 @@ pub fn run(
 }
 
 struct Loop<'a> {
-    device: &'a mut DeviceCore,
+    device: &'a mut VirtualDevice,
     truth: Option<&'a SyncSender<TruthSample>>,
     options: LinkOptions,
-    decoder: CommandDecoder,
     out: Vec<u8>,
     /// Wall-clock instant of scenario time zero (real-time mode; set by the first data request).
     origin: Option<Instant>,
@@ -221,8 +219,11 @@ struct Loop<'a> {
 /// A command whose argument bytes stop arriving for this long is dropped, as a device would.
 const COMMAND_TIMEOUT: Duration = Duration::from_millis(100);
 
-/// Output backlog above which a real-time device cannot queue another sample.
+/// Output backlog above which a real-time device on a serial line cannot queue another sample.
 const BACKLOG_LIMIT_BYTES: usize = 256;
+/// The same for a device on a USB virtual serial port (MIP), which sends samples in bursts: a
+/// loop that wakes late queues every sample that fell due meanwhile.
+const USB_BACKLOG_LIMIT_BYTES: usize = 16 * 1024;
 /// Output kept queued ahead in fast mode.
 const FAST_AHEAD_BYTES: usize = 16 * 1024;
 
@@ -240,7 +241,7 @@ impl Loop<'_> {
     }
 
     fn finished(&self, t_s: f64) -> bool {
-        t_s >= self.device.timeline().duration_s()
+        t_s >= self.device.core().timeline().duration_s()
     }
 
     fn emit_truth(&mut self, sample: TruthSample) -> std::io::Result<()> {
@@ -253,48 +254,36 @@ impl Loop<'_> {
     }
 
     fn handle_commands(&mut self) -> std::io::Result<()> {
-        if self.decoder.pending_len() > 0
-            && self.last_input.elapsed() >= COMMAND_TIMEOUT
-            && let Some(CommandEvent::Rejected { bytes, .. }) = self.decoder.expire_partial()
-        {
-            self.report.rejected_command_bytes += bytes.len() as u64;
+        if self.device.pending_len() > 0 && self.last_input.elapsed() >= COMMAND_TIMEOUT {
+            self.report.rejected_command_bytes += self.device.expire_partial();
         }
-        while let Some(ev) = self.decoder.next_event() {
-            let cmd = match ev {
-                CommandEvent::Command(cmd) => cmd,
-                CommandEvent::Rejected { bytes, .. } => {
-                    self.report.rejected_command_bytes += bytes.len() as u64;
+        while let Some(request) = self.device.next_request() {
+            let request = match request {
+                Ok(r) => r,
+                Err(rejected) => {
+                    self.report.rejected_command_bytes += rejected;
                     continue;
                 }
             };
-            let t_s = self.now_s(cmd.is_data());
-            if cmd.is_data() && self.finished(t_s) {
+            let is_data = request.is_data();
+            let t_s = self.now_s(is_data);
+            if is_data && self.finished(t_s) {
                 continue;
             }
-            let was_streaming = self.device.streaming().is_some();
-            let response = self.device.handle(cmd, t_s);
-            if cmd.is_data() && self.options.pacing == Pacing::Fast {
-                self.virtual_t_s += self.device.sample_period_s();
+            let was_streaming = self.device.is_streaming();
+            let answer = self.device.handle(request, t_s);
+            if is_data && self.options.pacing == Pacing::Fast {
+                self.virtual_t_s += self.device.core().sample_period_s();
             }
-            if let Some(truth) = response.truth {
+            if let Some(truth) = answer.truth {
                 self.emit_truth(truth)?;
             }
-            if let Some(reply) = response.reply {
-                let bytes = reply.to_bytes();
-                if response.delay_s > 0.0 && self.options.pacing == Pacing::RealTime {
-                    self.delayed.push((
-                        Instant::now() + Duration::from_secs_f64(response.delay_s),
-                        bytes,
-                    ));
-                } else {
-                    self.out.extend_from_slice(&bytes);
-                }
-            }
-            match (was_streaming, self.device.streaming().is_some()) {
+            self.queue_answer(answer.bytes, answer.delay_s);
+            match (was_streaming, self.device.is_streaming()) {
                 (false, true) => {
                     // The first sample follows the acknowledgement one period later.
                     let t = self.now_s(true);
-                    self.next_sample_t_s = Some(t + self.device.sample_period_s());
+                    self.next_sample_t_s = Some(t + self.device.core().sample_period_s());
                 }
                 (true, false) => self.next_sample_t_s = None,
                 _ => {}
@@ -303,12 +292,25 @@ impl Loop<'_> {
         Ok(())
     }
 
+    /// Sends a reply now, or after `delay_s` in real time (a slow command).
+    fn queue_answer(&mut self, bytes: Vec<u8>, delay_s: f64) {
+        if bytes.is_empty() {
+            return;
+        }
+        if delay_s > 0.0 && self.options.pacing == Pacing::RealTime {
+            self.delayed
+                .push((Instant::now() + Duration::from_secs_f64(delay_s), bytes));
+        } else {
+            self.out.extend_from_slice(&bytes);
+        }
+    }
+
     /// Queues every continuous-mode sample that is due.
     fn stream(&mut self) -> std::io::Result<()> {
-        let Some(cmd) = self.device.streaming() else {
+        if !self.device.is_streaming() {
             return Ok(());
-        };
-        let period = self.device.sample_period_s();
+        }
+        let period = self.device.core().sample_period_s();
         while let Some(t) = self.next_sample_t_s {
             if self.finished(t) {
                 break;
@@ -324,17 +326,21 @@ impl Loop<'_> {
                     if t > self.now_s(true) {
                         break;
                     }
-                    if self.out.len() > BACKLOG_LIMIT_BYTES {
+                    let limit = match self.device.baud() {
+                        Some(_) => BACKLOG_LIMIT_BYTES,
+                        None => USB_BACKLOG_LIMIT_BYTES,
+                    };
+                    if self.out.len() > limit {
                         self.report.samples_skipped_link_busy += 1;
                         self.next_sample_t_s = Some(t + period);
                         continue;
                     }
                 }
             }
-            let (reply, truth) = self.device.data_reply(cmd, t);
             self.take_injected();
-            reply.encode(&mut self.out);
-            self.emit_truth(truth)?;
+            if let Some(truth) = self.device.stream_sample(t, &mut self.out) {
+                self.emit_truth(truth)?;
+            }
             self.next_sample_t_s = Some(t + period);
             self.report.scenario_time_s = t;
         }
@@ -351,9 +357,9 @@ impl Loop<'_> {
         }
     }
 
-    fn refill_baud(&mut self) {
+    fn refill_baud(&mut self, baud: u32) {
         let now = Instant::now();
-        let bytes_per_s = self.device.scenario().device.baud as f64 / 10.0;
+        let bytes_per_s = f64::from(baud) / 10.0;
         self.baud_tokens = (self.baud_tokens
             + now.duration_since(self.last_refill).as_secs_f64() * bytes_per_s)
             .min(64.0);
@@ -374,10 +380,13 @@ impl Loop<'_> {
         }
         let allowed = match self.options.pacing {
             Pacing::Fast => self.out.len(),
-            Pacing::RealTime => {
-                self.refill_baud();
-                (self.baud_tokens as usize).min(self.out.len())
-            }
+            Pacing::RealTime => match self.device.baud() {
+                Some(baud) => {
+                    self.refill_baud(baud);
+                    (self.baud_tokens as usize).min(self.out.len())
+                }
+                None => self.out.len(),
+            },
         };
         if allowed == 0 {
             return Ok(());
@@ -386,7 +395,7 @@ impl Loop<'_> {
             Ok(n) => {
                 self.out.drain(..n);
                 self.report.bytes_out += n as u64;
-                if self.options.pacing == Pacing::RealTime {
+                if self.options.pacing == Pacing::RealTime && self.device.baud().is_some() {
                     self.baud_tokens -= n as f64;
                 }
                 Ok(())
@@ -403,7 +412,7 @@ impl Loop<'_> {
                 Ok(0) => return Ok(()),
                 Ok(n) => {
                     self.report.bytes_in += n as u64;
-                    self.decoder.push(&buf[..n]);
+                    self.device.push(&buf[..n]);
                     self.last_input = Instant::now();
                 }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
@@ -430,7 +439,7 @@ impl Loop<'_> {
                 }
             }
         }
-        if self.decoder.pending_len() > 0 {
+        if self.device.pending_len() > 0 {
             wait = wait.min(COMMAND_TIMEOUT.saturating_sub(self.last_input.elapsed()));
         }
         if let Some(at) = self.delayed.iter().map(|(at, _)| *at).min() {
@@ -452,7 +461,7 @@ impl Loop<'_> {
         let old = std::mem::replace(pty, fresh);
         drop(old);
         self.out.clear();
-        self.decoder = CommandDecoder::new();
+        self.device.reset_link();
         let until = Instant::now() + off;
         while Instant::now() < until && !stop.load(Ordering::Relaxed) {
             std::thread::sleep(Duration::from_millis(10));

@@ -1,4 +1,4 @@
-//! `imu-sim`: run a virtual MicroStrain 3DM-GX1 on a pseudo-terminal.
+//! `imu-sim`: run a virtual MicroStrain 3DM-GX1 (or a MIP unit) on a pseudo-terminal.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -8,10 +8,11 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
+use imu_proto::DeviceProtocol;
 use imu_sim::{Pacing, SimOptions};
 
-/// A virtual MicroStrain 3DM-GX1 IMU on a pseudo-terminal, driven by known physics and a known
-/// error model.
+/// A virtual MicroStrain 3DM-GX1 IMU (or, with --protocol mip, a MIP unit like a 3DM-GX5) on a
+/// pseudo-terminal, driven by known physics and a known error model.
 ///
 /// The first line on stdout is the device path (e.g. /dev/pts/7); open it with imud, a serial
 /// terminal or any 3DM-GX1 driver and speak the documented protocol. The device starts idle, like
@@ -55,6 +56,11 @@ struct Args {
     /// Seconds to wait at the end of the scenario for the host to read the last bytes.
     #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = imu_cli::finite_f64)]
     linger_s: f64,
+    /// The protocol the device speaks: 3dm-gx1 or mip (default: the scenario's
+    /// `device.protocol`, else 3dm-gx1). A MIP device powers up idle with streaming enabled;
+    /// `resume` (base command 0x06) starts the stream, see imu_sim::mip_device.
+    #[arg(long, value_name = "PROTOCOL")]
+    protocol: Option<DeviceProtocol>,
     /// Print the scenario's segments and duration and exit without opening a device.
     #[arg(long)]
     describe: bool,
@@ -68,6 +74,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     let mut opts = SimOptions::from_files(&args.scenario, args.truth.as_deref())?;
     if let Some(seed) = args.seed {
         opts.seed = seed;
+    }
+    if let Some(protocol) = args.protocol {
+        opts.scenario
+            .set_protocol(protocol, &args.scenario.display().to_string())?;
     }
     if args.describe {
         return describe(&opts);
@@ -83,7 +93,10 @@ fn run(args: Args) -> anyhow::Result<()> {
         .context("--linger-s must be a non-negative number of seconds")?;
     let s = &opts.scenario;
     let frame_bytes_per_s = s.rate_hz * 23.0 * 10.0;
-    if !args.fast && frame_bytes_per_s > s.device.baud as f64 {
+    if !args.fast
+        && s.device.protocol == DeviceProtocol::Gx1
+        && frame_bytes_per_s > s.device.baud as f64
+    {
         eprintln!(
             "imu-sim: warning: {} Hz of 23-byte frames needs {:.0} baud but the device is set to {}; \
              samples the link cannot carry are skipped",

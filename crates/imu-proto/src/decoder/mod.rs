@@ -22,7 +22,7 @@ use crate::reply::{KNOWN_REPLY_CODES, MAX_REPLY_LEN, Reply, reply_len_for_code};
 
 mod command;
 mod reply;
-mod stream;
+pub(crate) mod stream;
 
 pub use command::*;
 pub use reply::*;

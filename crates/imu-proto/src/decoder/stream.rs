@@ -9,18 +9,18 @@ use super::*;
 /// garbage_len]` classified as garbage but not yet reported, `[start + garbage_len..]` not yet
 /// classified.
 #[derive(Debug, Clone, Default)]
-pub(super) struct StreamBuf {
-    pub(super) buf: Vec<u8>,
-    pub(super) start: usize,
-    pub(super) garbage_len: usize,
+pub(crate) struct StreamBuf {
+    pub(crate) buf: Vec<u8>,
+    pub(crate) start: usize,
+    pub(crate) garbage_len: usize,
     /// Stream offset of `buf[0]`.
-    pub(super) base_offset: u64,
+    pub(crate) base_offset: u64,
     /// While flushing: stream offset where the flushed stream "ends".
-    pub(super) flush_end: Option<u64>,
+    pub(crate) flush_end: Option<u64>,
 }
 
 impl StreamBuf {
-    pub(super) fn push(&mut self, bytes: &[u8]) {
+    pub(crate) fn push(&mut self, bytes: &[u8]) {
         // Drop the reported prefix once it is at least half the buffer: amortised O(1) per byte.
         if self.start > 0 && self.start >= self.buf.len() - self.start {
             self.buf.drain(..self.start);
@@ -30,11 +30,11 @@ impl StreamBuf {
         self.buf.extend_from_slice(bytes);
     }
 
-    pub(super) fn eos(&self) -> bool {
+    pub(crate) fn eos(&self) -> bool {
         self.flush_end.is_some()
     }
 
-    pub(super) fn end(&self) -> usize {
+    pub(crate) fn end(&self) -> usize {
         match self.flush_end {
             Some(end) => usize::try_from(end.saturating_sub(self.base_offset))
                 .unwrap_or(usize::MAX)
@@ -44,20 +44,20 @@ impl StreamBuf {
     }
 
     /// Bytes not yet classified (up to the flush point while flushing).
-    pub(super) fn unprocessed(&self) -> &[u8] {
+    pub(crate) fn unprocessed(&self) -> &[u8] {
         let from = self.start + self.garbage_len;
         self.buf.get(from..self.end()).unwrap_or(&[])
     }
 
-    pub(super) fn offset(&self) -> u64 {
+    pub(crate) fn offset(&self) -> u64 {
         self.base_offset + self.start as u64
     }
 
-    pub(super) fn pending_len(&self) -> usize {
+    pub(crate) fn pending_len(&self) -> usize {
         self.buf.len() - self.start
     }
 
-    pub(super) fn after_consume(&mut self) {
+    pub(crate) fn after_consume(&mut self) {
         if self.start == self.buf.len() {
             self.base_offset += self.start as u64;
             self.buf.clear();
@@ -66,7 +66,7 @@ impl StreamBuf {
     }
 
     /// Takes the pending garbage run out. Returns its offset and bytes.
-    pub(super) fn take_garbage(&mut self) -> (u64, Vec<u8>) {
+    pub(crate) fn take_garbage(&mut self) -> (u64, Vec<u8>) {
         let offset = self.offset();
         let bytes = self.buf[self.start..self.start + self.garbage_len].to_vec();
         self.start += self.garbage_len;
@@ -76,7 +76,7 @@ impl StreamBuf {
     }
 
     /// Consumes `n` unprocessed bytes (only valid with no pending garbage) and hands them to `f`.
-    pub(super) fn consume<T>(&mut self, n: usize, f: impl FnOnce(u64, &[u8]) -> T) -> T {
+    pub(crate) fn consume<T>(&mut self, n: usize, f: impl FnOnce(u64, &[u8]) -> T) -> T {
         debug_assert_eq!(self.garbage_len, 0);
         let offset = self.offset();
         let n = n.min(self.buf.len() - self.start);
@@ -86,7 +86,7 @@ impl StreamBuf {
         out
     }
 
-    pub(super) fn flush(&mut self) {
+    pub(crate) fn flush(&mut self) {
         self.flush_end = Some(self.base_offset + self.buf.len() as u64);
     }
 }

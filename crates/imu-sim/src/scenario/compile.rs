@@ -12,158 +12,11 @@ impl Scenario {
 
     /// Builds the motion timeline. `seed` drives the random poses.
     pub fn compile(&self, seed: u64) -> Timeline {
-        let mut b = Builder {
-            phases: Vec::new(),
-            segments: Vec::new(),
-            t_s: 0.0,
-            q: UnitQuaternion::identity(),
-            table_angle_rad: 0.0,
-            gravity_m_s2: self.gravity_m_s2,
-        };
-        // The sensor starts level (roll = pitch = yaw = 0: x north, y east, z down) unless the
-        // first segment says otherwise, in which case it starts there without a move.
-        b.q = enu_from_ned();
-        if let Some(SegmentSpec::Static {
-            orientation: Some(o),
-            ..
-        }) = self.segments.first()
-        {
-            b.q = o.enu_from_sensor().expect("validated");
-        }
+        let mut b = self.start_builder();
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_0f7a_61e5);
         for (i, seg) in self.segments.iter().enumerate() {
             b.table_angle_rad = 0.0;
-            let n = i + 1;
-            match seg {
-                SegmentSpec::Static {
-                    orientation,
-                    duration_s,
-                    move_s,
-                    label,
-                } => {
-                    if let Some(o) = orientation {
-                        let target = o.enu_from_sensor().expect("validated");
-                        b.move_to(
-                            target,
-                            move_s.unwrap_or(self.transition_s),
-                            &format!("move to segment {n}"),
-                        );
-                    }
-                    let label = label.clone().unwrap_or_else(|| format!("static {n}"));
-                    b.hold(duration_s.unwrap_or(f64::INFINITY), "static", &label, None);
-                }
-                SegmentSpec::IndexTable {
-                    axis,
-                    step_deg,
-                    positions,
-                    dwell_s,
-                    move_s,
-                } => {
-                    for p in 0..*positions {
-                        let angle = step_deg * p as f64;
-                        b.hold(
-                            *dwell_s,
-                            "static",
-                            &format!(
-                                "segment {n} position {} ({angle} deg about {})",
-                                p + 1,
-                                axis_name(axis.0)
-                            ),
-                            None,
-                        );
-                        if p + 1 < *positions {
-                            b.rotate(
-                                axis.0,
-                                step_deg.to_radians(),
-                                *move_s,
-                                &format!("segment {n} step {}", p + 1),
-                            );
-                        }
-                    }
-                }
-                SegmentSpec::RateSteps {
-                    axis,
-                    rates_deg_s,
-                    dwell_s,
-                    accel_deg_s2,
-                } => {
-                    let accel = accel_deg_s2.to_radians();
-                    let mut rate = 0.0;
-                    for r in rates_deg_s {
-                        let target = r.to_radians();
-                        b.ramp(
-                            axis.0,
-                            rate,
-                            target,
-                            accel,
-                            &format!("segment {n} ramp to {r} deg/s"),
-                        );
-                        b.spin(
-                            axis.0,
-                            target,
-                            *dwell_s,
-                            &format!("segment {n} rate {r} deg/s"),
-                        );
-                        rate = target;
-                    }
-                    b.ramp(axis.0, rate, 0.0, accel, &format!("segment {n} stop"));
-                }
-                SegmentSpec::Rotate {
-                    axis,
-                    angle_deg,
-                    duration_s,
-                } => {
-                    b.rotate(
-                        axis.0,
-                        angle_deg.to_radians(),
-                        *duration_s,
-                        &format!(
-                            "segment {n} rotate {angle_deg} deg about {}",
-                            axis_name(axis.0)
-                        ),
-                    );
-                }
-                SegmentSpec::Impacts {
-                    axis,
-                    count,
-                    period_s,
-                    peak_g,
-                    width_ms,
-                } => {
-                    let train = ImpactTrain {
-                        axis_sensor: axis.0,
-                        peak_m_s2: peak_g * self.gravity_m_s2,
-                        width_s: width_ms * 1e-3,
-                        period_s: *period_s,
-                    };
-                    b.hold(
-                        *count as f64 * period_s,
-                        "impacts",
-                        &format!("segment {n} impacts along {}", axis_name(axis.0)),
-                        Some(train),
-                    );
-                }
-                SegmentSpec::RandomPoses {
-                    count,
-                    dwell_s,
-                    move_s,
-                } => {
-                    for p in 0..*count {
-                        let target = random_orientation(&mut rng);
-                        b.move_to(
-                            target,
-                            *move_s,
-                            &format!("segment {n} move to pose {}", p + 1),
-                        );
-                        b.hold(
-                            *dwell_s,
-                            "static",
-                            &format!("segment {n} pose {}", p + 1),
-                            None,
-                        );
-                    }
-                }
-            }
+            self.compile_segment(&mut b, i + 1, seg, &mut rng);
         }
         Timeline::new(
             b.phases,
@@ -173,4 +26,192 @@ impl Scenario {
             Vector3::from(self.mag_field_enu_gauss),
         )
     }
+
+    /// An empty timeline at the starting orientation: level (roll = pitch = yaw = 0: x north,
+    /// y east, z down) unless the first segment says otherwise, in which case the sensor
+    /// starts there without a move.
+    fn start_builder(&self) -> Builder {
+        let mut b = Builder {
+            phases: Vec::new(),
+            segments: Vec::new(),
+            t_s: 0.0,
+            q: UnitQuaternion::identity(),
+            table_angle_rad: 0.0,
+            gravity_m_s2: self.gravity_m_s2,
+        };
+        b.q = enu_from_ned();
+        if let Some(SegmentSpec::Static {
+            orientation: Some(o),
+            ..
+        }) = self.segments.first()
+        {
+            b.q = o.enu_from_sensor().expect("validated");
+        }
+        b
+    }
+
+    /// Appends segment number `n` (1-based) to the timeline.
+    fn compile_segment(&self, b: &mut Builder, n: usize, seg: &SegmentSpec, rng: &mut ChaCha8Rng) {
+        match seg {
+            SegmentSpec::Static {
+                orientation,
+                duration_s,
+                move_s,
+                label,
+            } => {
+                if let Some(o) = orientation {
+                    let target = o.enu_from_sensor().expect("validated");
+                    b.move_to(
+                        target,
+                        move_s.unwrap_or(self.transition_s),
+                        &format!("move to segment {n}"),
+                    );
+                }
+                let label = label.clone().unwrap_or_else(|| format!("static {n}"));
+                b.hold(duration_s.unwrap_or(f64::INFINITY), "static", &label, None);
+            }
+            SegmentSpec::IndexTable {
+                axis,
+                step_deg,
+                positions,
+                dwell_s,
+                move_s,
+            } => index_table(b, n, axis.0, *step_deg, *positions, *dwell_s, *move_s),
+            SegmentSpec::RateSteps {
+                axis,
+                rates_deg_s,
+                dwell_s,
+                accel_deg_s2,
+            } => rate_steps(b, n, axis.0, rates_deg_s, *dwell_s, *accel_deg_s2),
+            SegmentSpec::Rotate {
+                axis,
+                angle_deg,
+                duration_s,
+            } => {
+                b.rotate(
+                    axis.0,
+                    angle_deg.to_radians(),
+                    *duration_s,
+                    &format!(
+                        "segment {n} rotate {angle_deg} deg about {}",
+                        axis_name(axis.0)
+                    ),
+                );
+            }
+            SegmentSpec::Impacts {
+                axis,
+                count,
+                period_s,
+                peak_g,
+                width_ms,
+            } => {
+                let train = ImpactTrain {
+                    axis_sensor: axis.0,
+                    peak_m_s2: peak_g * self.gravity_m_s2,
+                    width_s: width_ms * 1e-3,
+                    period_s: *period_s,
+                };
+                b.hold(
+                    *count as f64 * period_s,
+                    "impacts",
+                    &format!("segment {n} impacts along {}", axis_name(axis.0)),
+                    Some(train),
+                );
+            }
+            SegmentSpec::RandomPoses {
+                count,
+                dwell_s,
+                move_s,
+            } => random_poses(b, n, *count, *dwell_s, *move_s, rng),
+        }
+    }
+}
+
+/// `count` random orientations, each reached in `move_s` and held for `dwell_s`.
+fn random_poses(
+    b: &mut Builder,
+    n: usize,
+    count: u32,
+    dwell_s: f64,
+    move_s: f64,
+    rng: &mut ChaCha8Rng,
+) {
+    for p in 0..count {
+        let target = random_orientation(rng);
+        b.move_to(
+            target,
+            move_s,
+            &format!("segment {n} move to pose {}", p + 1),
+        );
+        b.hold(
+            dwell_s,
+            "static",
+            &format!("segment {n} pose {}", p + 1),
+            None,
+        );
+    }
+}
+
+/// An index table: `positions` dwells `step_deg` apart about `axis`.
+fn index_table(
+    b: &mut Builder,
+    n: usize,
+    axis: Vector3<f64>,
+    step_deg: f64,
+    positions: u32,
+    dwell_s: f64,
+    move_s: f64,
+) {
+    for p in 0..positions {
+        let angle = step_deg * p as f64;
+        b.hold(
+            dwell_s,
+            "static",
+            &format!(
+                "segment {n} position {} ({angle} deg about {})",
+                p + 1,
+                axis_name(axis)
+            ),
+            None,
+        );
+        if p + 1 < positions {
+            b.rotate(
+                axis,
+                step_deg.to_radians(),
+                move_s,
+                &format!("segment {n} step {}", p + 1),
+            );
+        }
+    }
+}
+
+/// Rate-table plateaus about `axis`, ramping between them and back to rest.
+fn rate_steps(
+    b: &mut Builder,
+    n: usize,
+    axis: Vector3<f64>,
+    rates_deg_s: &[f64],
+    dwell_s: f64,
+    accel_deg_s2: f64,
+) {
+    let accel = accel_deg_s2.to_radians();
+    let mut rate = 0.0;
+    for r in rates_deg_s {
+        let target = r.to_radians();
+        b.ramp(
+            axis,
+            rate,
+            target,
+            accel,
+            &format!("segment {n} ramp to {r} deg/s"),
+        );
+        b.spin(
+            axis,
+            target,
+            dwell_s,
+            &format!("segment {n} rate {r} deg/s"),
+        );
+        rate = target;
+    }
+    b.ramp(axis, rate, 0.0, accel, &format!("segment {n} stop"));
 }

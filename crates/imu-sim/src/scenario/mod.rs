@@ -11,6 +11,7 @@
 use std::path::{Path, PathBuf};
 
 use imu_model::nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
+use imu_proto::DeviceProtocol;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
@@ -125,10 +126,25 @@ fn default_transition_s() -> f64 {
     2.0
 }
 
+/// The IMU base rate of the simulated MIP device (a 3DM-GX5's is 1000 Hz): it streams at this
+/// rate divided by the decimation the host sets, so a MIP scenario's `rate-hz` divides it.
+pub const MIP_IMU_BASE_RATE_HZ: f64 = 1000.0;
+
+fn deserialize_protocol<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<DeviceProtocol, D::Error> {
+    let name = String::deserialize(d)?;
+    name.parse().map_err(serde::de::Error::custom)
+}
+
 /// Identity and clock of the virtual device.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
 pub struct DeviceSpec {
+    /// The protocol the device speaks: `"3dm-gx1"` (default) or `"mip"` (the command line's
+    /// `--protocol` overrides it).
+    #[serde(deserialize_with = "deserialize_protocol")]
+    pub protocol: DeviceProtocol,
     /// Serial number reported by command 0xF1.
     pub serial_number: u16,
     /// Firmware version word reported by 0xF0 (N reads as N/1000 . (N%1000)/100 . N%100).
@@ -141,7 +157,8 @@ pub struct DeviceSpec {
     pub initial_ticks: u64,
     /// GainScale EEPROM words.
     pub gain_scale: GainScaleSpec,
-    /// Serial line rate in bits/s; in real-time mode the virtual link is paced to it.
+    /// Serial line rate in bits/s; in real-time mode a 3DM-GX1's link is paced to it. A MIP
+    /// device's link is a USB virtual serial port, as on today's units, and is not paced.
     pub baud: u32,
     /// When true the device ignores EEPROM reads (0x28), as a failing unit would: hosts must
     /// report their fallback gains loudly.
@@ -153,6 +170,7 @@ pub struct DeviceSpec {
 impl Default for DeviceSpec {
     fn default() -> Self {
         Self {
+            protocol: DeviceProtocol::Gx1,
             serial_number: 1001,
             firmware: 3102,
             tick_period_s: imu_proto::ticks::DEFAULT_TICK_PERIOD_S,
@@ -561,6 +579,17 @@ pub(crate) fn toml_error(file: &str, text: &str, e: &toml::de::Error) -> Scenari
 }
 
 impl Scenario {
+    /// Switches the device to `protocol` (the command line's `--protocol`) and checks the
+    /// scenario again (a MIP device needs a rate its base rate divides into).
+    pub fn set_protocol(
+        &mut self,
+        protocol: DeviceProtocol,
+        file: &str,
+    ) -> Result<(), ScenarioError> {
+        self.device.protocol = protocol;
+        self.validate(file)
+    }
+
     /// Parses scenario text; `file` names it in messages.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, ScenarioError> {
         let s: Scenario = toml::from_str(text).map_err(|e| toml_error(file, text, &e))?;

@@ -100,3 +100,29 @@ fn temperature_profiles() {
     assert_eq!(p.temp_c(5.0), 25.0);
     assert_eq!(p.temp_c(11.0), 30.0);
 }
+
+#[test]
+fn mip_rates_divide_the_base_rate_and_bad_protocols_name_the_line() {
+    let with = |rate: &str, protocol: &str| {
+        format!(
+            "name = \"t\"\nrate-hz = {rate}\n[device]\nprotocol = \"{protocol}\"\n\
+             [[segment]]\nkind = \"static\"\nduration-s = 1.0\n"
+        )
+    };
+    let s = Scenario::from_toml_str(&with("250.0", "mip"), "m.toml").unwrap();
+    assert_eq!(s.device.protocol, DeviceProtocol::Mip);
+    let e = Scenario::from_toml_str(&with("300.0", "mip"), "m.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("m.toml: rate-hz:") && e.contains("1000 Hz"),
+        "{e}"
+    );
+    // The command line's --protocol checks the scenario again.
+    let mut gx1 = Scenario::from_toml_str(&with("300.0", "3dm-gx1"), "g.toml").unwrap();
+    assert!(gx1.set_protocol(DeviceProtocol::Mip, "g.toml").is_err());
+    let e = Scenario::from_toml_str(&with("100.0", "gx5"), "p.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("p.toml:4:") && e.contains("\"gx5\""), "{e}");
+}

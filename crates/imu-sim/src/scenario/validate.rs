@@ -3,6 +3,13 @@
 
 use super::*;
 
+/// Builds the error of one failed check.
+type Invalid<'a> = &'a dyn Fn(String, String) -> ScenarioError;
+
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
 impl Scenario {
     pub(super) fn validate(&self, file: &str) -> Result<(), ScenarioError> {
         let invalid = |context: String, message: String| ScenarioError::Invalid {
@@ -10,7 +17,14 @@ impl Scenario {
             context,
             message,
         };
-        let positive = |v: f64| v.is_finite() && v > 0.0;
+        self.validate_environment(&invalid)?;
+        self.validate_device(&invalid)?;
+        self.validate_temperature(&invalid)?;
+        self.validate_segments(&invalid)
+    }
+
+    /// Disturbances, data rate, latitude, gravity and transitions.
+    fn validate_environment(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
         for (i, d) in self.disturbances.iter().enumerate() {
             if !positive(d.frequency_hz) || d.amplitude.iter().any(|a| !a.is_finite()) {
                 return Err(invalid(
@@ -40,6 +54,11 @@ impl Scenario {
                 "must be positive".into(),
             ));
         }
+        Ok(())
+    }
+
+    /// The device's clock, GainScales and, for MIP, a rate its base rate divides into.
+    fn validate_device(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
         if !positive(self.device.tick_period_s) {
             return Err(invalid(
                 "device.tick-period-s".into(),
@@ -59,6 +78,25 @@ impl Scenario {
                 "GainScale words must be non-zero".into(),
             ));
         }
+        if self.device.protocol == DeviceProtocol::Mip {
+            let decimation = MIP_IMU_BASE_RATE_HZ / self.rate_hz;
+            if self.rate_hz > MIP_IMU_BASE_RATE_HZ || (decimation - decimation.round()).abs() > 1e-9
+            {
+                return Err(invalid(
+                    "rate-hz".into(),
+                    format!(
+                        "{} Hz is not a MIP data rate: the simulated device's base rate is {} Hz, \
+                         so the rate must be {} Hz divided by a whole number",
+                        self.rate_hz, MIP_IMU_BASE_RATE_HZ, MIP_IMU_BASE_RATE_HZ
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The temperature profile's parameters.
+    fn validate_temperature(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
         match &self.temperature {
             TemperatureProfile::Warmup { tau_s, .. } if !positive(*tau_s) => {
                 return Err(invalid(
@@ -83,6 +121,11 @@ impl Scenario {
             }
             _ => {}
         }
+        Ok(())
+    }
+
+    /// At least one segment; only the last may run forever; each one well formed.
+    fn validate_segments(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
         if self.segments.is_empty() {
             return Err(invalid(
                 "segment".into(),
@@ -92,101 +135,107 @@ impl Scenario {
         let last = self.segments.len() - 1;
         for (i, seg) in self.segments.iter().enumerate() {
             let ctx = format!("segment {} ({})", i + 1, seg.kind_name());
-            let bad = |m: &str| Err(invalid(ctx.clone(), m.to_string()));
-            match seg {
-                SegmentSpec::Static {
-                    orientation,
-                    duration_s,
-                    move_s,
-                    ..
-                } => {
-                    if let Some(o) = orientation {
-                        o.enu_from_sensor().map_err(|m| invalid(ctx.clone(), m))?;
-                    }
-                    match duration_s {
-                        None if i != last => {
-                            return bad(
-                                "only the last segment may omit duration-s (it then runs forever)",
-                            );
-                        }
-                        Some(d) if !positive(*d) => return bad("duration-s must be positive"),
-                        _ => {}
-                    }
-                    if move_s.is_some_and(|m| !positive(m)) {
-                        return bad("move-s must be positive");
-                    }
-                }
-                SegmentSpec::IndexTable {
-                    step_deg,
-                    positions,
-                    dwell_s,
-                    move_s,
-                    ..
-                } => {
-                    if *positions == 0
-                        || !positive(*dwell_s)
-                        || !positive(*move_s)
-                        || !step_deg.is_finite()
-                    {
-                        return bad(
-                            "positions, dwell-s and move-s must be positive and step-deg finite",
-                        );
-                    }
-                }
-                SegmentSpec::RateSteps {
-                    rates_deg_s,
-                    dwell_s,
-                    accel_deg_s2,
-                    ..
-                } => {
-                    if rates_deg_s.is_empty()
-                        || !positive(*dwell_s)
-                        || !positive(*accel_deg_s2)
-                        || rates_deg_s.iter().any(|r| !r.is_finite())
-                    {
-                        return bad(
-                            "rates-deg-s must be a non-empty list; dwell-s and accel-deg-s2 positive",
-                        );
-                    }
-                }
-                SegmentSpec::Rotate {
-                    angle_deg,
-                    duration_s,
-                    ..
-                } => {
-                    if !angle_deg.is_finite() || !positive(*duration_s) {
-                        return bad("angle-deg must be finite and duration-s positive");
-                    }
-                }
-                SegmentSpec::Impacts {
-                    count,
-                    period_s,
-                    peak_g,
-                    width_ms,
-                    ..
-                } => {
-                    if *count == 0
-                        || !positive(*period_s)
-                        || !peak_g.is_finite()
-                        || !positive(*width_ms)
-                        || width_ms * 1e-3 >= *period_s
-                    {
-                        return bad(
-                            "count, period-s and width-ms must be positive, and each shock shorter than the period",
-                        );
-                    }
-                }
-                SegmentSpec::RandomPoses {
-                    count,
-                    dwell_s,
-                    move_s,
-                } => {
-                    if *count == 0 || !positive(*dwell_s) || !positive(*move_s) {
-                        return bad("count, dwell-s and move-s must be positive");
-                    }
-                }
-            }
+            validate_segment(seg, i == last, &ctx, invalid)?;
         }
         Ok(())
     }
+}
+
+/// One segment's keys (`is_last`: it may omit its duration). A flat list of checks, one arm per
+/// segment kind, which is why it is long.
+fn validate_segment(
+    seg: &SegmentSpec,
+    is_last: bool,
+    ctx: &str,
+    invalid: Invalid<'_>,
+) -> Result<(), ScenarioError> {
+    let bad = |m: &str| Err(invalid(ctx.to_string(), m.to_string()));
+    match seg {
+        SegmentSpec::Static {
+            orientation,
+            duration_s,
+            move_s,
+            ..
+        } => {
+            if let Some(o) = orientation {
+                o.enu_from_sensor()
+                    .map_err(|m| invalid(ctx.to_string(), m))?;
+            }
+            match duration_s {
+                None if !is_last => {
+                    return bad("only the last segment may omit duration-s (it then runs forever)");
+                }
+                Some(d) if !positive(*d) => return bad("duration-s must be positive"),
+                _ => {}
+            }
+            if move_s.is_some_and(|m| !positive(m)) {
+                return bad("move-s must be positive");
+            }
+        }
+        SegmentSpec::IndexTable {
+            step_deg,
+            positions,
+            dwell_s,
+            move_s,
+            ..
+        } => {
+            if *positions == 0 || !positive(*dwell_s) || !positive(*move_s) || !step_deg.is_finite()
+            {
+                return bad("positions, dwell-s and move-s must be positive and step-deg finite");
+            }
+        }
+        SegmentSpec::RateSteps {
+            rates_deg_s,
+            dwell_s,
+            accel_deg_s2,
+            ..
+        } => {
+            if rates_deg_s.is_empty()
+                || !positive(*dwell_s)
+                || !positive(*accel_deg_s2)
+                || rates_deg_s.iter().any(|r| !r.is_finite())
+            {
+                return bad(
+                    "rates-deg-s must be a non-empty list; dwell-s and accel-deg-s2 positive",
+                );
+            }
+        }
+        SegmentSpec::Rotate {
+            angle_deg,
+            duration_s,
+            ..
+        } => {
+            if !angle_deg.is_finite() || !positive(*duration_s) {
+                return bad("angle-deg must be finite and duration-s positive");
+            }
+        }
+        SegmentSpec::Impacts {
+            count,
+            period_s,
+            peak_g,
+            width_ms,
+            ..
+        } => {
+            if *count == 0
+                || !positive(*period_s)
+                || !peak_g.is_finite()
+                || !positive(*width_ms)
+                || width_ms * 1e-3 >= *period_s
+            {
+                return bad(
+                    "count, period-s and width-ms must be positive, and each shock shorter than the period",
+                );
+            }
+        }
+        SegmentSpec::RandomPoses {
+            count,
+            dwell_s,
+            move_s,
+        } => {
+            if *count == 0 || !positive(*dwell_s) || !positive(*move_s) {
+                return bad("count, dwell-s and move-s must be positive");
+            }
+        }
+    }
+    Ok(())
 }
