@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use crate::ImuSeries;
 pub mod direction;
+pub mod ferraris;
 pub mod log;
 pub mod plan;
 
@@ -33,6 +34,9 @@ pub enum Reference {
     /// The simulator's truth, read from its file as it streams by: only the segment means are kept, so a
     /// 6-hour truth file (2 million samples, 0.5 GB in memory) costs no memory.
     TruthFile(PathBuf),
+    /// The Ferraris procedure (a plan file with `procedure = "ferraris"`): six still faces in
+    /// any order and a full turn about each axis, recognised from the data.
+    Ferraris(ferraris::Ferraris),
 }
 
 /// Failures of [`Reference::open`].
@@ -41,6 +45,9 @@ pub enum OpenError {
     /// The test plan file is invalid (its message names file and line).
     #[error(transparent)]
     Plan(#[from] plan::PlanError),
+    /// A Ferraris plan file has an invalid key or value.
+    #[error("{0}")]
+    Ferraris(String),
     /// The reference file could not be read.
     #[error("reading reference {path}")]
     Io {
@@ -81,6 +88,12 @@ impl Reference {
         series: &ImuSeries,
     ) -> Result<Option<Reference>, OpenError> {
         if let Some(path) = plan {
+            // A Ferraris plan names its procedure; any other file (or unreadable text) is a
+            // step plan, whose reader reports what is wrong with it.
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            if let Some(f) = ferraris::Ferraris::from_toml_str(&text, &path.display().to_string()) {
+                return Ok(Some(Reference::Ferraris(f.map_err(OpenError::Ferraris)?)));
+            }
             return Ok(Some(Reference::Plan(Plan::load(path)?)));
         }
         let Some(path) = reference else {
@@ -131,6 +144,7 @@ impl Reference {
             Reference::Truth(_) | Reference::TruthFile(_) | Reference::Log(_) => {
                 Ok(crate::segment::detect(series, opts)?)
             }
+            Reference::Ferraris(f) => Ok(f.segmentation(series, opts)?),
         }
     }
 
@@ -145,6 +159,7 @@ impl Reference {
             Reference::TruthFile(path) => truth_file_for_segments(series, segments, path),
             Reference::Plan(p) => Ok(p.segment_truth(series, segments)?),
             Reference::Log(l) => Ok(l.segment_truth(series, segments)?),
+            Reference::Ferraris(f) => Ok(f.segment_truth(series, segments)),
         }
     }
 
@@ -167,6 +182,7 @@ impl Reference {
                 gyro_bias_std_rad_s: l.gyro_bias_std_rad_s(segments),
                 notes: l.notes(series),
             }),
+            Reference::Ferraris(f) => Ok(f.caveats(segments)),
         }
     }
 
@@ -177,6 +193,7 @@ impl Reference {
             Reference::Plan(p) => p.describe(),
             Reference::Log(l) => l.describe(),
             Reference::TruthFile(p) => format!("simulator truth {}", p.display()),
+            Reference::Ferraris(f) => f.describe(),
         }
     }
 }
@@ -198,6 +215,9 @@ pub enum ReferenceError {
     /// Segmentation failed.
     #[error(transparent)]
     Segment(#[from] SegmentError),
+    /// The recording does not follow the Ferraris procedure.
+    #[error(transparent)]
+    Ferraris(#[from] ferraris::FerrarisError),
     /// The recording does not follow the test plan.
     #[error(transparent)]
     Plan(#[from] PlanMismatch),

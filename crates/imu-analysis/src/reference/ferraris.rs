@@ -1,0 +1,329 @@
+//! The Ferraris procedure as a reference (Ferraris et al. 1995, the calibration many labs do by
+//! hand): the unit rests on each of its six faces in any order, and is turned once through a
+//! full turn about each axis, with no table and no time windows. Each still face's true input
+//! is gravity along the sensor axis that points up (recognised from the measured gravity); each
+//! turn's is 360 degrees about the axis it turned about (recognised from the integrated rate,
+//! after removing the gyro's reading at rest) over the turn's samples. Earth's rate enters with
+//! its vertical part where the latitude is given; the part a heading would fix is carried as a
+//! systematic gyro bias uncertainty, as for a plan without north.
+
+use imu_model::Vec3;
+use imu_model::earth::{
+    earth_rate_split_rad_s, normal_gravity_m_s2, unknown_heading_variance_rad2_s2,
+};
+use imu_model::units::{EARTH_RATE_RAD_S, STANDARD_GRAVITY_M_S2};
+
+use super::segment_truth::recording_conditions;
+use super::{ReferenceCaveats, SegmentTruth};
+use crate::ImuSeries;
+use crate::segment::{Segment, SegmentError, SegmentKind, SegmentOptions, Segmentation};
+
+/// A turn is a full turn when its integrated angle is within this of 360 degrees.
+const TURN_TOLERANCE_DEG: f64 = 60.0;
+/// Share of a turn's integrated angle that must be about its main axis.
+const TURN_AXIS_SHARE: f64 = 0.9;
+
+/// The procedure's settings (a plan file with `procedure = "ferraris"`).
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Ferraris {
+    /// The file it came from, for messages.
+    #[serde(skip)]
+    pub file: String,
+    /// `imud-plan/1`.
+    pub format: String,
+    /// `ferraris`.
+    pub procedure: String,
+    /// Plan name, for reports.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Latitude, degrees: gives local gravity and the vertical part of Earth's rate.
+    #[serde(default)]
+    pub latitude_deg: Option<f64>,
+    /// Local gravity, m/s^2 (default: WGS-84 normal gravity at the latitude, else standard).
+    #[serde(default)]
+    pub gravity_m_s2: Option<f64>,
+    /// Largest angle between a still face's measured gravity and the nearest sensor axis, deg.
+    #[serde(default = "default_face_tolerance_deg")]
+    pub face_tolerance_deg: f64,
+    /// Temperature when the recording has none, deg C.
+    #[serde(default)]
+    pub temp_c: Option<f64>,
+}
+
+fn default_face_tolerance_deg() -> f64 {
+    15.0
+}
+
+/// Failures of the Ferraris procedure.
+#[derive(Debug, thiserror::Error)]
+pub enum FerrarisError {
+    /// Segmentation failed.
+    #[error(transparent)]
+    Segment(#[from] SegmentError),
+    /// A still face is not close to any sensor axis.
+    #[error(
+        "{file}: still segment at {start_s:.1}-{end_s:.1} s has gravity {angle_deg:.1} deg from \
+         the nearest sensor axis (tolerance {tolerance_deg} deg): the Ferraris procedure rests \
+         the unit on its faces (a box or cube whose faces are square to the sensor axes)"
+    )]
+    NotOnAFace {
+        /// The plan file.
+        file: String,
+        /// Start of the segment, s.
+        start_s: f64,
+        /// End of the segment, s.
+        end_s: f64,
+        /// Angle to the nearest axis, degrees.
+        angle_deg: f64,
+        /// The tolerance, degrees.
+        tolerance_deg: f64,
+    },
+}
+
+/// The sensor axis (0-2) and sign nearest to `v`, and the angle to it, degrees.
+fn nearest_axis(v: Vec3) -> (usize, f64, f64) {
+    let a = v.iamax();
+    let sign = v[a].signum();
+    let angle_deg = (v[a].abs() / v.norm()).clamp(-1.0, 1.0).acos().to_degrees();
+    (a, sign, angle_deg)
+}
+
+/// A full turn found between two still faces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Turn {
+    axis: usize,
+    sign: f64,
+}
+
+impl Ferraris {
+    /// The procedure from a plan file's text, or None if the file is not a Ferraris plan (or
+    /// not valid TOML: the plan reader then reports it).
+    pub fn from_toml_str(text: &str, file: &str) -> Option<Result<Ferraris, String>> {
+        let value: toml::Table = text.parse().ok()?;
+        if value.get("procedure").and_then(|p| p.as_str()) != Some("ferraris") {
+            return None;
+        }
+        Some(
+            toml::from_str::<Ferraris>(text)
+                .map(|f| Ferraris {
+                    file: file.to_string(),
+                    ..f
+                })
+                .map_err(|e| format!("{file}: {}", e.message())),
+        )
+    }
+
+    /// Local gravity, m/s^2.
+    pub fn gravity_m_s2(&self) -> f64 {
+        self.gravity_m_s2.unwrap_or_else(|| {
+            self.latitude_deg
+                .map_or(STANDARD_GRAVITY_M_S2, |l| normal_gravity_m_s2(l, 0.0))
+        })
+    }
+
+    /// The still faces (as detected) and one segment per full turn (the samples between the
+    /// two still faces around it, kind [`SegmentKind::Plateau`]), in time order. Detected rate
+    /// plateaus inside a turn are replaced by the turn; quiet runs are reported as detection
+    /// reports them.
+    pub fn segmentation(
+        &self,
+        series: &ImuSeries,
+        opts: &SegmentOptions,
+    ) -> Result<Segmentation, FerrarisError> {
+        let mut seg = crate::segment::detect(series, opts)?;
+        let statics: Vec<Segment> = seg.of_kind(SegmentKind::Static).cloned().collect();
+        for s in &statics {
+            let (_, _, angle_deg) = nearest_axis(s.mean_accel());
+            if angle_deg > self.face_tolerance_deg {
+                return Err(FerrarisError::NotOnAFace {
+                    file: self.file.clone(),
+                    start_s: s.start_s,
+                    end_s: s.end_s,
+                    angle_deg,
+                    tolerance_deg: self.face_tolerance_deg,
+                });
+            }
+        }
+        let rest = crate::segment::rest_rate(&statics);
+        let mut segments = statics.clone();
+        for pair in statics.windows(2) {
+            let window = pair[0].range().end..pair[1].first_sample;
+            if window.len() < 2 {
+                continue;
+            }
+            let mut turn = Segment::from_samples(series, window.clone(), SegmentKind::Plateau);
+            if self.turn_of(series, &turn, rest).is_some() {
+                // The rate varies through a turn by hand: the error of its mean is the sensor's
+                // noise, not the spread of the rate (which would make the turn worthless).
+                turn.std_gyro_rad_s = noise_std(&series.gyro_rad_s[window.clone()]);
+                turn.std_accel_m_s2 = noise_std(&series.accel_m_s2[window]);
+                segments.push(turn);
+            }
+        }
+        segments.sort_by(|a, b| a.start_s.total_cmp(&b.start_s));
+        seg.segments = segments;
+        Ok(seg)
+    }
+
+    /// The full turn `s` is, if it is one: its integrated angle (rate minus the reading at
+    /// rest `rest`) within [`TURN_TOLERANCE_DEG`] of 360 degrees, [`TURN_AXIS_SHARE`] of it
+    /// about one sensor axis.
+    fn turn_of(&self, series: &ImuSeries, s: &Segment, rest: Vec3) -> Option<Turn> {
+        let duration_s = span_s(series, s);
+        let angle = (s.mean_gyro() - rest) * duration_s;
+        let (axis, sign, _) = nearest_axis(angle);
+        let full = (angle.norm().to_degrees() - 360.0).abs() <= TURN_TOLERANCE_DEG;
+        let about_one_axis = angle[axis].abs() >= TURN_AXIS_SHARE * angle.norm();
+        (full && about_one_axis).then_some(Turn { axis, sign })
+    }
+
+    /// The true input of each of `segments` (from [`Ferraris::segmentation`]).
+    pub fn segment_truth(&self, series: &ImuSeries, segments: &[Segment]) -> Vec<SegmentTruth> {
+        let g = self.gravity_m_s2();
+        let statics: Vec<Segment> = segments
+            .iter()
+            .filter(|s| s.kind == SegmentKind::Static)
+            .cloned()
+            .collect();
+        let rest = crate::segment::rest_rate(&statics);
+        let up_before = |s: &Segment| {
+            statics
+                .iter()
+                .rev()
+                .find(|f| f.start_s < s.start_s)
+                .or(statics.first())
+                .map_or(Vec3::z(), face_up)
+        };
+        segments
+            .iter()
+            .map(|s| {
+                let (temp_c, time_since_power_on_s) =
+                    recording_conditions(series, s, self.temp_c, 0.0);
+                let (force, rate) = match s.kind {
+                    SegmentKind::Static => {
+                        let up = face_up(s);
+                        (up * g, up * self.vertical_earth_rate_rad_s())
+                    }
+                    SegmentKind::Plateau => {
+                        let up = up_before(s);
+                        let turn = self
+                            .turn_of(series, s, rest)
+                            .unwrap_or(Turn { axis: 2, sign: 1.0 });
+                        let mut axis = Vec3::zeros();
+                        axis[turn.axis] = turn.sign;
+                        // Over a full turn only Earth's rate along the turn axis stays; its
+                        // vertical part is known when the axis is the up axis.
+                        let earth = axis * axis.dot(&up) * self.vertical_earth_rate_rad_s();
+                        // Gravity along the turn axis stays; across it, it averages out.
+                        let force = axis * axis.dot(&up) * g;
+                        (
+                            force,
+                            axis * (std::f64::consts::TAU / span_s(series, s)) + earth,
+                        )
+                    }
+                };
+                SegmentTruth {
+                    specific_force_m_s2: force.into(),
+                    angular_rate_rad_s: rate.into(),
+                    temp_c,
+                    time_since_power_on_s,
+                }
+            })
+            .collect()
+    }
+
+    /// Earth's vertical rate at the latitude (0 without one: then all of it is unknown).
+    fn vertical_earth_rate_rad_s(&self) -> f64 {
+        self.latitude_deg
+            .map_or(0.0, |l| earth_rate_split_rad_s(l).0)
+    }
+
+    /// What the procedure leaves unknown (Earth's rate a heading would fix) and notes.
+    pub fn caveats(&self, segments: &[Segment]) -> ReferenceCaveats {
+        let faces: Vec<String> = segments
+            .iter()
+            .filter(|s| s.kind == SegmentKind::Static)
+            .map(|s| crate::reference::direction::format_direction(&face_up(s)))
+            .collect();
+        let mut distinct = faces.clone();
+        distinct.sort();
+        distinct.dedup();
+        let turns = segments
+            .iter()
+            .filter(|s| s.kind == SegmentKind::Plateau)
+            .count();
+        let mut notes = vec![format!(
+            "Ferraris procedure ({}): {} still faces ({} distinct: {}) and {turns} full turn(s); \
+             local gravity {:.6} m/s^2",
+            self.file,
+            faces.len(),
+            distinct.len(),
+            distinct.join(", "),
+            self.gravity_m_s2()
+        )];
+        if distinct.len() < 6 {
+            notes.push(format!(
+                "only {} of the six faces were seen: rest the unit on every face",
+                distinct.len()
+            ));
+        }
+        if turns < 3 {
+            notes.push(format!(
+                "{turns} full turn(s) found (one about each axis is needed for the gyro scale \
+                 and misalignment): turn the unit once through 360 deg about each axis between \
+                 two still rests"
+            ));
+        }
+        let sd = |u: f64| unknown_heading_variance_rad2_s2(self.latitude_deg, u).sqrt();
+        // Each axis is up on some face and horizontal on others: the worst case is horizontal.
+        let std = sd(0.0);
+        if self.latitude_deg.is_none() {
+            notes.push(format!(
+                "no latitude: Earth's rate ({EARTH_RATE_RAD_S:.3e} rad/s) is carried as a gyro \
+                 bias uncertainty"
+            ));
+        }
+        ReferenceCaveats {
+            gyro_bias_std_rad_s: Some([std; 3]),
+            notes,
+        }
+    }
+
+    /// One-line description.
+    pub fn describe(&self) -> String {
+        format!(
+            "Ferraris procedure {} (six faces and a full turn about each axis)",
+            self.name.as_deref().unwrap_or(&self.file)
+        )
+    }
+}
+
+/// The sensor axis pointing up on the still face `s`, as a signed unit vector.
+fn face_up(s: &Segment) -> Vec3 {
+    let (axis, sign, _) = nearest_axis(s.mean_accel());
+    let mut up = Vec3::zeros();
+    up[axis] = sign;
+    up
+}
+
+/// The time the samples of `s` span, s: one sample interval per sample.
+fn span_s(series: &ImuSeries, s: &Segment) -> f64 {
+    let r = s.range();
+    let dt = (series.t_s[r.end - 1] - series.t_s[r.start]) / (r.len() - 1).max(1) as f64;
+    dt * r.len() as f64
+}
+
+/// Per-axis standard deviation of the white noise of a smoothly varying signal, from its second
+/// differences (`x[k+1] - 2 x[k] + x[k-1]` has variance `6 sigma^2` for white noise, and a motion
+/// smooth over a few samples contributes little).
+fn noise_std(x: &[[f64; 3]]) -> [f64; 3] {
+    let n = x.len().saturating_sub(2).max(1) as f64;
+    std::array::from_fn(|a| {
+        let sum_sq: f64 = x
+            .windows(3)
+            .map(|w| (w[2][a] - 2.0 * w[1][a] + w[0][a]).powi(2))
+            .sum();
+        (sum_sq / (6.0 * n)).sqrt()
+    })
+}
