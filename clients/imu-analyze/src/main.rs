@@ -221,104 +221,19 @@ fn emit(
 }
 
 fn run(args: &Args) -> Result<()> {
-    let mut unfinished = None;
     match &args.command {
         Command::Thermal {
             recording,
             source,
             bin_s,
             output,
-        } => {
-            if !(bin_s.is_finite() && *bin_s > 0.0) {
-                bail!("--bin-s must be a positive number of seconds, got {bin_s}");
-            }
-            let series = read(recording, (*source).into(), &output.csv, &mut unfinished)?;
-            // The thermal analysis reads output drift as temperature dependence: motion would
-            // masquerade as a thermal effect.
-            if let Some(w) = series.motion_warning() {
-                eprintln!("imu-analyze: warning: {}: {w}", recording.display());
-            }
-            let r = thermal::analyze(
-                &series,
-                &thermal::ThermalOptions {
-                    bin_s: *bin_s,
-                    ..Default::default()
-                },
-            )
-            .context("thermal analysis")?;
-            let mut text = format!(
-                "{}\n{} .. {} deg C over {:.0} s",
-                r.recommendation, r.temp_range_c[0], r.temp_range_c[1], r.duration_s
-            );
-            if let Some(w) = &r.warmup {
-                text.push_str(&format!(
-                    ", warm-up tau {:.0} +/- {:.0} s",
-                    w.tau_s, w.tau_std_s
-                ));
-            }
-            text.push('\n');
-            for a in &r.axes {
-                text.push_str(&format!(
-                    "{:5} {}: {:+.3e} +/- {:.1e} {}/K (t {:+.2}, p {:.2e}), change over range {:.2e} vs bin scatter {:.2e}{}{}\n",
-                    a.sensor,
-                    a.axis,
-                    a.bias_coeff_per_k,
-                    a.bias_coeff_std_per_k,
-                    a.unit,
-                    a.linear.t_stats[1],
-                    a.linear.p_values[1],
-                    a.predicted_change,
-                    a.bin_noise,
-                    a.scale_coeff_per_k
-                        .map_or(String::new(), |s| format!(", as scale {:+.1} ppm/K", s * 1e6)),
-                    if a.model_warranted { "  MODEL WARRANTED" } else { "" }
-                ));
-            }
-            text.push_str(&r.confounding.note);
-            text.push('\n');
-            let charts = thermal::charts(&r);
-            let section = html::thermal_section(&r, &charts);
-            emit(output, &r, &text, section, &charts, "thermal", unfinished)
-        }
+        } => run_thermal(recording, (*source).into(), *bin_s, output),
         Command::Impact {
             recording,
             source,
             threshold_sigmas,
             output,
-        } => {
-            let series = read(recording, (*source).into(), &output.csv, &mut unfinished)?;
-            let r = impact::analyze(
-                &series,
-                &impact::ImpactOptions {
-                    threshold_sigmas: *threshold_sigmas,
-                    ..Default::default()
-                },
-            )
-            .context("impact analysis")?;
-            let mut text = format!(
-                "{} impacts, struck axis {}\n",
-                r.events.len(),
-                r.struck_axis.map_or("-", |a| ["x", "y", "z"][a])
-            );
-            for i in 0..3 {
-                let s = &r.summary;
-                text.push_str(&format!(
-                    "{}: accel peak {:+.3} +/- {:.3} m/s^2, coupling {:+.3e} +/- {:.1e}, settling {:.3} s; gyro peak {:+.2e} rad/s, coupling {:+.2e} (rad/s)/(m/s^2), settling {:.3} s\n",
-                    ["x", "y", "z"][i],
-                    s.accel_peak_m_s2[i].mean,
-                    s.accel_peak_m_s2[i].std,
-                    r.pooled_accel_coupling[i].value,
-                    r.pooled_accel_coupling[i].std_error,
-                    s.accel_settling_s[i].mean,
-                    s.gyro_peak_rad_s[i].mean,
-                    r.pooled_gyro_coupling_rad_s_per_m_s2[i].value,
-                    s.gyro_settling_s[i].mean,
-                ));
-            }
-            let charts = impact::charts(&series, &r);
-            let section = html::impact_section(&r, &charts);
-            emit(output, &r, &text, section, &charts, "impact", unfinished)
-        }
+        } => run_impact(recording, (*source).into(), *threshold_sigmas, output),
         Command::Dynamic {
             recording,
             reference,
@@ -327,52 +242,172 @@ fn run(args: &Args) -> Result<()> {
             max_offset_s,
             output,
         } => {
-            let reference = read_reference(reference)?;
             let options = dynamic::DynamicOptions {
                 axis: *axis as usize,
                 max_offset_s: *max_offset_s,
                 ..Default::default()
             };
-            let want = |s: DynamicSource| *source == DynamicSource::Both || *source == s;
-            let mut runs = [None, None];
-            for (k, (flag, src)) in [
-                (DynamicSource::Raw, Source::Raw),
-                (DynamicSource::Corrected, Source::Corrected),
-            ]
-            .into_iter()
-            .enumerate()
-            {
-                if !want(flag) {
-                    continue;
-                }
-                match read(recording, src, &output.csv, &mut unfinished) {
-                    Ok(series) => {
-                        runs[k] = Some(
-                            dynamic::analyze(&series, &reference, &options).with_context(|| {
-                                format!("dynamic analysis of the {src:?} stream")
-                            })?,
-                        );
-                    }
-                    Err(e) if *source == DynamicSource::Both => {
-                        eprintln!("imu-analyze: warning: skipping the {src:?} stream: {e:#}");
-                    }
-                    Err(e) => return Err(e),
-                }
-            }
-            let [raw, corrected] = runs;
-            if raw.is_none() && corrected.is_none() {
-                bail!(
-                    "{}: neither the raw nor the corrected stream could be read",
-                    recording.display()
-                );
-            }
-            let r = dynamic::compare(&reference, raw, corrected);
-            let text = format!("{}\n", r.summary);
-            let charts = dynamic::charts(&r);
-            let section = html::dynamic_section(&r, &charts);
-            emit(output, &r, &text, section, &charts, "dynamic", unfinished)
+            run_dynamic(recording, reference, *source, &options, output)
         }
     }
+}
+
+/// `imu-analyze thermal`.
+fn run_thermal(recording: &Path, source: Source, bin_s: f64, output: &Output) -> Result<()> {
+    let mut unfinished = None;
+    if !(bin_s.is_finite() && bin_s > 0.0) {
+        bail!("--bin-s must be a positive number of seconds, got {bin_s}");
+    }
+    let series = read(recording, source, &output.csv, &mut unfinished)?;
+    // The thermal analysis reads output drift as temperature dependence: motion would
+    // masquerade as a thermal effect.
+    if let Some(w) = series.motion_warning() {
+        eprintln!("imu-analyze: warning: {}: {w}", recording.display());
+    }
+    let r = thermal::analyze(
+        &series,
+        &thermal::ThermalOptions {
+            bin_s,
+            ..Default::default()
+        },
+    )
+    .context("thermal analysis")?;
+    let text = thermal_text(&r);
+    let charts = thermal::charts(&r);
+    let section = html::thermal_section(&r, &charts);
+    emit(output, &r, &text, section, &charts, "thermal", unfinished)
+}
+
+/// The text summary of a thermal analysis.
+fn thermal_text(r: &thermal::ThermalReport) -> String {
+    let mut text = format!(
+        "{}\n{} .. {} deg C over {:.0} s",
+        r.recommendation, r.temp_range_c[0], r.temp_range_c[1], r.duration_s
+    );
+    if let Some(w) = &r.warmup {
+        text.push_str(&format!(
+            ", warm-up tau {:.0} +/- {:.0} s",
+            w.tau_s, w.tau_std_s
+        ));
+    }
+    text.push('\n');
+    for a in &r.axes {
+        text.push_str(&format!(
+            "{:5} {}: {:+.3e} +/- {:.1e} {}/K (t {:+.2}, p {:.2e}), change over range {:.2e} vs bin scatter {:.2e}{}{}\n",
+            a.sensor,
+            a.axis,
+            a.bias_coeff_per_k,
+            a.bias_coeff_std_per_k,
+            a.unit,
+            a.linear.t_stats[1],
+            a.linear.p_values[1],
+            a.predicted_change,
+            a.bin_noise,
+            a.scale_coeff_per_k
+                .map_or(String::new(), |s| format!(", as scale {:+.1} ppm/K", s * 1e6)),
+            if a.model_warranted { "  MODEL WARRANTED" } else { "" }
+        ));
+    }
+    text.push_str(&r.confounding.note);
+    text.push('\n');
+    text
+}
+
+/// `imu-analyze impact`.
+fn run_impact(
+    recording: &Path,
+    source: Source,
+    threshold_sigmas: f64,
+    output: &Output,
+) -> Result<()> {
+    let mut unfinished = None;
+    let series = read(recording, source, &output.csv, &mut unfinished)?;
+    let r = impact::analyze(
+        &series,
+        &impact::ImpactOptions {
+            threshold_sigmas,
+            ..Default::default()
+        },
+    )
+    .context("impact analysis")?;
+    let text = impact_text(&r);
+    let charts = impact::charts(&series, &r);
+    let section = html::impact_section(&r, &charts);
+    emit(output, &r, &text, section, &charts, "impact", unfinished)
+}
+
+/// The text summary of an impact analysis.
+fn impact_text(r: &impact::ImpactReport) -> String {
+    let mut text = format!(
+        "{} impacts, struck axis {}\n",
+        r.events.len(),
+        r.struck_axis.map_or("-", |a| ["x", "y", "z"][a])
+    );
+    for i in 0..3 {
+        let s = &r.summary;
+        text.push_str(&format!(
+            "{}: accel peak {:+.3} +/- {:.3} m/s^2, coupling {:+.3e} +/- {:.1e}, settling {:.3} s; gyro peak {:+.2e} rad/s, coupling {:+.2e} (rad/s)/(m/s^2), settling {:.3} s\n",
+            ["x", "y", "z"][i],
+            s.accel_peak_m_s2[i].mean,
+            s.accel_peak_m_s2[i].std,
+            r.pooled_accel_coupling[i].value,
+            r.pooled_accel_coupling[i].std_error,
+            s.accel_settling_s[i].mean,
+            s.gyro_peak_rad_s[i].mean,
+            r.pooled_gyro_coupling_rad_s_per_m_s2[i].value,
+            s.gyro_settling_s[i].mean,
+        ));
+    }
+    text
+}
+
+/// `imu-analyze dynamic`: the raw and/or corrected stream against the reference angle.
+fn run_dynamic(
+    recording: &Path,
+    reference: &Path,
+    source: DynamicSource,
+    options: &dynamic::DynamicOptions,
+    output: &Output,
+) -> Result<()> {
+    let mut unfinished = None;
+    let reference = read_reference(reference)?;
+    let want = |s: DynamicSource| source == DynamicSource::Both || source == s;
+    let mut runs = [None, None];
+    for (k, (flag, src)) in [
+        (DynamicSource::Raw, Source::Raw),
+        (DynamicSource::Corrected, Source::Corrected),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        if !want(flag) {
+            continue;
+        }
+        match read(recording, src, &output.csv, &mut unfinished) {
+            Ok(series) => {
+                runs[k] = Some(
+                    dynamic::analyze(&series, &reference, options)
+                        .with_context(|| format!("dynamic analysis of the {src:?} stream"))?,
+                );
+            }
+            Err(e) if source == DynamicSource::Both => {
+                eprintln!("imu-analyze: warning: skipping the {src:?} stream: {e:#}");
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    let [raw, corrected] = runs;
+    if raw.is_none() && corrected.is_none() {
+        bail!(
+            "{}: neither the raw nor the corrected stream could be read",
+            recording.display()
+        );
+    }
+    let r = dynamic::compare(&reference, raw, corrected);
+    let text = format!("{}\n", r.summary);
+    let charts = dynamic::charts(&r);
+    let section = html::dynamic_section(&r, &charts);
+    emit(output, &r, &text, section, &charts, "dynamic", unfinished)
 }
 
 fn read_reference(path: &Path) -> Result<dynamic::Reference> {

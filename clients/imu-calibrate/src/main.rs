@@ -149,18 +149,12 @@ impl ReferenceArg {
 /// order, the k-th for the k-th recording; each `--reference-offset-s` goes with the
 /// `--reference` just before it (or with the only one).
 fn reference_args(cli: &Cli, matches: &ArgMatches) -> Result<Vec<ReferenceArg>> {
-    let indices = |id: &str| -> Vec<usize> {
-        matches
-            .indices_of(id)
-            .map(Iterator::collect)
-            .unwrap_or_default()
-    };
-    let mut given: Vec<(usize, ReferenceArg)> = indices("plan")
+    let mut given: Vec<(usize, ReferenceArg)> = arg_indices(matches, "plan")
         .into_iter()
         .zip(&cli.plan)
         .map(|(i, p)| (i, ReferenceArg::Plan(p.clone())))
         .chain(
-            indices("reference")
+            arg_indices(matches, "reference")
                 .into_iter()
                 .zip(&cli.reference)
                 .map(|(i, p)| {
@@ -175,10 +169,31 @@ fn reference_args(cli: &Cli, matches: &ArgMatches) -> Result<Vec<ReferenceArg>> 
         )
         .collect();
     given.sort_by_key(|(i, _)| *i);
-    let offsets: Vec<(usize, f64)> = indices("reference_offset_s")
+    let offsets: Vec<(usize, f64)> = arg_indices(matches, "reference_offset_s")
         .into_iter()
         .zip(cli.reference_offset_s.iter().copied())
         .collect();
+    attach_offsets(cli, &mut given, offsets)?;
+    let refs: Vec<ReferenceArg> = given.into_iter().map(|(_, r)| r).collect();
+    check_one_per_recording(cli, &refs)?;
+    Ok(refs)
+}
+
+/// The command-line positions of argument `id`'s values.
+fn arg_indices(matches: &ArgMatches, id: &str) -> Vec<usize> {
+    matches
+        .indices_of(id)
+        .map(Iterator::collect)
+        .unwrap_or_default()
+}
+
+/// Gives each `--reference-offset-s` (at its command-line position) to the reference log just
+/// before it in `given` (references with their positions, in order), or to the only one.
+fn attach_offsets(
+    cli: &Cli,
+    given: &mut [(usize, ReferenceArg)],
+    offsets: Vec<(usize, f64)>,
+) -> Result<()> {
     // One recording, one reference log, one offset: the order does not matter (as before
     // several recordings could be given).
     let only_reference = given.len() == 1 && offsets.len() == 1;
@@ -215,7 +230,11 @@ fn reference_args(cli: &Cli, matches: &ArgMatches) -> Result<Vec<ReferenceArg>> 
             ),
         }
     }
-    let refs: Vec<ReferenceArg> = given.into_iter().map(|(_, r)| r).collect();
+    Ok(())
+}
+
+/// One reference per recording, or an error naming the first recording without one.
+fn check_one_per_recording(cli: &Cli, refs: &[ReferenceArg]) -> Result<()> {
     let (n_rec, n_ref) = (cli.recordings.len(), refs.len());
     let listed = || {
         refs.iter()
@@ -242,7 +261,7 @@ fn reference_args(cli: &Cli, matches: &ArgMatches) -> Result<Vec<ReferenceArg>> 
             if n_rec == 1 { "" } else { "s" }
         );
     }
-    Ok(refs)
+    Ok(())
 }
 
 /// A per-axis value given as one number for all axes or as X,Y,Z; None when not given.

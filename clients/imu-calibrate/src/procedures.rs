@@ -38,26 +38,39 @@ pub(super) fn run_reference_free(
             .save(path)
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    let truth_rows = match &cli.truth {
-        Some(path) => {
-            let t = Calibration::load(path)
-                .with_context(|| format!("loading truth {}", path.display()))?;
-            let t = in_accel_frame(&t);
-            let mut rows = Vec::new();
-            for (f, m) in [(&fit.accel, &t.accel), (&fit.gyro, &t.gyro)] {
-                rows.extend(compare(
-                    f.triad,
-                    &f.names,
-                    &f.units,
-                    &f.params,
-                    &f.std_errors,
-                    m,
-                ));
-            }
-            Some(rows)
-        }
-        None => None,
+    let truth_rows = reference_free_truth_rows(cli, &fit)?;
+    report_reference_free(cli, recording, series, &fit, truth_rows)
+}
+
+/// The reference-free fit against `--truth` (in the accel frame the fit uses), if given.
+fn reference_free_truth_rows(cli: &Cli, fit: &ReferenceFreeFit) -> Result<Option<Vec<TruthRow>>> {
+    let Some(path) = &cli.truth else {
+        return Ok(None);
     };
+    let t = Calibration::load(path).with_context(|| format!("loading truth {}", path.display()))?;
+    let t = in_accel_frame(&t);
+    let mut rows = Vec::new();
+    for (f, m) in [(&fit.accel, &t.accel), (&fit.gyro, &t.gyro)] {
+        rows.extend(compare(
+            f.triad,
+            &f.names,
+            &f.units,
+            &f.params,
+            &f.std_errors,
+            m,
+        ));
+    }
+    Ok(Some(rows))
+}
+
+/// Prints the reference-free fit as JSON or as tables.
+fn report_reference_free(
+    cli: &Cli,
+    recording: &Path,
+    series: &imu_analysis::ImuSeries,
+    fit: &ReferenceFreeFit,
+    truth_rows: Option<Vec<TruthRow>>,
+) -> Result<()> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if cli.json {
@@ -65,7 +78,7 @@ pub(super) fn run_reference_free(
             recording: recording.display().to_string(),
             procedure: "reference-free",
             output: cli.output.as_ref().map(|p| p.display().to_string()),
-            fit: &fit,
+            fit,
             truth_comparison: truth_rows,
             inputs_unfinished: series
                 .unfinished
@@ -76,7 +89,7 @@ pub(super) fn run_reference_free(
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
-        print_reference_free(&mut out, &fit, truth_rows.as_deref())?;
+        print_reference_free(&mut out, fit, truth_rows.as_deref())?;
         if let Some(p) = &cli.output {
             writeln!(out, "\nwrote {}", p.display())?;
         }
@@ -109,6 +122,45 @@ pub(super) fn run_reference(
     let mut fit =
         calibrate_recordings(&pairs, &opts).with_context(|| format!("calibrating {names}"))?;
 
+    describe_reference_fit(&mut fit, loaded);
+    let held: Vec<String> = fit
+        .accel
+        .unobservable
+        .iter()
+        .map(|u| format!("accel {}", u.name))
+        .chain(
+            fit.gyro
+                .unobservable
+                .iter()
+                .map(|u| format!("gyro {}", u.name)),
+        )
+        .collect();
+    let cal = &mut fit.calibration;
+    stamp(cal, hashing, &fit.notes, held)?;
+    if let Some(path) = &cli.output {
+        cal.save(path)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+
+    let truth_rows = match &cli.truth {
+        Some(path) => {
+            let t = Calibration::load(path)
+                .with_context(|| format!("loading truth {}", path.display()))?;
+            let mut rows = truth_rows(&fit.accel, &t.accel);
+            rows.extend(truth_rows(&fit.gyro, &t.gyro));
+            Some(rows)
+        }
+        None => None,
+    };
+    report_reference(cli, loaded, refs, &fit, truth_rows)
+}
+
+/// The calibration's description and procedure: what was fitted, from how many segments of how
+/// many recordings, against which references.
+fn describe_reference_fit(
+    fit: &mut CalibrationFit,
+    loaded: &[(imu_analysis::ImuSeries, Reference)],
+) {
     let several = loaded.len() > 1;
     let (n_static, n_plateau) = (
         fit.count(SegmentKind::Static),
@@ -137,91 +189,84 @@ pub(super) fn run_reference(
         "static/plateau segmentation; weighted Levenberg-Marquardt fit of segment means to the \
          true input from the {described} (Aslan & Saranli 3.1.2, 3.2.2, 3.2.3)"
     ));
-    let held: Vec<String> = fit
-        .accel
-        .unobservable
-        .iter()
-        .map(|u| format!("accel {}", u.name))
-        .chain(
-            fit.gyro
-                .unobservable
-                .iter()
-                .map(|u| format!("gyro {}", u.name)),
-        )
-        .collect();
-    stamp(cal, hashing, &fit.notes, held)?;
-    if let Some(path) = &cli.output {
-        cal.save(path)
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
+}
 
-    let truth_rows = match &cli.truth {
-        Some(path) => {
-            let t = Calibration::load(path)
-                .with_context(|| format!("loading truth {}", path.display()))?;
-            let mut rows = truth_rows(&fit.accel, &t.accel);
-            rows.extend(truth_rows(&fit.gyro, &t.gyro));
-            Some(rows)
-        }
-        None => None,
-    };
-
+/// Prints the fit against references as JSON or as tables.
+fn report_reference(
+    cli: &Cli,
+    loaded: &[(imu_analysis::ImuSeries, Reference)],
+    refs: &[ReferenceArg],
+    fit: &CalibrationFit,
+    truth_rows: Option<Vec<TruthRow>>,
+) -> Result<()> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if cli.json {
-        let recordings: Vec<JsonRecording> = fit
-            .recordings
-            .iter()
-            .zip(&cli.recordings)
-            .zip(refs)
-            .map(|((r, path), arg)| JsonRecording {
-                recording: path.display().to_string(),
-                reference: arg.path().display().to_string(),
-                reference_description: r.reference.clone(),
-                static_segments: r.segmentation.count(SegmentKind::Static),
-                rate_plateaus: r.segmentation.count(SegmentKind::Plateau),
-                skipped_segments: r.segmentation.skipped.len(),
-                accel_points: r.accel_points.len(),
-                gyro_points: r.gyro_points.len(),
-            })
-            .collect();
-        let (recording, reference, reference_description) = match recordings.as_slice() {
-            [r] => (
-                Some(r.recording.clone()),
-                Some(r.reference.clone()),
-                Some(r.reference_description.clone()),
-            ),
-            _ => (None, None, None),
-        };
-        let j = JsonOut {
-            recording,
-            reference,
-            reference_description,
-            recordings,
-            output: cli.output.as_ref().map(|p| p.display().to_string()),
-            fit: &fit,
-            truth_comparison: truth_rows,
-            inputs_unfinished: loaded
-                .iter()
-                .zip(&cli.recordings)
-                .filter_map(|((s, _), path)| {
-                    s.unfinished
-                        .as_ref()
-                        .map(|u| imu_cli::unfinished::json(path, u))
-                })
-                .collect(),
-        };
+        let j = reference_json(cli, loaded, refs, fit, truth_rows);
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
-        if !several {
+        if loaded.len() <= 1 {
             writeln!(out, "reference: {}", loaded[0].1.describe())?;
         }
-        print_tables(&mut out, &fit, truth_rows.as_deref())?;
+        print_tables(&mut out, fit, truth_rows.as_deref())?;
         if let Some(p) = &cli.output {
             writeln!(out, "\nwrote {}", p.display())?;
         }
     }
     out.flush()?;
     Ok(())
+}
+
+/// The JSON document of a fit against references: per recording what it contributed, and for
+/// one recording its reference also at the top level.
+fn reference_json<'a>(
+    cli: &Cli,
+    loaded: &[(imu_analysis::ImuSeries, Reference)],
+    refs: &[ReferenceArg],
+    fit: &'a CalibrationFit,
+    truth_rows: Option<Vec<TruthRow>>,
+) -> JsonOut<'a> {
+    let recordings: Vec<JsonRecording> = fit
+        .recordings
+        .iter()
+        .zip(&cli.recordings)
+        .zip(refs)
+        .map(|((r, path), arg)| JsonRecording {
+            recording: path.display().to_string(),
+            reference: arg.path().display().to_string(),
+            reference_description: r.reference.clone(),
+            static_segments: r.segmentation.count(SegmentKind::Static),
+            rate_plateaus: r.segmentation.count(SegmentKind::Plateau),
+            skipped_segments: r.segmentation.skipped.len(),
+            accel_points: r.accel_points.len(),
+            gyro_points: r.gyro_points.len(),
+        })
+        .collect();
+    let (recording, reference, reference_description) = match recordings.as_slice() {
+        [r] => (
+            Some(r.recording.clone()),
+            Some(r.reference.clone()),
+            Some(r.reference_description.clone()),
+        ),
+        _ => (None, None, None),
+    };
+    JsonOut {
+        recording,
+        reference,
+        reference_description,
+        recordings,
+        output: cli.output.as_ref().map(|p| p.display().to_string()),
+        fit,
+        truth_comparison: truth_rows,
+        inputs_unfinished: loaded
+            .iter()
+            .zip(&cli.recordings)
+            .filter_map(|((s, _), path)| {
+                s.unfinished
+                    .as_ref()
+                    .map(|u| imu_cli::unfinished::json(path, u))
+            })
+            .collect(),
+    }
 }

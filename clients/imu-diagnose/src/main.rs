@@ -315,6 +315,43 @@ fn print_diagnosis(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<
     let unit = d.triad.unit();
     writeln!(out, "\n== {}: {} ==", d.triad, effects_text(&d.effects))?;
     writeln!(out, "{}", d.verdict)?;
+    print_axes(out, d)?;
+    print_worst_segments(out, d)?;
+    for l in &d.spectral_lines {
+        writeln!(
+            out,
+            "  spectral line: axis {} {:.4} Hz amplitude {:.3e} {unit} ({:.1}x noise)",
+            ["x", "y", "z"].get(l.axis).copied().unwrap_or("?"),
+            l.frequency_hz,
+            l.amplitude,
+            l.ratio
+        )?;
+    }
+    print_candidates(out, d)?;
+    for a in &d.ambiguities {
+        writeln!(
+            out,
+            "  ambiguous: {} and {} (pattern correlation {:.2}); separate them with {}",
+            a.effects[0], a.effects[1], a.correlation, a.separating_recording
+        )?;
+    }
+    if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
+        writeln!(
+            out,
+            "  model change: add to the model file\n{}",
+            top.model_change
+                .lines()
+                .map(|l| format!("    {l}"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        )?;
+    }
+    Ok(())
+}
+
+/// The per-axis table: residual RMS against the noise floor, with and without drift.
+fn print_axes(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<()> {
+    let unit = d.triad.unit();
     writeln!(
         out,
         "  axis {:>13} {:>13} {:>13} {:>7} {:>10}   [{unit}]",
@@ -332,6 +369,10 @@ fn print_diagnosis(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<
             v.p_value
         )?;
     }
+    Ok(())
+}
+
+fn print_worst_segments(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<()> {
     writeln!(out, "  worst segments:")?;
     for &i in &d.worst {
         let s = &d.segments[i];
@@ -354,16 +395,10 @@ fn print_diagnosis(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<
             s.z[2]
         )?;
     }
-    for l in &d.spectral_lines {
-        writeln!(
-            out,
-            "  spectral line: axis {} {:.4} Hz amplitude {:.3e} {unit} ({:.1}x noise)",
-            ["x", "y", "z"].get(l.axis).copied().unwrap_or("?"),
-            l.frequency_hz,
-            l.amplitude,
-            l.ratio
-        )?;
-    }
+    Ok(())
+}
+
+fn print_candidates(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<()> {
     writeln!(out, "  candidates:")?;
     writeln!(
         out,
@@ -389,24 +424,6 @@ fn print_diagnosis(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result<
             c.share_of_excess,
             state,
             c.explanation
-        )?;
-    }
-    for a in &d.ambiguities {
-        writeln!(
-            out,
-            "  ambiguous: {} and {} (pattern correlation {:.2}); separate them with {}",
-            a.effects[0], a.effects[1], a.correlation, a.separating_recording
-        )?;
-    }
-    if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
-        writeln!(
-            out,
-            "  model change: add to the model file\n{}",
-            top.model_change
-                .lines()
-                .map(|l| format!("    {l}"))
-                .collect::<Vec<_>>()
-                .join("\n")
         )?;
     }
     Ok(())
@@ -472,21 +489,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
         bail!("a RECORDING and --plan, --reference or --reference-free are required");
     };
     let reference = &a.reference;
-    let mut model = load_model(a.model.as_deref())?;
-    let mut added = Vec::new();
-    for spec in &a.add {
-        for (t, k) in imu_cli::parse_effect(spec, "--add").map_err(imu_cli::UsageError)? {
-            let m = if t == Triad::Gyro {
-                &mut model.gyro
-            } else {
-                &mut model.accel
-            };
-            if !m.has(k) {
-                m.add(k);
-                added.push((t, k));
-            }
-        }
-    }
+    let (model, added) = model_with_added(a)?;
     let (series, truth) = read_inputs(recording, reference, &a.csv)?;
     let wb = reference
         .workbench(&series, truth.as_ref(), options(a.model.as_deref())?)
@@ -533,27 +536,60 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
-        let s = &wb.obs.segmentation;
-        writeln!(
-            out,
-            "{}: {} static segments, {} rate plateaus",
-            recording.display(),
-            s.count(SegmentKind::Static),
-            s.count(SegmentKind::Plateau)
-        )?;
-        for n in &wb.notes {
-            writeln!(out, "note: {n}")?;
-        }
-        for (t, k) in &added {
-            writeln!(out, "added {t} {k}")?;
-        }
-        print_diagnosis(&mut out, &accel)?;
-        print_diagnosis(&mut out, &gyro)?;
-        if let Some(p) = &a.report {
-            writeln!(out, "\nwrote {}", p.display())?;
-        }
+        print_diagnose_text(&mut out, a, recording, &wb, &added, [&accel, &gyro])?;
     }
     out.flush()?;
+    Ok(())
+}
+
+/// The model file's effects with the `--add` effects it lacks, and those added.
+fn model_with_added(a: &DiagnoseArgs) -> Result<(Calibration, Vec<(Triad, EffectKind)>)> {
+    let mut model = load_model(a.model.as_deref())?;
+    let mut added = Vec::new();
+    for spec in &a.add {
+        for (t, k) in imu_cli::parse_effect(spec, "--add").map_err(imu_cli::UsageError)? {
+            let m = if t == Triad::Gyro {
+                &mut model.gyro
+            } else {
+                &mut model.accel
+            };
+            if !m.has(k) {
+                m.add(k);
+                added.push((t, k));
+            }
+        }
+    }
+    Ok((model, added))
+}
+
+/// `imu-diagnose` without `--json`: the segments, notes, added effects and both diagnoses.
+fn print_diagnose_text(
+    out: &mut impl Write,
+    a: &DiagnoseArgs,
+    recording: &Path,
+    wb: &Workbench<'_>,
+    added: &[(Triad, EffectKind)],
+    [accel, gyro]: [&TriadDiagnosis; 2],
+) -> Result<()> {
+    let s = &wb.obs.segmentation;
+    writeln!(
+        out,
+        "{}: {} static segments, {} rate plateaus",
+        recording.display(),
+        s.count(SegmentKind::Static),
+        s.count(SegmentKind::Plateau)
+    )?;
+    for n in &wb.notes {
+        writeln!(out, "note: {n}")?;
+    }
+    for (t, k) in added {
+        writeln!(out, "added {t} {k}")?;
+    }
+    print_diagnosis(out, accel)?;
+    print_diagnosis(out, gyro)?;
+    if let Some(p) = &a.report {
+        writeln!(out, "\nwrote {}", p.display())?;
+    }
     Ok(())
 }
 
@@ -564,54 +600,18 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
         .reference
         .workbench(&series, truth.as_ref(), options(a.base.as_deref())?)
         .with_context(|| format!("segmenting {}", a.recording.display()))?;
+    let ladder = wb.ladder(&base)?;
+    let added: Vec<(Triad, EffectKind)> = ladder.steps.iter().filter_map(|s| s.added).collect();
     let Ladder {
         steps,
         final_diagnoses,
         mut calibration,
         notes,
-    } = wb.ladder(&base)?;
-    let added: Vec<(Triad, EffectKind)> = steps.iter().filter_map(|s| s.added).collect();
-
-    let cal = &mut calibration;
-    if a.base.is_none() {
-        cal.id = Some("imu-diagnose-ladder".into());
-    }
-    cal.description = Some(format!(
-        "accel {}; gyro {} (model workbench ladder)",
-        effects_text(&final_diagnoses[0].effects),
-        effects_text(&final_diagnoses[1].effects)
-    ));
-    cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
-    cal.provenance.tool = Some(format!("imu-diagnose {}", env!("CARGO_PKG_VERSION")));
-    cal.provenance.procedure = Some(if a.reference.reference_free {
-        "imu-diagnose ladder --reference-free".into()
-    } else {
-        "imu-diagnose ladder".into()
-    });
-    let mut inputs = vec![input_file(&a.recording)?];
-    if let Some(r) = a.reference.path() {
-        inputs.push(input_file(r)?);
-    }
-    if let Some(b) = &a.base {
-        inputs.push(input_file(b)?);
-    }
-    cal.provenance.inputs = inputs;
-    cal.provenance.notes = Some(format!(
-        "added: {}; accel: {} gyro: {}",
-        if added.is_empty() {
-            "nothing".to_string()
-        } else {
-            added
-                .iter()
-                .map(|(t, k)| format!("{t} {k}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        },
-        final_diagnoses[0].verdict,
-        final_diagnoses[1].verdict
-    ));
+    } = ladder;
+    stamp_ladder_calibration(a, &mut calibration, &final_diagnoses, &added)?;
     if let Some(path) = &a.output {
-        cal.save(path)
+        calibration
+            .save(path)
             .with_context(|| format!("writing {}", path.display()))?;
     }
     if let Some(path) = &a.report {
@@ -654,22 +654,82 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
     } else {
-        print_ladder(&mut out, &steps)?;
-        writeln!(out)?;
-        for d in &final_diagnoses {
-            writeln!(out, "{}", d.verdict)?;
-        }
-        for n in &notes {
-            writeln!(out, "note: {n}")?;
-        }
-        if let Some(p) = &a.output {
-            writeln!(out, "\nwrote {}", p.display())?;
-        }
-        if let Some(p) = &a.report {
-            writeln!(out, "wrote {}", p.display())?;
-        }
+        print_ladder_text(&mut out, a, &steps, &final_diagnoses, &notes)?;
     }
     out.flush()?;
+    Ok(())
+}
+
+/// The ladder's calibration: its id (without a base model), description and provenance (the
+/// inputs with their hashes, what was added and the final verdicts).
+fn stamp_ladder_calibration(
+    a: &LadderArgs,
+    cal: &mut Calibration,
+    final_diagnoses: &[TriadDiagnosis; 2],
+    added: &[(Triad, EffectKind)],
+) -> Result<()> {
+    if a.base.is_none() {
+        cal.id = Some("imu-diagnose-ladder".into());
+    }
+    cal.description = Some(format!(
+        "accel {}; gyro {} (model workbench ladder)",
+        effects_text(&final_diagnoses[0].effects),
+        effects_text(&final_diagnoses[1].effects)
+    ));
+    cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
+    cal.provenance.tool = Some(format!("imu-diagnose {}", env!("CARGO_PKG_VERSION")));
+    cal.provenance.procedure = Some(if a.reference.reference_free {
+        "imu-diagnose ladder --reference-free".into()
+    } else {
+        "imu-diagnose ladder".into()
+    });
+    let mut inputs = vec![input_file(&a.recording)?];
+    if let Some(r) = a.reference.path() {
+        inputs.push(input_file(r)?);
+    }
+    if let Some(b) = &a.base {
+        inputs.push(input_file(b)?);
+    }
+    cal.provenance.inputs = inputs;
+    cal.provenance.notes = Some(format!(
+        "added: {}; accel: {} gyro: {}",
+        if added.is_empty() {
+            "nothing".to_string()
+        } else {
+            added
+                .iter()
+                .map(|(t, k)| format!("{t} {k}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        },
+        final_diagnoses[0].verdict,
+        final_diagnoses[1].verdict
+    ));
+    Ok(())
+}
+
+/// `imu-diagnose ladder` without `--json`: the steps, the final verdicts and the notes.
+fn print_ladder_text(
+    out: &mut impl Write,
+    a: &LadderArgs,
+    steps: &[LadderStep],
+    final_diagnoses: &[TriadDiagnosis; 2],
+    notes: &[String],
+) -> Result<()> {
+    print_ladder(out, steps)?;
+    writeln!(out)?;
+    for d in final_diagnoses {
+        writeln!(out, "{}", d.verdict)?;
+    }
+    for n in notes {
+        writeln!(out, "note: {n}")?;
+    }
+    if let Some(p) = &a.output {
+        writeln!(out, "\nwrote {}", p.display())?;
+    }
+    if let Some(p) = &a.report {
+        writeln!(out, "wrote {}", p.display())?;
+    }
     Ok(())
 }
 

@@ -364,47 +364,19 @@ pub fn analyze(
             ))
         })?;
     let sign = if corr < 0.0 { -1.0 } else { 1.0 };
-    let (r_lo, r_hi) = (reference.t_s[0], *reference.t_s.last().unwrap_or(&0.0));
-    let idx: Vec<usize> = (0..n)
-        .filter(|&i| {
-            let x = series.t_s[i] + delay;
-            x >= r_lo && x <= r_hi
-        })
-        .collect();
-    if idx.len() < 10 {
-        return Err(DynamicError::NoOverlap(format!(
-            "{} and {}: under 10 samples overlap after aligning the clocks",
-            series.origin, reference.origin
-        )));
-    }
-    let (i0, i1) = (idx[0], idx[idx.len() - 1]);
-    let ref_rates = reference.rates();
-    let mut angle = 0.0;
-    let ref0 = interp(&reference.t_s, &reference.angle_rad, series.t_s[i0] + delay);
-    let mut t = Vec::with_capacity(i1 - i0 + 1);
-    let mut err_deg = Vec::with_capacity(i1 - i0 + 1);
-    let mut gyro_deg = Vec::with_capacity(i1 - i0 + 1);
-    let mut ref_deg = Vec::with_capacity(i1 - i0 + 1);
-    for i in i0..=i1 {
-        if i > i0 {
-            angle += 0.5 * (rate[i] + rate[i - 1]) * (series.t_s[i] - series.t_s[i - 1]);
-        }
-        let r = sign * (interp(&reference.t_s, &reference.angle_rad, series.t_s[i] + delay) - ref0);
-        t.push(series.t_s[i]);
-        gyro_deg.push(angle.to_degrees());
-        ref_deg.push(r.to_degrees());
-        err_deg.push((angle - r).to_degrees());
-    }
-    let rows: Vec<Vec<f64>> = t.iter().map(|&x| vec![1.0, x - t[0]]).collect();
-    let (c, cov) = ordinary_least_squares(&rows, &err_deg).ok_or_else(|| {
-        DynamicError::NoOverlap(format!("{}: degenerate time span", series.origin))
-    })?;
-    let rss: f64 = rows
-        .iter()
-        .zip(&err_deg)
-        .map(|(r, e)| (e - c[0] - c[1] * r[1]).powi(2))
-        .sum();
-    let s2 = rss / (rows.len() as f64 - 2.0).max(1.0);
+    let (i0, i1) = overlap(series, reference, delay)?;
+    let al = Aligned {
+        series,
+        rate: &rate,
+        reference,
+        delay,
+        sign,
+        i0,
+        i1,
+    };
+    let run = al.integrate();
+    let (growth_deg_s, growth_std_deg_s) = error_growth(series, &run.t, &run.err_deg)?;
+    let (t, err_deg, ref_deg) = (&run.t, &run.err_deg, &run.ref_deg);
     let travel: f64 = ref_deg.windows(2).map(|w| (w[1] - w[0]).abs()).sum();
     let step = (t.len() / options.curve_points.max(1)).max(1);
     let error_curve = (0..t.len())
@@ -413,19 +385,9 @@ pub fn analyze(
         .collect();
     let angle_curve = (0..t.len())
         .step_by(step)
-        .map(|k| (t[k], gyro_deg[k], ref_deg[k]))
+        .map(|k| (t[k], run.gyro_deg[k], ref_deg[k]))
         .collect();
-    let rate_curve = (i0..=i1)
-        .step_by(step)
-        .map(|i| {
-            let x = series.t_s[i] + delay;
-            (
-                series.t_s[i],
-                rate[i].to_degrees(),
-                sign * interp(&reference.t_s, &ref_rates, x).to_degrees(),
-            )
-        })
-        .collect();
+    let rate_curve = al.rate_curve(step);
     let final_error_deg = *err_deg.last().unwrap_or(&f64::NAN);
     Ok(DynamicRun {
         origin: series.origin.clone(),
@@ -438,13 +400,122 @@ pub fn analyze(
         final_error_deg,
         max_abs_error_deg: err_deg.iter().fold(0.0, |a, e| a.max(e.abs())),
         rms_error_deg: (err_deg.iter().map(|e| e * e).sum::<f64>() / err_deg.len() as f64).sqrt(),
-        growth_deg_s: c[1],
-        growth_std_deg_s: (cov[(1, 1)] * s2).sqrt(),
-        growth_deg_h: c[1] * 3600.0,
+        growth_deg_s,
+        growth_std_deg_s,
+        growth_deg_h: growth_deg_s * 3600.0,
         error_curve,
         angle_curve,
         rate_curve,
     })
+}
+
+/// The first and last sample whose time, shifted by `delay`, is within the reference.
+fn overlap(
+    series: &ImuSeries,
+    reference: &Reference,
+    delay: f64,
+) -> Result<(usize, usize), DynamicError> {
+    let (r_lo, r_hi) = (reference.t_s[0], *reference.t_s.last().unwrap_or(&0.0));
+    let idx: Vec<usize> = (0..series.len())
+        .filter(|&i| {
+            let x = series.t_s[i] + delay;
+            x >= r_lo && x <= r_hi
+        })
+        .collect();
+    if idx.len() < 10 {
+        return Err(DynamicError::NoOverlap(format!(
+            "{} and {}: under 10 samples overlap after aligning the clocks",
+            series.origin, reference.origin
+        )));
+    }
+    Ok((idx[0], idx[idx.len() - 1]))
+}
+
+/// The recording's rate about the axis aligned with the reference: delayed by `delay` s, signed
+/// by `sign`, over samples `i0..=i1`.
+struct Aligned<'a> {
+    series: &'a ImuSeries,
+    rate: &'a [f64],
+    reference: &'a Reference,
+    delay: f64,
+    sign: f64,
+    i0: usize,
+    i1: usize,
+}
+
+/// The integrated gyro angle, the reference angle and their difference per sample, deg.
+struct Integrated {
+    t: Vec<f64>,
+    gyro_deg: Vec<f64>,
+    ref_deg: Vec<f64>,
+    err_deg: Vec<f64>,
+}
+
+impl Aligned<'_> {
+    /// The gyro integrated by the trapezoid rule from the first overlapping sample, against
+    /// the reference angle from there.
+    fn integrate(&self) -> Integrated {
+        let (series, reference, rate, delay) = (self.series, self.reference, self.rate, self.delay);
+        let (i0, i1) = (self.i0, self.i1);
+        let mut angle = 0.0;
+        let ref0 = interp(&reference.t_s, &reference.angle_rad, series.t_s[i0] + delay);
+        let mut t = Vec::with_capacity(i1 - i0 + 1);
+        let mut err_deg = Vec::with_capacity(i1 - i0 + 1);
+        let mut gyro_deg = Vec::with_capacity(i1 - i0 + 1);
+        let mut ref_deg = Vec::with_capacity(i1 - i0 + 1);
+        for i in i0..=i1 {
+            if i > i0 {
+                angle += 0.5 * (rate[i] + rate[i - 1]) * (series.t_s[i] - series.t_s[i - 1]);
+            }
+            let r = self.sign
+                * (interp(&reference.t_s, &reference.angle_rad, series.t_s[i] + delay) - ref0);
+            t.push(series.t_s[i]);
+            gyro_deg.push(angle.to_degrees());
+            ref_deg.push(r.to_degrees());
+            err_deg.push((angle - r).to_degrees());
+        }
+        Integrated {
+            t,
+            gyro_deg,
+            ref_deg,
+            err_deg,
+        }
+    }
+
+    /// (time, gyro rate, reference rate), deg/s, every `step`-th sample.
+    fn rate_curve(&self, step: usize) -> Vec<(f64, f64, f64)> {
+        let ref_rates = self.reference.rates();
+        (self.i0..=self.i1)
+            .step_by(step)
+            .map(|i| {
+                let x = self.series.t_s[i] + self.delay;
+                (
+                    self.series.t_s[i],
+                    self.rate[i].to_degrees(),
+                    self.sign * interp(&self.reference.t_s, &ref_rates, x).to_degrees(),
+                )
+            })
+            .collect()
+    }
+}
+
+/// The angle error's growth, deg/s, and its standard error: a line fitted to `err_deg` over `t`.
+fn error_growth(
+    series: &ImuSeries,
+    t: &[f64],
+    err_deg: &[f64],
+) -> Result<(f64, f64), DynamicError> {
+    let rows: Vec<Vec<f64>> = t.iter().map(|&x| vec![1.0, x - t[0]]).collect();
+    let (c, cov) = ordinary_least_squares(&rows, err_deg).ok_or_else(|| {
+        DynamicError::NoOverlap(format!("{}: degenerate time span", series.origin))
+    })?;
+    let rss: f64 = rows
+        .iter()
+        .zip(err_deg)
+        .map(|(r, e)| (e - c[0] - c[1] * r[1]).powi(2))
+        .sum();
+    let s2 = rss / (rows.len() as f64 - 2.0).max(1.0);
+    Ok((c[1], (cov[(1, 1)] * s2).sqrt()))
 }
 
 /// Charts like the paper's Figures 12-13 (rate and angle versus the reference) and the angle

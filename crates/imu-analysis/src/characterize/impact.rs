@@ -200,7 +200,43 @@ pub fn analyze(series: &ImuSeries, options: &ImpactOptions) -> Result<ImpactRepo
     let sigma = (1.4826 * mad).max(1e-4);
     let threshold = options.threshold_sigmas * sigma;
 
-    // Threshold crossings, merged into events.
+    let spans = crossings(&dev, threshold, options, rate);
+    let windows = windows(&spans, n, options, rate);
+    let mut events = Vec::with_capacity(windows.len());
+    for w in &windows {
+        events.push(measure(series, w, options));
+    }
+    let struck_axis = {
+        let mut count = [0usize; 3];
+        for e in &events {
+            count[e.struck_axis] += 1;
+        }
+        (!events.is_empty()).then(|| (0..3).max_by_key(|&i| count[i]).unwrap_or(2))
+    };
+    let summary = summarize(&events);
+    let (pooled_accel_coupling, pooled_gyro_coupling_rad_s_per_m_s2) =
+        pooled(series, &windows, &events, struck_axis.unwrap_or(2));
+    Ok(ImpactReport {
+        origin: series.origin.clone(),
+        sample_rate_hz: rate,
+        baseline_m_s2: baseline,
+        threshold_m_s2: threshold,
+        struck_axis,
+        events,
+        summary,
+        pooled_accel_coupling,
+        pooled_gyro_coupling_rad_s_per_m_s2,
+    })
+}
+
+/// Threshold crossings of the accel magnitude's deviation `dev`, merged into events: (first,
+/// last) sample of each.
+fn crossings(
+    dev: &[f64],
+    threshold: f64,
+    options: &ImpactOptions,
+    rate: f64,
+) -> Vec<(usize, usize)> {
     let merge = (options.merge_gap_s * rate).ceil().max(1.0) as usize;
     let mut spans: Vec<(usize, usize)> = Vec::new();
     for (i, d) in dev.iter().enumerate() {
@@ -211,6 +247,12 @@ pub fn analyze(series: &ImuSeries, options: &ImpactOptions) -> Result<ImpactRepo
             }
         }
     }
+    spans
+}
+
+/// The pre-impact and response windows of each event in `spans` (of `n` samples), kept clear of
+/// the neighbouring events; an event without 3 quiet samples before it is dropped.
+fn windows(spans: &[(usize, usize)], n: usize, options: &ImpactOptions, rate: f64) -> Vec<Window> {
     let pre_n = (options.pre_s * rate).round().max(3.0) as usize;
     let guard_n = (options.guard_s * rate).round() as usize;
     let post_n = (options.post_s * rate).round().max(1.0) as usize;
@@ -234,22 +276,15 @@ pub fn analyze(series: &ImuSeries, options: &ImpactOptions) -> Result<ImpactRepo
             resp: resp_start..resp_end,
         });
     }
+    windows
+}
 
-    let mut events = Vec::with_capacity(windows.len());
-    for w in &windows {
-        events.push(measure(series, w, options));
-    }
-    let struck_axis = {
-        let mut count = [0usize; 3];
-        for e in &events {
-            count[e.struck_axis] += 1;
-        }
-        (!events.is_empty()).then(|| (0..3).max_by_key(|&i| count[i]).unwrap_or(2))
-    };
+/// Per axis statistics of the events' measures.
+fn summarize(events: &[ImpactEvent]) -> ImpactSummary {
     let stats = |f: &dyn Fn(&ImpactEvent) -> [f64; 3]| -> [Stats; 3] {
         [0, 1, 2].map(|i| Stats::of(events.iter().map(|e| f(e)[i])))
     };
-    let summary = ImpactSummary {
+    ImpactSummary {
         accel_peak_m_s2: stats(&|e| e.accel_peak_m_s2),
         gyro_peak_rad_s: stats(&|e| e.gyro_peak_rad_s),
         accel_peak_ratio: stats(&|e| e.accel_peak_ratio),
@@ -258,20 +293,7 @@ pub fn analyze(series: &ImuSeries, options: &ImpactOptions) -> Result<ImpactRepo
         gyro_coupling_rad_s_per_m_s2: stats(&|e| e.gyro_coupling_rad_s_per_m_s2),
         accel_settling_s: stats(&|e| e.accel_settling_s),
         gyro_settling_s: stats(&|e| e.gyro_settling_s),
-    };
-    let (pooled_accel_coupling, pooled_gyro_coupling_rad_s_per_m_s2) =
-        pooled(series, &windows, &events, struck_axis.unwrap_or(2));
-    Ok(ImpactReport {
-        origin: series.origin.clone(),
-        sample_rate_hz: rate,
-        baseline_m_s2: baseline,
-        threshold_m_s2: threshold,
-        struck_axis,
-        events,
-        summary,
-        pooled_accel_coupling,
-        pooled_gyro_coupling_rad_s_per_m_s2,
-    })
+    }
 }
 
 fn pre_level(v: &[[f64; 3]], r: std::ops::Range<usize>) -> ([f64; 3], [f64; 3]) {

@@ -233,7 +233,40 @@ pub fn analyze(
     } else {
         None
     };
+    let axes = thermal_axes(&bins, &x, bin_range, options);
+    let confounding = confounding(&temps, &times, warmup.as_ref());
+    let warranted: Vec<String> = axes
+        .iter()
+        .filter(|a| a.model_warranted)
+        .map(|a| format!("{} {}", a.sensor, a.axis))
+        .collect();
+    let model_recommended = !warranted.is_empty();
+    let recommendation = recommendation(&warranted, bin_range, [tmin, tmax], options);
+    Ok(ThermalReport {
+        origin: series.origin.clone(),
+        n_samples: series.len(),
+        n_temp_readings: series.temp.len(),
+        duration_s: series.t_s.last().copied().unwrap_or(0.0),
+        bin_s: options.bin_s,
+        temp_range_c: [tmin, tmax],
+        temp_ref_c,
+        warmup,
+        bins,
+        axes,
+        confounding,
+        model_recommended,
+        recommendation,
+    })
+}
 
+/// The temperature dependence of each axis (accel x, y, z, gyro x, y, z) over the bins, against
+/// `x`, the bins' temperatures minus the reference temperature; `bin_range` K between them.
+fn thermal_axes(
+    bins: &[ThermalBin],
+    x: &[f64],
+    bin_range: f64,
+    options: &ThermalOptions,
+) -> Vec<AxisThermal> {
     let mut axes = Vec::with_capacity(6);
     for (sensor, unit, big) in [("accel", "m/s^2", 0.5 * G0), ("gyro", "rad/s", 0.5)] {
         for (i, axis) in ["x", "y", "z"].iter().enumerate() {
@@ -248,37 +281,50 @@ pub fn analyze(
                 })
                 .collect();
             axes.push(axis_thermal(
-                sensor, axis, unit, big, &x, &y, bin_range, options,
+                sensor, axis, unit, big, x, &y, bin_range, options,
             ));
         }
     }
+    axes
+}
 
-    let tau = warmup.as_ref().map_or(f64::NAN, |w| w.tau_s);
+/// How far the bins' temperatures follow a warm-up transient and time.
+fn confounding(temps: &[f64], times: &[f64], warmup: Option<&WarmupFit>) -> Confounding {
+    let tau = warmup.map_or(f64::NAN, |w| w.tau_s);
     let shape: Vec<f64> = times.iter().map(|t| (-t / tau).exp()).collect();
     let temp_vs_warmup_corr = if tau.is_finite() {
-        correlation(&temps, &shape).unwrap_or(f64::NAN)
+        correlation(temps, &shape).unwrap_or(f64::NAN)
     } else {
         f64::NAN
     };
-    let temp_vs_time_corr = correlation(&temps, &times).unwrap_or(f64::NAN);
+    let temp_vs_time_corr = correlation(temps, times).unwrap_or(f64::NAN);
     let note = format!(
         "In a monotonic warm-up the temperature follows time: its correlation with a warm-up \
          transient exp(-t/tau) is {temp_vs_warmup_corr:.3} (with time {temp_vs_time_corr:.3}), so a \
          warm-up transient and a temperature coefficient are confounded here. A temperature \
          cycle (heating and cooling, or a soak at several temperatures) separates them."
     );
-    let warranted: Vec<String> = axes
-        .iter()
-        .filter(|a| a.model_warranted)
-        .map(|a| format!("{} {}", a.sensor, a.axis))
-        .collect();
-    let model_recommended = !warranted.is_empty();
-    let recommendation = if bin_range < 1.0 {
+    Confounding {
+        temp_vs_warmup_corr,
+        temp_vs_time_corr,
+        note,
+    }
+}
+
+/// The plain-language recommendation: the axes for which a thermal model is `warranted`, over
+/// the temperature range `[tmin, tmax]` deg C (`bin_range` K between the bins).
+fn recommendation(
+    warranted: &[String],
+    bin_range: f64,
+    [tmin, tmax]: [f64; 2],
+    options: &ThermalOptions,
+) -> String {
+    if bin_range < 1.0 {
         format!(
             "The temperature varied by only {bin_range:.2} K; the data cannot support or rule \
              out a thermal model."
         )
-    } else if model_recommended {
+    } else if !warranted.is_empty() {
         format!(
             "A thermal error model IS warranted between {tmin:.1} and {tmax:.1} deg C for: {}. \
              The coefficients are significant and the change they predict over the range \
@@ -294,26 +340,7 @@ pub fn analyze(
              the scatter of a {} s mean. There may still be a dependence outside this range.",
             options.relevance_factor, options.bin_s
         )
-    };
-    Ok(ThermalReport {
-        origin: series.origin.clone(),
-        n_samples: series.len(),
-        n_temp_readings: series.temp.len(),
-        duration_s: series.t_s.last().copied().unwrap_or(0.0),
-        bin_s: options.bin_s,
-        temp_range_c: [tmin, tmax],
-        temp_ref_c,
-        warmup,
-        bins,
-        axes,
-        confounding: Confounding {
-            temp_vs_warmup_corr,
-            temp_vs_time_corr,
-            note,
-        },
-        model_recommended,
-        recommendation,
-    })
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -602,7 +629,32 @@ fn variogram_envelope(e: &[f64]) -> Vec<f64> {
 /// Charts like the paper's Figures 4-6: temperature versus time with the warm-up fit, and the
 /// binned outputs (offset from their mean) versus time and versus temperature.
 pub fn charts(report: &ThermalReport) -> Vec<Chart> {
-    let mut out = Vec::new();
+    let mut out = vec![temperature_chart(report)];
+    for (sensor, unit_label, k0, scale) in [
+        ("accel", "specific force - mean [mg]", 0usize, 1e3 / G0),
+        ("gyro", "rate - mean [deg/h]", 3, 3600.0_f64.to_degrees()),
+    ] {
+        for (versus, x_label) in [
+            ("time", "time [min]"),
+            ("temperature", "temperature [deg C]"),
+        ] {
+            let series = (0..3)
+                .map(|i| bin_mean_series(report, sensor, k0 + i, i, scale, versus == "time"))
+                .collect();
+            out.push(Chart {
+                title: format!("{sensor} {}-s means vs {versus}", report.bin_s),
+                x_label: x_label.into(),
+                y_label: unit_label.into(),
+                series,
+                ..Chart::default()
+            });
+        }
+    }
+    out
+}
+
+/// The bins' mean temperature over time, with the warm-up fit if any.
+fn temperature_chart(report: &ThermalReport) -> Chart {
     let mut temp_series = vec![Series {
         name: "bin mean temperature".into(),
         points: report
@@ -628,61 +680,43 @@ pub fn charts(report: &ThermalReport) -> Vec<Chart> {
             style: Style::Line,
         });
     }
-    out.push(Chart {
+    Chart {
         title: "Internal temperature".into(),
         x_label: "time [min]".into(),
         y_label: "temperature [deg C]".into(),
         series: temp_series,
         ..Chart::default()
-    });
-    for (sensor, unit_label, k0, scale) in [
-        ("accel", "specific force - mean [mg]", 0usize, 1e3 / G0),
-        ("gyro", "rate - mean [deg/h]", 3, 3600.0_f64.to_degrees()),
-    ] {
-        for (versus, x_label) in [
-            ("time", "time [min]"),
-            ("temperature", "temperature [deg C]"),
-        ] {
-            let series = (0..3)
-                .map(|i| {
-                    let ax = &report.axes[k0 + i];
-                    Series {
-                        name: format!("{sensor} {}", ax.axis),
-                        points: report
-                            .bins
-                            .iter()
-                            .map(|b| {
-                                let v = if sensor == "accel" {
-                                    b.accel_m_s2[i]
-                                } else {
-                                    b.gyro_rad_s[i]
-                                };
-                                let x = if versus == "time" {
-                                    b.t_s / 60.0
-                                } else {
-                                    b.temp_c
-                                };
-                                (x, (v - ax.mean) * scale)
-                            })
-                            .collect(),
-                        style: if versus == "time" {
-                            Style::Line
-                        } else {
-                            Style::Points
-                        },
-                    }
-                })
-                .collect();
-            out.push(Chart {
-                title: format!("{sensor} {}-s means vs {versus}", report.bin_s),
-                x_label: x_label.into(),
-                y_label: unit_label.into(),
-                series,
-                ..Chart::default()
-            });
-        }
     }
-    out
+}
+
+/// Axis `i` of `sensor` (report axis `k`): its bin means minus their mean, times `scale`,
+/// against time in minutes (a line) or temperature (points).
+fn bin_mean_series(
+    report: &ThermalReport,
+    sensor: &str,
+    k: usize,
+    i: usize,
+    scale: f64,
+    by_time: bool,
+) -> Series {
+    let ax = &report.axes[k];
+    Series {
+        name: format!("{sensor} {}", ax.axis),
+        points: report
+            .bins
+            .iter()
+            .map(|b| {
+                let v = if sensor == "accel" {
+                    b.accel_m_s2[i]
+                } else {
+                    b.gyro_rad_s[i]
+                };
+                let x = if by_time { b.t_s / 60.0 } else { b.temp_c };
+                (x, (v - ax.mean) * scale)
+            })
+            .collect(),
+        style: if by_time { Style::Line } else { Style::Points },
+    }
 }
 
 #[cfg(test)]

@@ -220,85 +220,115 @@ fn path_data(points: impl Iterator<Item = (f64, f64)>) -> String {
 /// Renders the chart as a standalone SVG document (UTF-8 text, 800 x 560 px, no fonts embedded:
 /// text uses the viewer's generic `sans-serif`).
 pub fn render_svg(chart: &Chart) -> String {
-    let all_points = || {
-        chart.series.iter().flat_map(|s| {
-            let extra: &[(f64, f64)] = match &s.style {
-                Style::Band { upper } => upper,
-                _ => &[],
-            };
-            s.points.iter().chain(extra.iter()).copied()
-        })
-    };
-    let xa = Axis::new(all_points().map(|p| p.0), chart.log_x, LEFT, WIDTH - RIGHT);
-    let ya = Axis::new(all_points().map(|p| p.1), chart.log_y, HEIGHT - BOTTOM, TOP);
-    let to_px = |&(x, y): &(f64, f64)| Some((xa.px(x)?, ya.px(y)?));
-
+    let plot = Plot::new(chart);
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(s, r#"<title>{}</title>"#, escape(&chart.title));
-    let _ = writeln!(
-        s,
-        r#"<rect x="0" y="0" width="{WIDTH}" height="{HEIGHT}" fill="white"/>"#
-    );
-    let (x0, x1, y0, y1) = (LEFT, WIDTH - RIGHT, TOP, HEIGHT - BOTTOM);
+    write_header(&mut s, chart);
+    plot.write_grid(&mut s);
+    plot.write_tick_labels(&mut s);
+    plot.write_series(&mut s, chart);
+    write_frame_and_labels(&mut s, chart);
+    write_legend(&mut s, chart);
+    s.push_str("</svg>\n");
+    s
+}
 
-    // Grid and ticks.
-    s.push_str("<g class=\"grid\" stroke=\"#dddddd\" stroke-width=\"1\">\n");
-    let xt = xa.ticks();
-    let yt = ya.ticks();
-    for (v, _) in &xt {
-        if let Some(px) = xa.px(*v) {
-            let _ = writeln!(
-                s,
-                r#"<line x1="{px:.2}" y1="{y0}" x2="{px:.2}" y2="{y1}"/>"#
-            );
-        }
-    }
-    for (v, _) in &yt {
-        if let Some(py) = ya.px(*v) {
-            let _ = writeln!(
-                s,
-                r#"<line x1="{x0}" y1="{py:.2}" x2="{x1}" y2="{py:.2}"/>"#
-            );
-        }
-    }
-    s.push_str("</g>\n<g class=\"tick-labels\" fill=\"#333333\">\n");
-    for (v, label) in &xt {
-        if let Some(px) = xa.px(*v) {
-            let _ = writeln!(
-                s,
-                r#"<text x="{px:.2}" y="{:.2}" text-anchor="middle">{}</text>"#,
-                y1 + 18.0,
-                escape(label)
-            );
-        }
-    }
-    for (v, label) in &yt {
-        if let Some(py) = ya.px(*v) {
-            let _ = writeln!(
-                s,
-                r#"<text x="{:.2}" y="{:.2}" text-anchor="end">{}</text>"#,
-                x0 - 6.0,
-                py + 4.0,
-                escape(label)
-            );
-        }
-    }
-    s.push_str("</g>\n");
+/// The plot area's edges in pixels: left, right, top, bottom.
+const X0: f64 = LEFT;
+const X1: f64 = WIDTH - RIGHT;
+const Y0: f64 = TOP;
+const Y1: f64 = HEIGHT - BOTTOM;
 
-    // Series, clipped to the plot area.
-    let _ = writeln!(
-        s,
-        r#"<clipPath id="plot-area"><rect x="{x0}" y="{y0}" width="{}" height="{}"/></clipPath>"#,
-        x1 - x0,
-        y1 - y0
-    );
-    s.push_str("<g clip-path=\"url(#plot-area)\">\n");
-    for (i, series) in chart.series.iter().enumerate() {
-        let color = PALETTE[i % PALETTE.len()];
+/// The two axes of one chart, fitted to every point it draws.
+struct Plot {
+    xa: Axis,
+    ya: Axis,
+}
+
+impl Plot {
+    fn new(chart: &Chart) -> Self {
+        let all_points = || {
+            chart.series.iter().flat_map(|s| {
+                let extra: &[(f64, f64)] = match &s.style {
+                    Style::Band { upper } => upper,
+                    _ => &[],
+                };
+                s.points.iter().chain(extra.iter()).copied()
+            })
+        };
+        let xa = Axis::new(all_points().map(|p| p.0), chart.log_x, LEFT, WIDTH - RIGHT);
+        let ya = Axis::new(all_points().map(|p| p.1), chart.log_y, HEIGHT - BOTTOM, TOP);
+        Plot { xa, ya }
+    }
+
+    /// Pixel coordinates of a data point, or `None` if either coordinate cannot be drawn.
+    fn to_px(&self, &(x, y): &(f64, f64)) -> Option<(f64, f64)> {
+        Some((self.xa.px(x)?, self.ya.px(y)?))
+    }
+
+    fn write_grid(&self, s: &mut String) {
+        s.push_str("<g class=\"grid\" stroke=\"#dddddd\" stroke-width=\"1\">\n");
+        for (v, _) in &self.xa.ticks() {
+            if let Some(px) = self.xa.px(*v) {
+                let _ = writeln!(
+                    s,
+                    r#"<line x1="{px:.2}" y1="{Y0}" x2="{px:.2}" y2="{Y1}"/>"#
+                );
+            }
+        }
+        for (v, _) in &self.ya.ticks() {
+            if let Some(py) = self.ya.px(*v) {
+                let _ = writeln!(
+                    s,
+                    r#"<line x1="{X0}" y1="{py:.2}" x2="{X1}" y2="{py:.2}"/>"#
+                );
+            }
+        }
+        s.push_str("</g>\n");
+    }
+
+    fn write_tick_labels(&self, s: &mut String) {
+        s.push_str("<g class=\"tick-labels\" fill=\"#333333\">\n");
+        for (v, label) in &self.xa.ticks() {
+            if let Some(px) = self.xa.px(*v) {
+                let _ = writeln!(
+                    s,
+                    r#"<text x="{px:.2}" y="{:.2}" text-anchor="middle">{}</text>"#,
+                    Y1 + 18.0,
+                    escape(label)
+                );
+            }
+        }
+        for (v, label) in &self.ya.ticks() {
+            if let Some(py) = self.ya.px(*v) {
+                let _ = writeln!(
+                    s,
+                    r#"<text x="{:.2}" y="{:.2}" text-anchor="end">{}</text>"#,
+                    X0 - 6.0,
+                    py + 4.0,
+                    escape(label)
+                );
+            }
+        }
+        s.push_str("</g>\n");
+    }
+
+    /// Every series, clipped to the plot area.
+    fn write_series(&self, s: &mut String, chart: &Chart) {
+        let _ = writeln!(
+            s,
+            r#"<clipPath id="plot-area"><rect x="{X0}" y="{Y0}" width="{}" height="{}"/></clipPath>"#,
+            X1 - X0,
+            Y1 - Y0
+        );
+        s.push_str("<g clip-path=\"url(#plot-area)\">\n");
+        for (i, series) in chart.series.iter().enumerate() {
+            self.write_one_series(s, series, PALETTE[i % PALETTE.len()]);
+        }
+        s.push_str("</g>\n");
+    }
+
+    fn write_one_series(&self, s: &mut String, series: &Series, color: &str) {
+        let to_px = |p: &(f64, f64)| self.to_px(p);
         let name = escape(&series.name);
         match &series.style {
             Style::Line => {
@@ -329,42 +359,56 @@ pub fn render_svg(chart: &Chart) -> String {
             }
         }
     }
-    s.push_str("</g>\n");
+}
 
-    // Frame, title, axis labels.
+fn write_header(s: &mut String, chart: &Chart) {
     let _ = writeln!(
         s,
-        r##"<rect x="{x0}" y="{y0}" width="{}" height="{}" fill="none" stroke="#000000"/>"##,
-        x1 - x0,
-        y1 - y0
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<title>{}</title>"#, escape(&chart.title));
+    let _ = writeln!(
+        s,
+        r#"<rect x="0" y="0" width="{WIDTH}" height="{HEIGHT}" fill="white"/>"#
+    );
+}
+
+/// The plot area's frame, the title and the axis labels.
+fn write_frame_and_labels(s: &mut String, chart: &Chart) {
+    let _ = writeln!(
+        s,
+        r##"<rect x="{X0}" y="{Y0}" width="{}" height="{}" fill="none" stroke="#000000"/>"##,
+        X1 - X0,
+        Y1 - Y0
     );
     let _ = writeln!(
         s,
         r#"<text x="{:.2}" y="28" text-anchor="middle" font-size="16">{}</text>"#,
-        (x0 + x1) / 2.0,
+        (X0 + X1) / 2.0,
         escape(&chart.title)
     );
     let _ = writeln!(
         s,
         r#"<text x="{:.2}" y="{:.2}" text-anchor="middle">{}</text>"#,
-        (x0 + x1) / 2.0,
+        (X0 + X1) / 2.0,
         HEIGHT - 25.0,
         escape(&chart.x_label)
     );
     let _ = writeln!(
         s,
         r#"<text x="20" y="{:.2}" text-anchor="middle" transform="rotate(-90 20 {:.2})">{}</text>"#,
-        (y0 + y1) / 2.0,
-        (y0 + y1) / 2.0,
+        (Y0 + Y1) / 2.0,
+        (Y0 + Y1) / 2.0,
         escape(&chart.y_label)
     );
+}
 
-    // Legend.
+fn write_legend(s: &mut String, chart: &Chart) {
     s.push_str("<g class=\"legend\">\n");
     for (i, series) in chart.series.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
-        let ly = y0 + 10.0 + 20.0 * i as f64;
-        let lx = x1 + 12.0;
+        let ly = Y0 + 10.0 + 20.0 * i as f64;
+        let lx = X1 + 12.0;
         match series.style {
             Style::Line => {
                 let _ = writeln!(
@@ -396,8 +440,7 @@ pub fn render_svg(chart: &Chart) -> String {
             escape(&series.name)
         );
     }
-    s.push_str("</g>\n</svg>\n");
-    s
+    s.push_str("</g>\n");
 }
 
 /// Renders the chart (see [`render_svg`]) and writes it to `path`.

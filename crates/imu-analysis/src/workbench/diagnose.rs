@@ -37,6 +37,22 @@ struct DriftCheck {
     floor_rms: [f64; 3],
 }
 
+/// The model's residuals held against the measured floor, for [`Workbench::diagnose`].
+struct ResidualExamination {
+    /// Chi-square per axis.
+    chi2_axis: [f64; 3],
+    /// Their sum.
+    chi2: f64,
+    /// Its p-value at the fit's degrees of freedom.
+    p_value: f64,
+    /// Residual per segment.
+    segments: Vec<SegmentResidual>,
+    /// The worst segments (indices into `segments`).
+    worst: Vec<usize>,
+    /// What the residuals of each axis correlate with.
+    structure: [Structure; 3],
+}
+
 impl<'a> Workbench<'a> {
     /// Holds `model` against the recording's `triad`: verdict, residuals, structure, and every
     /// library effect not in the model tried as a candidate.
@@ -48,36 +64,22 @@ impl<'a> Workbench<'a> {
         let full_model = model.clone();
         let (model, _) = self.fittable(triad, model);
         let profiled = self.fit(triad, &model, None)?;
-        let family = profiled.wander.map(|w| w.flicker);
         let base = profiled.fit.clone();
-        let (points, _, floor) = self.points(triad);
+        let (_, _, floor) = self.points(triad);
         let dof = base.dof;
-        // The verdict holds the residuals against the floor measured in the segments (white and
-        // flicker); a random walk the segments cannot resolve is not assumed (the candidate
-        // tests profile it).
         let shared = self.shared(triad);
-        let chi2_axis = self.chi2_axes(triad, &base.residuals, &shared);
-        let chi2: f64 = chi2_axis.iter().sum();
-        let p_value = distributions::chi2_sf(chi2, dof as f64);
-        let segments = self.segment_residuals(triad, &base.residuals, &shared);
-        let worst = worst_segments(&segments);
-        let signals = signals(points, triad);
-        let structure = std::array::from_fn(|a| residual_structure(&segments, &signals, a));
+        let ResidualExamination {
+            chi2_axis,
+            chi2,
+            p_value,
+            segments,
+            worst,
+            structure,
+        } = self.examine_residuals(triad, &base, &shared);
         let spectral_lines = self.spectral[usize::from(triad == Triad::Gyro)].clone();
 
         // Candidates.
-        let context = CandidateBase {
-            triad,
-            model: &model,
-            family,
-            profiled: &profiled,
-            points,
-            shared: &shared,
-            chi2,
-            excess: (chi2 - dof as f64).max(1e-12),
-            n_obs: self.n_residuals(triad) as f64,
-            base_pattern: normalised(&base.residuals, points),
-        };
+        let context = self.candidate_base(triad, &model, &profiled, &shared, chi2);
         let mut candidates = self.candidates(&context);
         let consistent_before = p_value >= self.opts.alpha;
         let ambiguities = rank_and_claim(&mut candidates, consistent_before, triad, &self.opts);
@@ -128,6 +130,59 @@ impl<'a> Workbench<'a> {
             self.add_moves(&full_model, &mut diagnosis)?;
         }
         Ok(diagnosis)
+    }
+
+    /// What every candidate for `triad` is held against: the `model`'s `profiled` fit, its
+    /// chi-square `chi2` against the measured floor `shared` and its residual pattern.
+    fn candidate_base<'b>(
+        &'b self,
+        triad: Triad,
+        model: &'b TriadModel,
+        profiled: &'b Profiled,
+        shared: &'b [SharedNoise; 3],
+        chi2: f64,
+    ) -> CandidateBase<'b> {
+        let (points, _, _) = self.points(triad);
+        let base = &profiled.fit;
+        CandidateBase {
+            triad,
+            model,
+            family: profiled.wander.map(|w| w.flicker),
+            profiled,
+            points,
+            shared,
+            chi2,
+            excess: (chi2 - base.dof as f64).max(1e-12),
+            n_obs: self.n_residuals(triad) as f64,
+            base_pattern: normalised(&base.residuals, points),
+        }
+    }
+
+    /// The verdict's statistics: the residuals of `base` against the floor measured in the
+    /// segments (white and flicker); a random walk the segments cannot resolve is not assumed
+    /// (the candidate tests profile it). Also per segment, the worst, and their structure.
+    fn examine_residuals(
+        &self,
+        triad: Triad,
+        base: &FitResult,
+        shared: &[SharedNoise; 3],
+    ) -> ResidualExamination {
+        let (points, _, _) = self.points(triad);
+        let chi2_axis = self.chi2_axes(triad, &base.residuals, shared);
+        let chi2: f64 = chi2_axis.iter().sum();
+        let p_value = distributions::chi2_sf(chi2, base.dof as f64);
+        let segments = self.segment_residuals(triad, &base.residuals, shared);
+        let worst = worst_segments(&segments);
+        let signals = signals(points, triad);
+        let structure = std::array::from_fn(|a| residual_structure(&segments, &signals, a));
+        ResidualExamination {
+            chi2_axis,
+            chi2,
+            p_value,
+            segments,
+            worst,
+            structure,
+        }
     }
 
     /// The verdict per axis against the measured floor; `with_drift_rms` is the floor with the

@@ -120,29 +120,43 @@ pub(super) struct VerdictFacts<'a> {
 /// The verdict of one triad in words: consistent or not, the worst axis, the wander or the
 /// missing effect that explains the excess, ambiguities, structure and spectral lines.
 pub(super) fn verdict_text(facts: &VerdictFacts<'_>) -> String {
-    let VerdictFacts {
-        triad,
-        model,
-        consistent,
-        with_drift,
-        p_value: p,
-        axes,
-        candidates,
-        ambiguities,
-        structure,
-        lines,
-    } = *facts;
-    let u = triad.unit();
-    let ids: Vec<&str> = model.kinds().iter().map(|k| k.id()).collect();
-    let mut s = format!("{triad} model [{}]: ", ids.join(", "));
-    if consistent {
+    let ids: Vec<&str> = facts.model.kinds().iter().map(|k| k.id()).collect();
+    let mut s = format!("{} model [{}]: ", facts.triad, ids.join(", "));
+    if facts.consistent {
+        facts.write_consistent(&mut s);
+    } else {
+        let worst = facts.write_inconsistent(&mut s);
+        let any_significant = facts.candidates.iter().any(|c| c.significant);
+        if let Some((pd, w)) = facts.with_drift.filter(|_| !any_significant) {
+            facts.write_wander(&mut s, pd, &w);
+        } else {
+            match facts.candidates.first() {
+                Some(c) if c.claimed => write_missing_effect(&mut s, c),
+                _ => match facts.ambiguities.first() {
+                    Some(a) => write_ambiguity(&mut s, a),
+                    None => facts.write_unexplained(&mut s, worst),
+                },
+            }
+        }
+    }
+    facts.write_lines(&mut s);
+    s
+}
+
+impl VerdictFacts<'_> {
+    fn write_consistent(&self, s: &mut String) {
+        let (p, u, axes) = (self.p_value, self.triad.unit(), self.axes);
         let _ = write!(
             s,
             "consistent with the noise floor (p = {p:.3}); residual RMS {} vs floor {} {u}.",
             fmt3(axes.each_ref().map(|a| a.residual_rms)),
             fmt3(axes.each_ref().map(|a| a.noise_floor_rms))
         );
-    } else {
+    }
+
+    /// The excess over the floor and its worst axis, which it returns.
+    fn write_inconsistent(&self, s: &mut String) -> usize {
+        let (p, u, axes) = (self.p_value, self.triad.unit(), self.axes);
         let worst = (0..3)
             .max_by(|&a, &b| {
                 (axes[a].residual_rms / axes[a].noise_floor_rms)
@@ -158,99 +172,110 @@ pub(super) fn verdict_text(facts: &VerdictFacts<'_>) -> String {
             AXES[worst],
             axes[worst].residual_rms / axes[worst].noise_floor_rms
         );
-        let any_significant = candidates.iter().any(|c| c.significant);
-        if let Some((pd, w)) = with_drift.filter(|_| !any_significant) {
-            let per_axis: Vec<String> = w
-                .iter()
-                .zip(AXES)
-                .map(|(w, x)| {
-                    if w.flicker_var > 0.0 {
-                        format!("{x}: bias instability {:.2e} {u}", w.bias_instability())
-                    } else if w.random_walk_q > 0.0 {
-                        format!(
-                            "{x}: random walk {:.2e} {u}/sqrt(s)",
-                            w.random_walk_q.sqrt()
-                        )
-                    } else {
-                        format!("{x}: none")
-                    }
-                })
-                .collect();
-            let _ = write!(
-                s,
-                " The excess is a slow wander of the bias between segments, not a missing effect: \
-                 with it ({}) the residuals are consistent with the floor (p = {pd:.3}). (Bias \
-                 instability and random walk the segments are too short to show; a long static \
-                 recording through imu-noise measures them.)",
-                per_axis.join(", ")
-            );
-        } else {
-            match candidates.first() {
-                Some(c) if c.claimed => {
-                    let _ = write!(
-                        s,
-                        " Missing effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
-                        c.explanation,
-                        c.p_value,
-                        100.0 * c.share_of_excess.min(1.0)
-                    );
-                }
-                _ => {
-                    if let Some(a) = ambiguities.first() {
-                        let _ = write!(
-                            s,
-                            " {} and {} both explain the residual and cannot be told apart in this \
-                         recording (their explained patterns correlate {:.2}); to separate them \
-                         record {}.",
-                            a.effects[0], a.effects[1], a.correlation, a.separating_recording
-                        );
-                    } else {
-                        let _ = write!(
-                            s,
-                            " No effect of the library explains it: unexplained structure remains."
-                        );
-                        if let Some(c) = candidates.first().filter(|c| c.new_params > 0) {
-                            let _ = write!(
-                                s,
-                                " (Best candidate {}: p = {:.1e}, explains {:.0} % of the excess.)",
-                                c.effect,
-                                c.p_value,
-                                100.0 * c.share_of_excess.clamp(0.0, 1.0)
-                            );
-                        }
-                        let a = worst;
-                        if let Some(cr) = structure[a].correlates.first() {
-                            let _ = write!(
-                                s,
-                                " On {}: strongest correlate {} (r = {:.2}), lag-1 autocorrelation \
-                             {:.2}",
-                                AXES[a], cr.signal, cr.r, structure[a].lag1_autocorrelation
-                            );
-                        }
-                        if let Some((period, share)) = structure[a].dominant_period_s {
-                            let _ = write!(
-                                s,
-                                ", dominant period {period:.0} s ({:.0} % of the variance)",
-                                100.0 * share
-                            );
-                        }
-                        s.push('.');
-                    }
-                }
-            }
-        }
+        worst
     }
-    for l in lines {
+
+    /// The excess is the bias wander `w` (p-value `pd` with it).
+    fn write_wander(&self, s: &mut String, pd: f64, w: &[Wander; 3]) {
+        let u = self.triad.unit();
+        let per_axis: Vec<String> = w
+            .iter()
+            .zip(AXES)
+            .map(|(w, x)| {
+                if w.flicker_var > 0.0 {
+                    format!("{x}: bias instability {:.2e} {u}", w.bias_instability())
+                } else if w.random_walk_q > 0.0 {
+                    format!(
+                        "{x}: random walk {:.2e} {u}/sqrt(s)",
+                        w.random_walk_q.sqrt()
+                    )
+                } else {
+                    format!("{x}: none")
+                }
+            })
+            .collect();
         let _ = write!(
             s,
-            " Unexplained structure: a periodic component at {:.3} Hz, amplitude {:.2e} {u} on \
-             {}-{triad} ({:.0}x the local noise) inside the static segments; no library effect \
-             models a periodic disturbance (look for vibration or electrical interference at \
-             that frequency).",
-            l.frequency_hz, l.amplitude, AXES[l.axis], l.ratio
+            " The excess is a slow wander of the bias between segments, not a missing effect: \
+             with it ({}) the residuals are consistent with the floor (p = {pd:.3}). (Bias \
+             instability and random walk the segments are too short to show; a long static \
+             recording through imu-noise measures them.)",
+            per_axis.join(", ")
         );
     }
-    s
+
+    /// No library effect explains the excess: the best candidate, and the worst axis's
+    /// strongest correlate and dominant period.
+    fn write_unexplained(&self, s: &mut String, worst: usize) {
+        let _ = write!(
+            s,
+            " No effect of the library explains it: unexplained structure remains."
+        );
+        if let Some(c) = self.candidates.first().filter(|c| c.new_params > 0) {
+            let _ = write!(
+                s,
+                " (Best candidate {}: p = {:.1e}, explains {:.0} % of the excess.)",
+                c.effect,
+                c.p_value,
+                100.0 * c.share_of_excess.clamp(0.0, 1.0)
+            );
+        }
+        let a = worst;
+        let structure = self.structure;
+        if let Some(cr) = structure[a].correlates.first() {
+            let _ = write!(
+                s,
+                " On {}: strongest correlate {} (r = {:.2}), lag-1 autocorrelation \
+                 {:.2}",
+                AXES[a], cr.signal, cr.r, structure[a].lag1_autocorrelation
+            );
+        }
+        if let Some((period, share)) = structure[a].dominant_period_s {
+            let _ = write!(
+                s,
+                ", dominant period {period:.0} s ({:.0} % of the variance)",
+                100.0 * share
+            );
+        }
+        s.push('.');
+    }
+
+    /// The spectral lines inside the static segments.
+    fn write_lines(&self, s: &mut String) {
+        let (triad, u) = (self.triad, self.triad.unit());
+        for l in self.lines {
+            let _ = write!(
+                s,
+                " Unexplained structure: a periodic component at {:.3} Hz, amplitude {:.2e} {u} on \
+                 {}-{triad} ({:.0}x the local noise) inside the static segments; no library effect \
+                 models a periodic disturbance (look for vibration or electrical interference at \
+                 that frequency).",
+                l.frequency_hz, l.amplitude, AXES[l.axis], l.ratio
+            );
+        }
+    }
+}
+
+/// The claimed candidate `c` as the missing effect.
+fn write_missing_effect(s: &mut String, c: &Candidate) {
+    let _ = write!(
+        s,
+        " Missing effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
+        c.explanation,
+        c.p_value,
+        100.0 * c.share_of_excess.min(1.0)
+    );
+}
+
+/// Two effects that both explain the excess and this recording cannot tell apart.
+fn write_ambiguity(s: &mut String, a: &Ambiguity) {
+    let _ = write!(
+        s,
+        " {} and {} both explain the residual and cannot be told apart in this \
+         recording (their explained patterns correlate {:.2}); to separate them \
+         record {}.",
+        a.effects[0], a.effects[1], a.correlation, a.separating_recording
+    );
 }
 
 pub(super) fn fmt3(v: [f64; 3]) -> String {

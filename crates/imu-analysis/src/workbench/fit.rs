@@ -239,117 +239,22 @@ impl<'a> Workbench<'a> {
         family: Option<bool>,
     ) -> Result<Profiled, FitError> {
         let mut family = family;
-        use crate::calibrate::reference_free::{conditioning_warnings, gauge, store_std_errors};
-        use imu_stats::lsq::{LsqError, LsqOptions, jacobian, least_squares};
-        let triad = Triad::Accel;
-        let points = &self.accel_points;
-        let n = points.len();
-        let shared = self.shared(triad);
-        let names = model.param_names(triad);
-        let units = model.param_units(triad);
-        let gauge = gauge(&model.param_ids());
-        let mut p = model.params();
-        let mut fixed = vec![false; names.len()];
-        for &i in &gauge {
-            p[i] = 0.0;
-            fixed[i] = true;
-        }
-        let lsq = LsqOptions {
-            max_iterations: self.opts.fit.max_iterations,
-            tolerance: self.opts.fit.tolerance,
-            min_eigenvalue: self.opts.fit.min_eigenvalue,
-            ..LsqOptions::default()
-        };
-        let cov = |w: Wander| mag.covariance(points, &shared.map(|s| w.scaled(&s, 1.0)));
-        let white = cov(Wander::default()).diagonal().mean();
-        let wander_units = (white / span_s(points).max(1e-9), white);
+        let problem = MagnitudeProblem::new(self, mag, model);
+        let mut p = problem.start.clone();
+        let white = problem.cov(Wander::default()).diagonal().mean();
+        let wander_units = (white / span_s(problem.points).max(1e-9), white);
         let (mut scale, mut rho) = (1.0_f64, Wander::default());
         let mut last: Option<Profiled> = None;
         for _ in 0..5 {
-            let ch = (cov(rho) * scale)
-                .cholesky()
-                .ok_or(FitError::BadObservation { triad, index: 0 })?;
-            let l = ch.l();
-            let mut work = model.clone();
-            let whitened = |q: &[f64]| {
-                work.set_params(q);
-                let e = mag.residuals(&work, points);
-                l.solve_lower_triangular(&e).unwrap_or(e)
-            };
-            let sol = least_squares(whitened, &p, &fixed, &names, &lsq).map_err(|e| match e {
-                LsqError::TooFewResiduals {
-                    n_residuals,
-                    n_free,
-                } => FitError::TooFewObservations {
-                    triad,
-                    n_points: n,
-                    n_obs: n_residuals,
-                    n_free,
-                },
-                _ => FitError::NothingToFit { triad },
-            })?;
+            let sol = problem.solve(&p, scale, rho)?;
             let mut m = model.clone();
             m.set_params(&sol.params);
-            let mut raw = |q: &[f64]| {
-                let mut w = model.clone();
-                w.set_params(q);
-                mag.residuals(&w, points)
-            };
-            let x = jacobian(&mut raw, &sol.params, &sol.free);
-            let e = mag.residuals(&m, points);
+            let x = problem.jacobian(&sol);
+            let e = mag.residuals(&m, problem.points);
             let (next_scale, next_rho, loglik) =
-                profile_wander(e.as_slice(), cov, wander_units, family);
+                profile_wander(e.as_slice(), |w| problem.cov(w), wander_units, family);
             family = Some(next_rho.flicker);
-            let residuals: Vec<[f64; 3]> = e
-                .iter()
-                .zip(&mag.dirs)
-                .map(|(v, u)| (u * *v).into())
-                .collect();
-            let residual_rms: [f64; 3] = std::array::from_fn(|a| {
-                (residuals.iter().map(|r| r[a] * r[a]).sum::<f64>() / n.max(1) as f64).sqrt()
-            });
-            store_std_errors(&mut m, &sol.std_errors, &gauge);
-            m.residual_rms = Some(residual_rms);
-            let mut unobservable: Vec<Unobservable> = gauge
-                .iter()
-                .map(|&i| Unobservable {
-                    name: names[i].clone(),
-                    reason: "gauge: the gravity magnitude cannot see a rotation of the whole \
-                             frame; held at 0 so that the accelerometer axes define the frame"
-                        .into(),
-                })
-                .collect();
-            unobservable.extend(sol.unobservable.iter().cloned());
-            let chi2_axis = mag.split(sol.chi2, e.as_slice(), &cov(rho));
-            let fit = FitResult {
-                triad,
-                model: m,
-                names: names.clone(),
-                units: units.clone(),
-                params: sol.params.clone(),
-                std_errors: sol.std_errors.clone(),
-                correlation: sol.correlation.clone(),
-                free: sol.free.clone(),
-                unobservable,
-                residual_rms,
-                residuals,
-                jacobian_raw: x,
-                chi2: sol.chi2,
-                chi2_axis,
-                dof: sol.dof,
-                reduced_chi2: sol.reduced_chi2,
-                drift_random_walk: [0.0; 3],
-                iterations: sol.iterations,
-                converged: sol.converged,
-                warnings: conditioning_warnings(
-                    triad,
-                    &sol,
-                    &names,
-                    crate::calibrate::reference_free::ReferenceFreeOptions::default()
-                        .weak_eigenvalue,
-                    "poses",
-                ),
-            };
+            let fit = problem.fit_result(m, &sol, &e, x, rho);
             let settled = (next_scale / scale - 1.0).abs() < 1e-3 && next_rho.near(&rho);
             scale = next_scale;
             rho = next_rho;
@@ -421,5 +326,168 @@ impl<'a> Workbench<'a> {
             }
         }
         best
+    }
+}
+
+/// What stays fixed while [`Workbench::fit_magnitude`] alternates the fit with the profiling:
+/// the observations, the parameters (the rotation gauge held at 0) and the solver options.
+struct MagnitudeProblem<'m> {
+    mag: &'m Magnitude,
+    model: &'m TriadModel,
+    points: &'m [FitPoint],
+    shared: [SharedNoise; 3],
+    names: Vec<String>,
+    units: Vec<String>,
+    gauge: Vec<usize>,
+    start: Vec<f64>,
+    fixed: Vec<bool>,
+    lsq: imu_stats::lsq::LsqOptions,
+}
+
+impl<'m> MagnitudeProblem<'m> {
+    const TRIAD: Triad = Triad::Accel;
+
+    fn new(bench: &'m Workbench<'_>, mag: &'m Magnitude, model: &'m TriadModel) -> Self {
+        let names = model.param_names(Self::TRIAD);
+        let gauge = crate::calibrate::reference_free::gauge(&model.param_ids());
+        let mut start = model.params();
+        let mut fixed = vec![false; names.len()];
+        for &i in &gauge {
+            start[i] = 0.0;
+            fixed[i] = true;
+        }
+        MagnitudeProblem {
+            mag,
+            model,
+            points: &bench.accel_points,
+            shared: bench.shared(Self::TRIAD),
+            units: model.param_units(Self::TRIAD),
+            names,
+            gauge,
+            start,
+            fixed,
+            lsq: imu_stats::lsq::LsqOptions {
+                max_iterations: bench.opts.fit.max_iterations,
+                tolerance: bench.opts.fit.tolerance,
+                min_eigenvalue: bench.opts.fit.min_eigenvalue,
+                ..imu_stats::lsq::LsqOptions::default()
+            },
+        }
+    }
+
+    /// The magnitude residuals' covariance under bias wander `w`.
+    fn cov(&self, w: Wander) -> DMatrix<f64> {
+        self.mag
+            .covariance(self.points, &self.shared.map(|s| w.scaled(&s, 1.0)))
+    }
+
+    /// Generalised least squares from `p` under the covariance of wander `rho` scaled by
+    /// `scale`.
+    fn solve(
+        &self,
+        p: &[f64],
+        scale: f64,
+        rho: Wander,
+    ) -> Result<imu_stats::lsq::LsqSolution, FitError> {
+        use imu_stats::lsq::{LsqError, least_squares};
+        let triad = Self::TRIAD;
+        let ch = (self.cov(rho) * scale)
+            .cholesky()
+            .ok_or(FitError::BadObservation { triad, index: 0 })?;
+        let l = ch.l();
+        let mut work = self.model.clone();
+        let whitened = |q: &[f64]| {
+            work.set_params(q);
+            let e = self.mag.residuals(&work, self.points);
+            l.solve_lower_triangular(&e).unwrap_or(e)
+        };
+        least_squares(whitened, p, &self.fixed, &self.names, &self.lsq).map_err(|e| match e {
+            LsqError::TooFewResiduals {
+                n_residuals,
+                n_free,
+            } => FitError::TooFewObservations {
+                triad,
+                n_points: self.points.len(),
+                n_obs: n_residuals,
+                n_free,
+            },
+            _ => FitError::NothingToFit { triad },
+        })
+    }
+
+    /// The Jacobian of the raw (unwhitened) residuals at the solution.
+    fn jacobian(&self, sol: &imu_stats::lsq::LsqSolution) -> DMatrix<f64> {
+        let mut raw = |q: &[f64]| {
+            let mut w = self.model.clone();
+            w.set_params(q);
+            self.mag.residuals(&w, self.points)
+        };
+        imu_stats::lsq::jacobian(&mut raw, &sol.params, &sol.free)
+    }
+
+    /// The fit result of one pass: the model `m` at the solution, its residuals `e` as vectors
+    /// along the pose directions, the gauge listed as held, chi-square per axis under wander
+    /// `rho`.
+    fn fit_result(
+        &self,
+        mut m: TriadModel,
+        sol: &imu_stats::lsq::LsqSolution,
+        e: &DVector<f64>,
+        x: DMatrix<f64>,
+        rho: Wander,
+    ) -> FitResult {
+        use crate::calibrate::reference_free::{conditioning_warnings, store_std_errors};
+        let triad = Self::TRIAD;
+        let n = self.points.len();
+        let residuals: Vec<[f64; 3]> = e
+            .iter()
+            .zip(&self.mag.dirs)
+            .map(|(v, u)| (u * *v).into())
+            .collect();
+        let residual_rms: [f64; 3] = std::array::from_fn(|a| {
+            (residuals.iter().map(|r| r[a] * r[a]).sum::<f64>() / n.max(1) as f64).sqrt()
+        });
+        store_std_errors(&mut m, &sol.std_errors, &self.gauge);
+        m.residual_rms = Some(residual_rms);
+        let mut unobservable: Vec<Unobservable> = self
+            .gauge
+            .iter()
+            .map(|&i| Unobservable {
+                name: self.names[i].clone(),
+                reason: "gauge: the gravity magnitude cannot see a rotation of the whole \
+                         frame; held at 0 so that the accelerometer axes define the frame"
+                    .into(),
+            })
+            .collect();
+        unobservable.extend(sol.unobservable.iter().cloned());
+        let chi2_axis = self.mag.split(sol.chi2, e.as_slice(), &self.cov(rho));
+        FitResult {
+            triad,
+            model: m,
+            names: self.names.clone(),
+            units: self.units.clone(),
+            params: sol.params.clone(),
+            std_errors: sol.std_errors.clone(),
+            correlation: sol.correlation.clone(),
+            free: sol.free.clone(),
+            unobservable,
+            residual_rms,
+            residuals,
+            jacobian_raw: x,
+            chi2: sol.chi2,
+            chi2_axis,
+            dof: sol.dof,
+            reduced_chi2: sol.reduced_chi2,
+            drift_random_walk: [0.0; 3],
+            iterations: sol.iterations,
+            converged: sol.converged,
+            warnings: conditioning_warnings(
+                triad,
+                sol,
+                &self.names,
+                crate::calibrate::reference_free::ReferenceFreeOptions::default().weak_eigenvalue,
+                "poses",
+            ),
+        }
     }
 }

@@ -147,37 +147,7 @@ pub fn measure_noise_floor(
         allan: Default::default(),
     };
     for axis in 0..3 {
-        // m -> (sum of var x terms, terms, edf)
-        let mut pooled: std::collections::BTreeMap<usize, (f64, f64, f64)> = Default::default();
-        for s in &statics {
-            let y: Vec<f64> = data[s.range()].iter().map(|v| v[axis]).collect();
-            let Ok(curve) = allan::deviation(Kind::Oadev, &y, tau0, &opts) else {
-                continue;
-            };
-            for p in curve.points {
-                let e = pooled.entry(p.m).or_default();
-                e.0 += p.dev * p.dev * p.n_terms as f64;
-                e.1 += p.n_terms as f64;
-                e.2 += p.edf;
-            }
-        }
-        let points: Vec<allan::DevPoint> = pooled
-            .iter()
-            .filter(|(_, v)| v.1 > 0.0)
-            .map(|(&m, &(sv, n, edf))| {
-                let dev = (sv / n).sqrt();
-                let (lo, hi) = allan::confidence_interval(dev, edf, 0.683);
-                allan::DevPoint {
-                    m,
-                    tau_s: m as f64 * tau0,
-                    dev,
-                    n_terms: n as usize,
-                    edf,
-                    dev_lo: lo,
-                    dev_hi: hi,
-                }
-            })
-            .collect();
+        let points = pooled_allan(data, &statics, axis, tau0, &opts);
         floor.allan[axis] = points.iter().map(|p| (p.tau_s, p.dev)).collect();
         let curve = allan::DevCurve {
             kind: Kind::Oadev,
@@ -189,13 +159,7 @@ pub fn measure_noise_floor(
             Ok(t) => apply_terms(&mut floor, axis, &t),
             Err(_) => {
                 // Too few taus: the segment means' own scatter is all there is.
-                let y: Vec<f64> = statics
-                    .iter()
-                    .flat_map(|s| data[s.range()].iter().map(|v| v[axis]))
-                    .collect();
-                let m = y.iter().sum::<f64>() / y.len() as f64;
-                let var = y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / y.len() as f64;
-                floor.white_per_sqrt_hz[axis] = (var * tau0).sqrt();
+                floor.white_per_sqrt_hz[axis] = scatter_white_density(data, &statics, axis, tau0);
             }
         }
     }
@@ -257,4 +221,64 @@ pub(super) fn floored_points(
             q
         })
         .collect()
+}
+
+/// The overlapping Allan deviation of `axis` over the static segments `statics` of `data`,
+/// pooled per averaging factor by the segments' number of terms (their edf summed), with its
+/// 68.3 % confidence interval.
+fn pooled_allan(
+    data: &[[f64; 3]],
+    statics: &[&crate::segment::Segment],
+    axis: usize,
+    tau0: f64,
+    opts: &allan::Options,
+) -> Vec<allan::DevPoint> {
+    // m -> (sum of var x terms, terms, edf)
+    let mut pooled: std::collections::BTreeMap<usize, (f64, f64, f64)> = Default::default();
+    for s in statics {
+        let y: Vec<f64> = data[s.range()].iter().map(|v| v[axis]).collect();
+        let Ok(curve) = allan::deviation(Kind::Oadev, &y, tau0, opts) else {
+            continue;
+        };
+        for p in curve.points {
+            let e = pooled.entry(p.m).or_default();
+            e.0 += p.dev * p.dev * p.n_terms as f64;
+            e.1 += p.n_terms as f64;
+            e.2 += p.edf;
+        }
+    }
+    pooled
+        .iter()
+        .filter(|(_, v)| v.1 > 0.0)
+        .map(|(&m, &(sv, n, edf))| {
+            let dev = (sv / n).sqrt();
+            let (lo, hi) = allan::confidence_interval(dev, edf, 0.683);
+            allan::DevPoint {
+                m,
+                tau_s: m as f64 * tau0,
+                dev,
+                n_terms: n as usize,
+                edf,
+                dev_lo: lo,
+                dev_hi: hi,
+            }
+        })
+        .collect()
+}
+
+/// The white noise density, U/sqrt(Hz), that the scatter of all static samples of `axis` would
+/// have as white noise.
+fn scatter_white_density(
+    data: &[[f64; 3]],
+    statics: &[&crate::segment::Segment],
+    axis: usize,
+    tau0: f64,
+) -> f64 {
+    let y: Vec<f64> = statics
+        .iter()
+        .flat_map(|s| data[s.range()].iter().map(|v| v[axis]))
+        .collect();
+    let m = y.iter().sum::<f64>() / y.len() as f64;
+    let var = y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / y.len() as f64;
+    (var * tau0).sqrt()
 }

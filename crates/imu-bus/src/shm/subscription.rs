@@ -58,6 +58,40 @@ where
     }
 }
 
+/// Opens the event service `event` of `instance`, retrying until `deadline` while it does not
+/// exist.
+fn open_event(
+    node: &Node<ipc::Service>,
+    instance: &str,
+    event: &str,
+    started: Instant,
+    deadline: Instant,
+) -> Result<EventFactory<ipc::Service>, ShmError> {
+    let event_name = service_name(event, instance)?;
+    open_with_retry(
+        instance,
+        event,
+        started,
+        deadline,
+        || node.service_builder(&event_name).event().open(),
+        |e| {
+            matches!(
+                e,
+                EventOpenError::DoesNotExist
+                    | EventOpenError::IsMarkedForDestruction
+                    | EventOpenError::HangsInCreation
+            )
+        },
+    )
+    .map_err(|e| match e {
+        Err(shm) => shm,
+        Ok(e) => ShmError::OpenService {
+            service: event.to_owned(),
+            source: boxed(e),
+        },
+    })
+}
+
 impl<T: ShmPayload> Subscription<T> {
     /// Opens `imud/<instance>/<stream of T>` and the event service, waiting up to
     /// `open_timeout` for a daemon to create them (so a client may start before the daemon).
@@ -73,61 +107,8 @@ impl<T: ShmPayload> Subscription<T> {
         let started = Instant::now();
         let deadline = started + open_timeout;
 
-        let pubsub_name = service_name(&name, instance)?;
-        let service = open_with_retry(
-            instance,
-            &name,
-            started,
-            deadline,
-            || {
-                node.service_builder(&pubsub_name)
-                    .publish_subscribe::<T>()
-                    .open()
-            },
-            |e| {
-                matches!(
-                    e,
-                    PublishSubscribeOpenError::DoesNotExist
-                        | PublishSubscribeOpenError::IsMarkedForDestruction
-                        | PublishSubscribeOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| match e {
-            Err(shm) => shm,
-            Ok(PublishSubscribeOpenError::IncompatibleTypes) => ShmError::IncompatibleType {
-                service: name.clone(),
-                type_name: T::TYPE_NAME,
-            },
-            Ok(e) => ShmError::OpenService {
-                service: name.clone(),
-                source: boxed(e),
-            },
-        })?;
-
-        let event_name = service_name(&names.event, instance)?;
-        let event = open_with_retry(
-            instance,
-            &names.event,
-            started,
-            deadline,
-            || node.service_builder(&event_name).event().open(),
-            |e| {
-                matches!(
-                    e,
-                    EventOpenError::DoesNotExist
-                        | EventOpenError::IsMarkedForDestruction
-                        | EventOpenError::HangsInCreation
-                )
-            },
-        )
-        .map_err(|e| match e {
-            Err(shm) => shm,
-            Ok(e) => ShmError::OpenService {
-                service: names.event.clone(),
-                source: boxed(e),
-            },
-        })?;
+        let service = Self::open_pubsub(&node, instance, &name, started, deadline)?;
+        let event = open_event(&node, instance, &names.event, started, deadline)?;
 
         let subscriber =
             service
@@ -157,6 +138,48 @@ impl<T: ShmPayload> Subscription<T> {
             last_seq: None,
             received: 0,
             missed: 0,
+        })
+    }
+
+    /// Opens the publish-subscribe service `name` of `instance`, retrying until `deadline`
+    /// while it does not exist.
+    fn open_pubsub(
+        node: &Node<ipc::Service>,
+        instance: &str,
+        name: &str,
+        started: Instant,
+        deadline: Instant,
+    ) -> Result<IpcPubSub<T>, ShmError> {
+        let pubsub_name = service_name(name, instance)?;
+        open_with_retry(
+            instance,
+            name,
+            started,
+            deadline,
+            || {
+                node.service_builder(&pubsub_name)
+                    .publish_subscribe::<T>()
+                    .open()
+            },
+            |e| {
+                matches!(
+                    e,
+                    PublishSubscribeOpenError::DoesNotExist
+                        | PublishSubscribeOpenError::IsMarkedForDestruction
+                        | PublishSubscribeOpenError::HangsInCreation
+                )
+            },
+        )
+        .map_err(|e| match e {
+            Err(shm) => shm,
+            Ok(PublishSubscribeOpenError::IncompatibleTypes) => ShmError::IncompatibleType {
+                service: name.to_owned(),
+                type_name: T::TYPE_NAME,
+            },
+            Ok(e) => ShmError::OpenService {
+                service: name.to_owned(),
+                source: boxed(e),
+            },
         })
     }
 
