@@ -212,6 +212,7 @@ impl Collector {
             files: vec![path.to_path_buf()],
             topic: Some(topic),
             gaps: Vec::new(),
+            unfinished_file: series.unfinished.as_ref().map(|_| path.to_path_buf()),
         };
         Ok(series)
     }

@@ -156,6 +156,9 @@ pub struct InputInfo {
     pub topic: Option<String>,
     /// Time gaps between consecutive files.
     pub gaps: Vec<SessionGap>,
+    /// The file read without its footer, if one was (the series' `unfinished` is its report).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unfinished_file: Option<PathBuf>,
 }
 
 /// An IMU time series in SI units.

@@ -220,7 +220,10 @@ fn join(mut parts: Vec<ImuSeries>) -> Result<ImuSeries, InputError> {
         if let Some(why) = part.stopped_early {
             early.push(format!("{}: {why}", first.display()));
         }
-        out.unfinished = part.unfinished.or(out.unfinished.take());
+        if part.unfinished.is_some() {
+            out.unfinished = part.unfinished;
+            out.input.unfinished_file = part.input.unfinished_file;
+        }
         label_parts.push(part.labels);
         out.input.files.extend(part.input.files);
     }
