@@ -72,6 +72,7 @@ pub(super) fn run_reference_free(
                 .iter()
                 .map(|u| imu_cli::unfinished::json(recording, u))
                 .collect(),
+            input: &series.input,
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -174,8 +175,10 @@ pub(super) fn run_reference(
             .iter()
             .zip(&cli.recordings)
             .zip(refs)
-            .map(|((r, path), arg)| JsonRecording {
+            .zip(loaded)
+            .map(|(((r, path), arg), (series, _))| JsonRecording {
                 recording: path.display().to_string(),
+                input: series.input.clone(),
                 reference: arg.path().display().to_string(),
                 reference_description: r.reference.clone(),
                 static_segments: r.segmentation.count(SegmentKind::Static),

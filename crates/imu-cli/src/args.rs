@@ -72,7 +72,12 @@ mod csv_args {
         #[arg(long, value_name = "T,AX,AY,AZ[,GX,GY,GZ]", value_delimiter = ',')]
         pub columns: Vec<ColumnRef>,
         /// The --gyro-csv file's columns of time, gx, gy, gz (0-based indices or header names).
-        #[arg(long, value_name = "T,GX,GY,GZ", value_delimiter = ',', requires = "gyro_csv")]
+        #[arg(
+            long,
+            value_name = "T,GX,GY,GZ",
+            value_delimiter = ',',
+            requires = "gyro_csv"
+        )]
         pub gyro_columns: Vec<ColumnRef>,
         /// Text recordings: the column naming the part of a labelled session each sample
         /// belongs to (0-based index or header name). Default: a header column named `part` or

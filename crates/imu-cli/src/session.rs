@@ -64,7 +64,9 @@ mod tests {
         let w = gap_warnings(&s);
         assert_eq!(w.len(), 1);
         assert!(
-            w[0].starts_with("2.500 s gap (249 samples missing) at 3600.000 s between a.mcap and b.mcap"),
+            w[0].starts_with(
+                "2.500 s gap (249 samples missing) at 3600.000 s between a.mcap and b.mcap"
+            ),
             "{}",
             w[0]
         );
