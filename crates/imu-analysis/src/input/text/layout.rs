@@ -14,7 +14,7 @@ pub(super) enum Separator {
 
 impl Separator {
     /// The fields of `line`, trimmed.
-    pub(super) fn split<'a>(self, line: &'a str) -> Vec<&'a str> {
+    pub(super) fn split(self, line: &str) -> Vec<&str> {
         match self {
             Separator::Comma => line.split(',').map(str::trim).collect(),
             Separator::Semicolon => line.split(';').map(str::trim).collect(),
