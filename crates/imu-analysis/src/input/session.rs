@@ -154,19 +154,14 @@ fn read_file(
     Ok(series)
 }
 
-/// True if the first 64 KiB hold no NUL byte and are UTF-8 (up to a character cut at the end).
+/// True if the first 64 KiB hold no NUL byte: text in any 8-bit encoding (a Latin-1 `deg C`
+/// in a header is still text), never binary data.
 fn looks_like_text(path: &Path) -> std::io::Result<bool> {
     let mut head = Vec::with_capacity(1 << 16);
     std::fs::File::open(path)?
         .take(1 << 16)
         .read_to_end(&mut head)?;
-    if head.contains(&0) {
-        return Ok(false);
-    }
-    Ok(match std::str::from_utf8(&head) {
-        Ok(_) => true,
-        Err(e) => e.error_len().is_none() && head.len() == 1 << 16,
-    })
+    Ok(!head.contains(&0))
 }
 
 /// The parts of one session as one series: time order, one time base, gaps found.

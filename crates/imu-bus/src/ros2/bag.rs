@@ -53,11 +53,51 @@ pub fn bag_files(dir: &Path) -> Result<BagFiles, BagError> {
         path: path.clone(),
         source,
     })?;
-    let bad = |line: usize, message: String| BagError::Metadata {
+    let bad = |(line, message): (usize, String)| BagError::Metadata {
         path: path.clone(),
         line,
         message,
     };
+    let (storage, files) = parse_metadata(&text).map_err(bad)?;
+    let storage = storage.ok_or_else(|| {
+        bad((
+            0,
+            "no `storage_identifier`: is this a rosbag2 metadata file?".into(),
+        ))
+    })?;
+    if storage != "mcap" {
+        return Err(bad((
+            0,
+            format!(
+                "storage `{storage}`: only MCAP bags are read (convert with `ros2 bag convert`, \
+                 output storage_id mcap)"
+            ),
+        )));
+    }
+    if files.is_empty() {
+        return Err(bad((0, "`relative_file_paths` lists no file".into())));
+    }
+    let mut out = Vec::with_capacity(files.len());
+    for (line, f) in files {
+        let p = dir.join(&f);
+        if !p.is_file() {
+            return Err(bad((
+                line,
+                format!("listed file `{f}` is not in {}", dir.display()),
+            )));
+        }
+        out.push(p);
+    }
+    Ok(BagFiles {
+        storage,
+        files: out,
+    })
+}
+
+/// The storage identifier and the listed files with their 1-based lines; an error is a line
+/// and what is wrong there.
+#[allow(clippy::type_complexity)] // (storage, [(line, file)]) or (line, message)
+fn parse_metadata(text: &str) -> Result<(Option<String>, Vec<(usize, String)>), (usize, String)> {
     let (mut storage, mut files) = (None, Vec::new());
     let mut in_files: Option<usize> = None;
     for (i, raw) in text.lines().enumerate() {
@@ -79,10 +119,7 @@ pub fn bag_files(dir: &Path) -> Result<BagFiles, BagError> {
                 flow => {
                     let Some(inner) = flow.strip_prefix('[').and_then(|f| f.strip_suffix(']'))
                     else {
-                        return Err(bad(
-                            i + 1,
-                            format!("cannot read `{flow}` as a list of files"),
-                        ));
+                        return Err((i + 1, format!("cannot read `{flow}` as a list of files")));
                     };
                     files.extend(
                         inner
@@ -95,39 +132,7 @@ pub fn bag_files(dir: &Path) -> Result<BagFiles, BagError> {
             }
         }
     }
-    let storage = storage.ok_or_else(|| {
-        bad(
-            0,
-            "no `storage_identifier`: is this a rosbag2 metadata file?".into(),
-        )
-    })?;
-    if storage != "mcap" {
-        return Err(bad(
-            0,
-            format!(
-                "storage `{storage}`: only MCAP bags are read (convert with `ros2 bag convert`, \
-                 output storage_id mcap)"
-            ),
-        ));
-    }
-    if files.is_empty() {
-        return Err(bad(0, "`relative_file_paths` lists no file".into()));
-    }
-    let mut out = Vec::with_capacity(files.len());
-    for (line, f) in files {
-        let p = dir.join(&f);
-        if !p.is_file() {
-            return Err(bad(
-                line,
-                format!("listed file `{f}` is not in {}", dir.display()),
-            ));
-        }
-        out.push(p);
-    }
-    Ok(BagFiles {
-        storage,
-        files: out,
-    })
+    Ok((storage, files))
 }
 
 fn unquote(s: &str) -> &str {

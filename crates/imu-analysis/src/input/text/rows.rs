@@ -54,15 +54,16 @@ pub(super) fn read_table<const N: usize>(
     let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
     let mut ahead: Vec<(usize, String)> = Vec::new();
     let mut number = 0;
-    let mut line = String::new();
+    let mut line = Vec::new();
     while ahead.len() < SNIFF_LINES {
         line.clear();
-        if reader.read_line(&mut line).map_err(io)? == 0 {
+        if reader.read_until(b'\n', &mut line).map_err(io)? == 0 {
             break;
         }
         number += 1;
-        if !layout::is_comment(line.trim()) {
-            ahead.push((number, line.trim().to_string()));
+        let text = String::from_utf8_lossy(&line);
+        if !layout::is_comment(text.trim()) {
+            ahead.push((number, text.trim().to_string()));
         }
     }
     let resolved = resolve(path, spec, &ahead)?;
@@ -73,11 +74,13 @@ pub(super) fn read_table<const N: usize>(
     }
     loop {
         line.clear();
-        if reader.read_line(&mut line).map_err(io)? == 0 {
+        if reader.read_until(b'\n', &mut line).map_err(io)? == 0 {
             break;
         }
         number += 1;
-        let text = line.trim();
+        // Text in any 8-bit encoding: numbers are ASCII, other bytes only matter in labels.
+        let text = String::from_utf8_lossy(&line);
+        let text = text.trim();
         if !layout::is_comment(text) {
             table.push(path, &resolved, number, text)?;
         }

@@ -360,3 +360,20 @@ fn errors_name_file_line_and_column() {
         "{e}"
     );
 }
+
+/// A Latin-1 header (0xB0, the degree sign, is not UTF-8) is still text, told by content
+/// through `read_any`, and its data reads back the truth.
+#[test]
+fn an_eight_bit_header_is_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut bytes = b"t [s]\tax [m/s\xb2]\tay\taz\tgx [\xb0/s]\tgy\tgz\n".to_vec();
+    for k in 0..N {
+        let (t, a, g) = truth(k);
+        let v = [t, a[0], a[1], a[2], g[0], g[1], g[2]].map(|v| format!("{v:?}"));
+        bytes.extend((v.join("\t") + "\n").into_bytes());
+    }
+    let p = dir.path().join("latin1.tsv");
+    std::fs::write(&p, bytes).unwrap();
+    let s = crate::input::read_any(&p, crate::input::Source::Raw, &CsvOptions::default()).unwrap();
+    assert_truth(&s, "latin1");
+}
