@@ -12,7 +12,7 @@ use imu_analysis::input::{ImuSeries, Source};
 use imu_analysis::render::html::{self, Section};
 use imu_analysis::render::svg::{Chart, write_svg};
 use imu_cli::finite_f64;
-use imu_cli::progress::read_any;
+use imu_cli::progress::read_input;
 
 /// Offline thermal, impact and dynamic tests of IMU recordings.
 #[derive(Debug, Parser)]
@@ -77,8 +77,11 @@ enum Command {
     /// Warm-up test: output vs temperature and time, warm-up time constant, temperature
     /// coefficients and whether a thermal model is warranted (paper 3.1.3 / 3.2.3).
     Thermal {
-        /// The recording (imud MCAP, rosbag2 MCAP with sensor_msgs/msg/Imu, or CSV).
-        recording: PathBuf,
+        /// The recording (imud MCAP, rosbag2 MCAP or directory with sensor_msgs/msg/Imu, or
+        /// text in any layout); several files of one session (imud's rotated files), or their
+        /// directory, are one recording.
+        #[arg(required = true)]
+        recording: Vec<PathBuf>,
         /// Which stream of an imud recording to analyse.
         #[arg(long, value_enum, default_value = "raw")]
         source: SourceArg,
@@ -91,8 +94,9 @@ enum Command {
     /// Impact test: detect shocks, peak responses, cross-axis coupling and settling times
     /// (paper 3.3, Figures 10-11).
     Impact {
-        /// The recording.
-        recording: PathBuf,
+        /// The recording (one or more files of one session, or a directory).
+        #[arg(required = true)]
+        recording: Vec<PathBuf>,
         /// Which stream of an imud recording to analyse.
         #[arg(long, value_enum, default_value = "raw")]
         source: SourceArg,
@@ -105,8 +109,9 @@ enum Command {
     /// Dynamic test: integrate the gyro about the rotation axis and compare with the table
     /// angle, after removing the timing offset (paper 3.4, Figures 12-13).
     Dynamic {
-        /// The recording.
-        recording: PathBuf,
+        /// The recording (one or more files of one session, or a directory).
+        #[arg(required = true)]
+        recording: Vec<PathBuf>,
         /// The reference: an imu-sim truth file (.mcap) or a CSV of `time_s, angle_deg`.
         #[arg(long, value_name = "TRUTH.mcap|ANGLE.csv")]
         reference: PathBuf,
@@ -153,27 +158,44 @@ impl Progress {
     }
 }
 
-/// Reads one recording; an input read without its footer is warned about once and noted in
-/// `unfinished` for the JSON output.
+/// What the JSON output says about the input: the files, topic and gaps of the first read, and
+/// the note of an input read without its footer.
+#[derive(Default)]
+struct ReadNotes {
+    unfinished: Option<serde_json::Value>,
+    input: Option<serde_json::Value>,
+}
+
+/// The result with the input's files, topic and gaps after its own fields.
+#[derive(serde::Serialize)]
+struct WithInput<'a, T: serde::Serialize> {
+    #[serde(flatten)]
+    result: &'a T,
+    input: &'a Option<serde_json::Value>,
+}
+
+/// Reads one recording (one or more files); an input read without its footer, and gaps
+/// between files, are warned about once and noted for the JSON output.
 fn read(
-    path: &Path,
+    paths: &[PathBuf],
     source: Source,
     csv: &imu_cli::CsvArgs,
-    unfinished: &mut Option<serde_json::Value>,
+    notes: &mut ReadNotes,
 ) -> Result<ImuSeries> {
-    let p = Progress::start("reading", path);
+    let p = Progress::start("reading", &paths[0]);
     let options = csv
-        .options_for(&[path.to_path_buf()], 0)
+        .input_options(&paths[..1], 0, source)
         .map_err(imu_cli::UsageError)?;
-    let s = read_any(path, source, &options)
-        .with_context(|| format!("reading {} ({source:?} stream)", path.display()))?;
+    let s = read_input(paths, &options)
+        .with_context(|| format!("reading {} ({source:?} stream)", paths[0].display()))?;
     p.done(&format!(
         "{} samples, {} temperature readings",
         s.len(),
         s.temp.len()
     ));
-    if unfinished.is_none() {
-        *unfinished = imu_cli::unfinished::warn("imu-analyze", path, s.unfinished.as_ref());
+    if notes.input.is_none() {
+        notes.unfinished = imu_cli::session::warn("imu-analyze", &s);
+        notes.input = Some(serde_json::to_value(&s.input).context("encoding the input")?);
     }
     Ok(s)
 }
@@ -185,8 +207,12 @@ fn emit(
     section: Section,
     charts: &[Chart],
     stem: &str,
-    unfinished: Option<serde_json::Value>,
+    notes: ReadNotes,
 ) -> Result<()> {
+    let json = &WithInput {
+        result: json,
+        input: &notes.input,
+    };
     if let Some(dir) = &output.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for (i, c) in charts.iter().enumerate() {
@@ -200,7 +226,7 @@ fn emit(
     }
     let mut out = io::stdout().lock();
     if output.json {
-        if let Some(note) = unfinished {
+        if let Some(note) = notes.unfinished {
             // Only then through a Value (whose map sorts the keys): a complete input's document
             // keeps its field order.
             let mut value = serde_json::to_value(json).context("encoding the result as JSON")?;
@@ -253,8 +279,8 @@ fn run(args: &Args) -> Result<()> {
 }
 
 /// `imu-analyze thermal`.
-fn run_thermal(recording: &Path, source: Source, bin_s: f64, output: &Output) -> Result<()> {
-    let mut unfinished = None;
+fn run_thermal(recording: &[PathBuf], source: Source, bin_s: f64, output: &Output) -> Result<()> {
+    let mut unfinished = ReadNotes::default();
     if !(bin_s.is_finite() && bin_s > 0.0) {
         bail!("--bin-s must be a positive number of seconds, got {bin_s}");
     }
@@ -262,7 +288,7 @@ fn run_thermal(recording: &Path, source: Source, bin_s: f64, output: &Output) ->
     // The thermal analysis reads output drift as temperature dependence: motion would
     // masquerade as a thermal effect.
     if let Some(w) = series.motion_warning() {
-        eprintln!("imu-analyze: warning: {}: {w}", recording.display());
+        eprintln!("imu-analyze: warning: {}: {w}", series.origin);
     }
     let r = thermal::analyze(
         &series,
@@ -315,12 +341,12 @@ fn thermal_text(r: &thermal::ThermalReport) -> String {
 
 /// `imu-analyze impact`.
 fn run_impact(
-    recording: &Path,
+    recording: &[PathBuf],
     source: Source,
     threshold_sigmas: f64,
     output: &Output,
 ) -> Result<()> {
-    let mut unfinished = None;
+    let mut unfinished = ReadNotes::default();
     let series = read(recording, source, &output.csv, &mut unfinished)?;
     let r = impact::analyze(
         &series,
@@ -363,13 +389,13 @@ fn impact_text(r: &impact::ImpactReport) -> String {
 
 /// `imu-analyze dynamic`: the raw and/or corrected stream against the reference angle.
 fn run_dynamic(
-    recording: &Path,
+    recording: &[PathBuf],
     reference: &Path,
     source: DynamicSource,
     options: &dynamic::DynamicOptions,
     output: &Output,
 ) -> Result<()> {
-    let mut unfinished = None;
+    let mut unfinished = ReadNotes::default();
     let reference = read_reference(reference)?;
     let want = |s: DynamicSource| source == DynamicSource::Both || source == s;
     let mut runs = [None, None];
@@ -400,7 +426,7 @@ fn run_dynamic(
     if raw.is_none() && corrected.is_none() {
         bail!(
             "{}: neither the raw nor the corrected stream could be read",
-            recording.display()
+            recording[0].display()
         );
     }
     let r = dynamic::compare(&reference, raw, corrected);

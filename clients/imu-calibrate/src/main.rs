@@ -19,7 +19,7 @@ use imu_analysis::calibrate::{
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
 use imu_cli::finite_f64;
-use imu_cli::progress::read_any;
+use imu_cli::progress::read_input;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
@@ -35,8 +35,9 @@ use procedures::*;
 #[command(version, about)]
 #[command(group(ArgGroup::new("procedure").required(true).multiple(true)))]
 struct Cli {
-    /// Recordings: imud MCAP logs (the raw stream is fitted), rosbag2 MCAP or CSV. Several
-    /// recordings of one unit (e.g. an index-table run and a rate-table run, each in its own
+    /// Recordings: imud MCAP logs (the raw stream is fitted), rosbag2 MCAP or directories,
+    /// text in any layout; a directory of imud's rotated files of one session is one recording.
+    /// Several recordings of one unit (e.g. an index-table run and a rate-table run, each in its own
     /// file) are fitted together into one calibration, each against its own reference.
     #[arg(required = true, value_name = "RECORDING")]
     recordings: Vec<PathBuf>,
@@ -304,6 +305,8 @@ struct JsonOutReferenceFree<'a> {
     /// Recordings read without their footer (killed writer): how far each read got.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     inputs_unfinished: Vec<serde_json::Value>,
+    /// The files read (in time order), the IMU topic, the gaps between files.
+    input: &'a imu_analysis::input::InputInfo,
 }
 
 /// One recording of a fit and what it contributed.
@@ -318,6 +321,8 @@ struct JsonRecording {
     skipped_segments: usize,
     accel_points: usize,
     gyro_points: usize,
+    /// The files read (in time order), the IMU topic, the gaps between files.
+    input: imu_analysis::input::InputInfo,
 }
 
 #[derive(Debug, Serialize)]
@@ -343,9 +348,14 @@ struct JsonOut<'a> {
 /// take a noticeable fraction of a second).
 type Hashing = std::thread::JoinHandle<Result<Vec<InputFile>>>;
 
-/// Starts hashing `paths` in the background.
+/// Starts hashing `paths` in the background (a directory: the files it stands for).
 fn hash_in_background(paths: Vec<PathBuf>) -> Hashing {
-    std::thread::spawn(move || paths.iter().map(|p| input_file(p)).collect())
+    std::thread::spawn(move || {
+        imu_analysis::input::session_files(&paths)?
+            .iter()
+            .map(|p| input_file(p))
+            .collect()
+    })
 }
 
 /// The input's path and SHA-256.
@@ -428,11 +438,11 @@ fn read_recording(cli: &Cli, k: usize) -> Result<imu_analysis::ImuSeries> {
     let path = &cli.recordings[k];
     let options = cli
         .csv
-        .options_for(&cli.recordings, k)
+        .input_options(&cli.recordings, k, Source::Raw)
         .map_err(imu_cli::UsageError)?;
-    let series = read_any(path, Source::Raw, &options)
+    let series = read_input(std::slice::from_ref(path), &options)
         .with_context(|| format!("reading {}", path.display()))?;
-    imu_cli::unfinished::warn("imu-calibrate", path, series.unfinished.as_ref());
+    imu_cli::session::warn("imu-calibrate", &series);
     if series.is_empty() {
         bail!("{}: no samples", path.display());
     }

@@ -85,6 +85,7 @@ fn report_reference_free(
                 .iter()
                 .map(|u| imu_cli::unfinished::json(recording, u))
                 .collect(),
+            input: &series.input,
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -232,8 +233,10 @@ fn reference_json<'a>(
         .iter()
         .zip(&cli.recordings)
         .zip(refs)
-        .map(|((r, path), arg)| JsonRecording {
+        .zip(loaded)
+        .map(|(((r, path), arg), (series, _))| JsonRecording {
             recording: path.display().to_string(),
+            input: series.input.clone(),
             reference: arg.path().display().to_string(),
             reference_description: r.reference.clone(),
             static_segments: r.segmentation.count(SegmentKind::Static),

@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
-use imu_analysis::input::read_any;
 use imu_analysis::reference::Reference;
 use imu_analysis::render::html::{
     Section, diagnose_section, ladder_section, page, verdict_section,
@@ -17,6 +16,7 @@ use imu_analysis::render::html::{
 use imu_analysis::workbench::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::{ImuSeries, segment::SegmentKind};
 use imu_cli::finite_f64;
+use imu_cli::progress::read_input;
 use imu_model::{Calibration, EffectKind, InputFile, Triad, TriadModel};
 use serde::Serialize;
 
@@ -46,9 +46,15 @@ enum Command {
 /// Arguments of the default (diagnose) command.
 #[derive(Debug, Args)]
 struct DiagnoseArgs {
-    /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or CSV.
+    /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or directory, or text
+    /// in any layout.
     #[arg(required = true)]
     recording: Option<PathBuf>,
+    /// Further files of the same session (imud's rotated files): read with RECORDING as one
+    /// recording, in time order, gaps reported. RECORDING may also be a session or rosbag2
+    /// directory.
+    #[arg(value_name = "MORE")]
+    more: Vec<PathBuf>,
     #[command(flatten)]
     reference: RefArgs,
     /// Calibration-format file whose accel and gyro effects are the model under test (default:
@@ -161,8 +167,14 @@ impl RefArgs {
 /// Arguments of `imu-diagnose ladder`.
 #[derive(Debug, Args)]
 struct LadderArgs {
-    /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or CSV.
+    /// Recording: imud MCAP log (the raw stream is used), rosbag2 MCAP or directory, or text
+    /// in any layout.
     recording: PathBuf,
+    /// Further files of the same session (imud's rotated files): read with RECORDING as one
+    /// recording, in time order, gaps reported. RECORDING may also be a session or rosbag2
+    /// directory.
+    #[arg(value_name = "MORE")]
+    more: Vec<PathBuf>,
     #[command(flatten)]
     reference: RefArgs,
     /// Calibration-format file whose accel and gyro effects are the first rung (default: bias +
@@ -220,6 +232,8 @@ struct DiagnoseJson<'a> {
     /// Present when the recording was read without its footer: how far the read got.
     #[serde(skip_serializing_if = "Option::is_none")]
     input_unfinished: Option<serde_json::Value>,
+    /// The files read (in time order), the IMU topic, the gaps between files.
+    input: &'a imu_analysis::input::InputInfo,
 }
 
 #[derive(Debug, Serialize)]
@@ -238,6 +252,8 @@ struct LadderJson<'a> {
     /// Present when the recording was read without its footer: how far the read got.
     #[serde(skip_serializing_if = "Option::is_none")]
     input_unfinished: Option<serde_json::Value>,
+    /// The files read (in time order), the IMU topic, the gaps between files.
+    input: &'a imu_analysis::input::InputInfo,
 }
 
 /// The model file's accel and gyro effects (a triad without effects gets the base model), and
@@ -279,18 +295,21 @@ fn input_file(path: &Path) -> Result<InputFile> {
         .with_context(|| format!("reading {}", path.display()))
 }
 
-/// Reads the recording and the reference.
+/// Reads the recording (`recording` and `more`, one session) and the reference.
 fn read_inputs(
-    recording: &Path,
+    (recording, more): (&Path, &[PathBuf]),
     r: &RefArgs,
     csv: &imu_cli::CsvArgs,
 ) -> Result<(ImuSeries, Option<Reference>)> {
+    let paths: Vec<PathBuf> = std::iter::once(recording.to_path_buf())
+        .chain(more.iter().cloned())
+        .collect();
     let options = csv
-        .options_for(&[recording.to_path_buf()], 0)
+        .input_options(&paths[..1], 0, Source::Raw)
         .map_err(imu_cli::UsageError)?;
-    let series = read_any(recording, Source::Raw, &options)
-        .with_context(|| format!("reading {}", recording.display()))?;
-    imu_cli::unfinished::warn("imu-diagnose", recording, series.unfinished.as_ref());
+    let series =
+        read_input(&paths, &options).with_context(|| format!("reading {}", recording.display()))?;
+    imu_cli::session::warn("imu-diagnose", &series);
     if series.is_empty() {
         bail!("{}: no samples", recording.display());
     }
@@ -490,7 +509,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     };
     let reference = &a.reference;
     let (model, added) = model_with_added(a)?;
-    let (series, truth) = read_inputs(recording, reference, &a.csv)?;
+    let (series, truth) = read_inputs((recording, &a.more), reference, &a.csv)?;
     let wb = reference
         .workbench(&series, truth.as_ref(), options(a.model.as_deref())?)
         .with_context(|| format!("segmenting {}", recording.display()))?;
@@ -532,6 +551,7 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
                 .unfinished
                 .as_ref()
                 .map(|u| imu_cli::unfinished::json(recording, u)),
+            input: &series.input,
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -595,7 +615,7 @@ fn print_diagnose_text(
 
 fn run_ladder(a: &LadderArgs) -> Result<()> {
     let base = load_model(a.base.as_deref())?;
-    let (series, truth) = read_inputs(&a.recording, &a.reference, &a.csv)?;
+    let (series, truth) = read_inputs((&a.recording, &a.more), &a.reference, &a.csv)?;
     let wb = a
         .reference
         .workbench(&series, truth.as_ref(), options(a.base.as_deref())?)
@@ -650,6 +670,7 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
                 .unfinished
                 .as_ref()
                 .map(|u| imu_cli::unfinished::json(&a.recording, u)),
+            input: &series.input,
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;

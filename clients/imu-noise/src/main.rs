@@ -9,7 +9,7 @@ use clap::{Parser, ValueEnum};
 use imu_analysis::input::{AccelUnit, GyroUnit};
 use imu_analysis::render::svg::{Chart, Series, Style, write_svg};
 use imu_analysis::{ImuSeries, Source};
-use imu_cli::progress::read_any;
+use imu_cli::progress::read_input;
 use imu_stats::allan::{self, Kind, Options, TauSet};
 use imu_stats::noise_terms::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
 use serde::Serialize;
@@ -21,8 +21,11 @@ const RAD_TO_DEG: f64 = 180.0 / std::f64::consts::PI;
 #[derive(Debug, Parser)]
 #[command(version, about)]
 struct Cli {
-    /// Recording: imud MCAP log, rosbag2 MCAP (sensor_msgs/msg/Imu) or CSV.
-    recording: PathBuf,
+    /// Recording: imud MCAP log, rosbag2 MCAP or directory (sensor_msgs/msg/Imu), or text in
+    /// any layout. Several files (imud's rotated files of one session), or their directory, are
+    /// one recording: read in time order, gaps between files reported.
+    #[arg(required = true, value_name = "RECORDING")]
+    recording: Vec<PathBuf>,
     /// Print JSON instead of the table.
     #[arg(long)]
     json: bool,
@@ -79,6 +82,8 @@ struct AxisReport {
     /// read got (the same facts as the warning on stderr).
     #[serde(skip_serializing_if = "Option::is_none")]
     input_unfinished: Option<serde_json::Value>,
+    /// The files read (in time order), the IMU topic, the gaps between files.
+    input: imu_analysis::input::InputInfo,
 }
 
 #[derive(Debug, Serialize)]
@@ -155,6 +160,7 @@ fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
                 fit,
                 curve,
                 input_unfinished: None,
+                input: series.input.clone(),
             });
         }
     }
@@ -312,29 +318,33 @@ fn kalibr_yaml(reports: &[AxisReport], rostopic: &str) -> String {
 }
 
 fn run(cli: &Cli) -> Result<()> {
-    let mut csv = cli
-        .csv
-        .options_for(std::slice::from_ref(&cli.recording), 0)
-        .map_err(imu_cli::UsageError)?;
-    if cli.csv_accel_g {
-        csv.accel = AccelUnit::G;
-    }
-    if cli.csv_gyro_deg_s {
-        csv.gyro = GyroUnit::DegPerSecond;
-    }
     let source = match cli.source {
         SourceArg::Corrected => Source::Corrected,
         SourceArg::Raw => Source::Raw,
     };
-    if std::io::stderr().is_terminal() {
-        eprint!("reading {}...", cli.recording.display());
+    let mut input = cli
+        .csv
+        .input_options(&cli.recording[..1], 0, source)
+        .map_err(imu_cli::UsageError)?;
+    if cli.csv_accel_g {
+        input.csv.accel = AccelUnit::G;
     }
-    let series = read_any(&cli.recording, source, &csv)
-        .with_context(|| format!("reading {}", cli.recording.display()))?;
-    let unfinished =
-        imu_cli::unfinished::warn("imu-noise", &cli.recording, series.unfinished.as_ref());
+    if cli.csv_gyro_deg_s {
+        input.csv.gyro = GyroUnit::DegPerSecond;
+    }
+    let shown = cli
+        .recording
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(" ");
+    if std::io::stderr().is_terminal() {
+        eprint!("reading {shown}...");
+    }
+    let series = read_input(&cli.recording, &input).with_context(|| format!("reading {shown}"))?;
+    let unfinished = imu_cli::session::warn("imu-noise", &series);
     if let Some(w) = series.motion_warning() {
-        eprintln!("imu-noise: warning: {}: {w}", cli.recording.display());
+        eprintln!("imu-noise: warning: {shown}: {w}");
     }
     let mut reports = analyse(&series, cli.taus)?;
     for r in &mut reports {

@@ -650,6 +650,7 @@ mod tests {
             origin: "synthetic".into(),
             stopped_early: None,
             unfinished: None,
+            ..ImuSeries::default()
         }
     }
 

@@ -96,6 +96,21 @@ pub struct Unfinished {
     pub last_log_time_ns: Option<u64>,
 }
 
+/// True if `path` starts with the MCAP magic bytes: how every reader tells an MCAP file from
+/// text, by content and never by extension.
+pub fn has_mcap_magic(path: &Path) -> std::io::Result<bool> {
+    let mut magic = [0u8; 8];
+    let mut file = File::open(path)?;
+    let mut n = 0;
+    while n < magic.len() {
+        match file.read(&mut magic[n..])? {
+            0 => break,
+            k => n += k,
+        }
+    }
+    Ok(n == magic.len() && magic == *mcap::MAGIC)
+}
+
 /// Reads every message of `path` in file order and hands it to `on_message`.
 ///
 /// Returns an error only when the file cannot be opened, is not MCAP, or the handler fails;
@@ -116,14 +131,7 @@ pub fn for_each_message_with_progress(
     on_progress: &mut dyn FnMut(u64, u64),
     mut on_message: impl FnMut(&ChannelInfo, &MessageHeader, &[u8]) -> Result<(), String>,
 ) -> Result<ReadReport, McapReadError> {
-    let io_err = |source| McapReadError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let mut file = File::open(path).map_err(io_err)?;
-    let total_bytes = file.metadata().map_err(io_err)?.len();
-    let mut read_bytes: u64 = 0;
-    on_progress(0, total_bytes);
+    let mut pass = Pass::open(path, on_progress)?;
     // Chunk CRCs are checked as each chunk ends (not before its first message), so a damaged
     // chunk still delivers the records that precede the damage. The record length limit keeps a
     // corrupt length field from asking for gigabytes.
@@ -131,110 +139,197 @@ pub fn for_each_message_with_progress(
         .with_validate_chunk_crcs(true)
         .with_record_length_limit(1 << 30);
     let mut reader = LinearReader::new_with_options(options);
-    let mut report = ReadReport::default();
-    let mut schemas: BTreeMap<u16, (String, String)> = BTreeMap::new();
-    let mut saw_record = false;
-    let mut hit_eof = false;
-    let mut last_log_time_ns: Option<u64> = None;
     while let Some(event) = reader.next_event() {
-        let event = match event {
-            Ok(ev) => ev,
-            Err(e) => {
-                if !saw_record {
-                    return Err(McapReadError::NotMcap {
-                        path: path.to_path_buf(),
-                        message: e.to_string(),
-                    });
-                }
-                report.stopped_early = Some(if hit_eof {
-                    format!("file ends mid-record ({e}); it was not closed cleanly")
-                } else {
-                    format!("damaged record: {e}")
-                });
-                break;
+        let flow = match event {
+            Err(e) => pass.reader_error(e)?,
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let n = pass.fill(reader.insert(need))?;
+                reader.notify_read(n);
+                Flow::Continue
+            }
+            Ok(LinearReadEvent::Record { opcode, data }) => {
+                let parsed = mcap::parse_record(opcode, data);
+                pass.record(parsed, &mut on_message)?
             }
         };
-        match event {
-            LinearReadEvent::ReadRequest(need) => {
-                let n = file.read(reader.insert(need)).map_err(io_err)?;
-                if n == 0 {
-                    hit_eof = true;
-                }
-                read_bytes += n as u64;
-                on_progress(read_bytes.min(total_bytes), total_bytes);
-                reader.notify_read(n);
-            }
-            LinearReadEvent::Record { opcode, data } => {
-                saw_record = true;
-                let record = match mcap::parse_record(opcode, data) {
-                    Ok(r) => r,
-                    Err(e) => {
-                        report.stopped_early = Some(format!("undecodable record: {e}"));
-                        break;
-                    }
-                };
-                match record {
-                    Record::Schema { header, .. } => {
-                        schemas.insert(header.id, (header.name, header.encoding));
-                    }
-                    Record::Channel(ch) => {
-                        let (schema_name, schema_encoding) =
-                            schemas.get(&ch.schema_id).cloned().unwrap_or_default();
-                        report.channels.insert(
-                            ch.id,
-                            ChannelInfo {
-                                id: ch.id,
-                                topic: ch.topic,
-                                message_encoding: ch.message_encoding,
-                                schema_name,
-                                schema_encoding,
-                            },
-                        );
-                    }
-                    Record::Message { header, data } => {
-                        let Some(channel) = report.channels.get(&header.channel_id) else {
-                            report.stopped_early = Some(format!(
-                                "message on unknown channel {} (damaged file)",
-                                header.channel_id
-                            ));
-                            break;
-                        };
-                        on_message(channel, &header, &data).map_err(|message| {
-                            McapReadError::Message {
-                                path: path.to_path_buf(),
-                                topic: channel.topic.clone(),
-                                log_time_ns: header.log_time,
-                                message,
-                            }
-                        })?;
-                        report.n_messages += 1;
-                        last_log_time_ns = last_log_time_ns.max(Some(header.log_time));
-                    }
-                    Record::Metadata(m) => {
-                        report.metadata.insert(m.name, m.metadata);
-                    }
-                    _ => {}
-                }
-            }
+        if flow == Flow::Stop {
+            break;
         }
     }
-    if !saw_record {
-        return Err(McapReadError::NotMcap {
+    pass.finish()
+}
+
+/// Whether the read goes on after an event.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Flow {
+    Continue,
+    Stop,
+}
+
+/// One front-to-back read of a file: the file the sans-IO reader is fed from, and what has
+/// been seen so far.
+struct Pass<'p> {
+    path: &'p Path,
+    file: File,
+    on_progress: &'p mut dyn FnMut(u64, u64),
+    total_bytes: u64,
+    read_bytes: u64,
+    report: ReadReport,
+    schemas: BTreeMap<u16, (String, String)>,
+    saw_record: bool,
+    hit_eof: bool,
+    last_log_time_ns: Option<u64>,
+}
+
+impl<'p> Pass<'p> {
+    fn io_err(&self, source: std::io::Error) -> McapReadError {
+        McapReadError::Io {
+            path: self.path.to_path_buf(),
+            source,
+        }
+    }
+
+    fn open(
+        path: &'p Path,
+        on_progress: &'p mut dyn FnMut(u64, u64),
+    ) -> Result<Self, McapReadError> {
+        let io_err = |source| McapReadError::Io {
             path: path.to_path_buf(),
-            message: "no records".into(),
+            source,
+        };
+        let file = File::open(path).map_err(io_err)?;
+        let total_bytes = file.metadata().map_err(io_err)?.len();
+        on_progress(0, total_bytes);
+        Ok(Pass {
+            path,
+            file,
+            on_progress,
+            total_bytes,
+            read_bytes: 0,
+            report: ReadReport::default(),
+            schemas: BTreeMap::new(),
+            saw_record: false,
+            hit_eof: false,
+            last_log_time_ns: None,
+        })
+    }
+
+    /// The reader refused the bytes: not MCAP at all before the first record, damage after it.
+    fn reader_error(&mut self, e: mcap::McapError) -> Result<Flow, McapReadError> {
+        if !self.saw_record {
+            return Err(McapReadError::NotMcap {
+                path: self.path.to_path_buf(),
+                message: e.to_string(),
+            });
+        }
+        self.report.stopped_early = Some(if self.hit_eof {
+            format!("file ends mid-record ({e}); it was not closed cleanly")
+        } else {
+            format!("damaged record: {e}")
         });
+        Ok(Flow::Stop)
     }
-    report.unfinished = report.stopped_early.as_ref().map(|reason| Unfinished {
-        // The read may stop at damage before the end (a killed writer's last chunk is often
-        // cut short); whether the file has its footer is read from its end.
-        footer_missing: hit_eof || !crate::recover::is_finished(path).unwrap_or(false),
-        reason: reason.clone(),
-        n_messages: report.n_messages,
-        last_log_time_ns,
-    });
-    if read_bytes < total_bytes && report.stopped_early.is_none() {
-        // The reader had all it needed before the end of the file (trailing bytes).
-        on_progress(total_bytes, total_bytes);
+
+    /// Reads the next bytes of the file into the reader's `buf`; returns how many.
+    fn fill(&mut self, buf: &mut [u8]) -> Result<usize, McapReadError> {
+        let n = match self.file.read(buf) {
+            Ok(n) => n,
+            Err(e) => return Err(self.io_err(e)),
+        };
+        if n == 0 {
+            self.hit_eof = true;
+        }
+        self.read_bytes += n as u64;
+        (self.on_progress)(self.read_bytes.min(self.total_bytes), self.total_bytes);
+        Ok(n)
     }
-    Ok(report)
+
+    /// One record: schemas and channels are remembered, messages handed over, metadata kept.
+    fn record(
+        &mut self,
+        parsed: Result<Record<'_>, mcap::McapError>,
+        on_message: &mut impl FnMut(&ChannelInfo, &MessageHeader, &[u8]) -> Result<(), String>,
+    ) -> Result<Flow, McapReadError> {
+        self.saw_record = true;
+        let record = match parsed {
+            Ok(r) => r,
+            Err(e) => {
+                self.report.stopped_early = Some(format!("undecodable record: {e}"));
+                return Ok(Flow::Stop);
+            }
+        };
+        match record {
+            Record::Schema { header, .. } => {
+                self.schemas
+                    .insert(header.id, (header.name, header.encoding));
+            }
+            Record::Channel(ch) => {
+                let (schema_name, schema_encoding) =
+                    self.schemas.get(&ch.schema_id).cloned().unwrap_or_default();
+                self.report.channels.insert(
+                    ch.id,
+                    ChannelInfo {
+                        id: ch.id,
+                        topic: ch.topic,
+                        message_encoding: ch.message_encoding,
+                        schema_name,
+                        schema_encoding,
+                    },
+                );
+            }
+            Record::Message { header, data } => return self.message(&header, &data, on_message),
+            Record::Metadata(m) => {
+                self.report.metadata.insert(m.name, m.metadata);
+            }
+            _ => {}
+        }
+        Ok(Flow::Continue)
+    }
+
+    fn message(
+        &mut self,
+        header: &MessageHeader,
+        data: &[u8],
+        on_message: &mut impl FnMut(&ChannelInfo, &MessageHeader, &[u8]) -> Result<(), String>,
+    ) -> Result<Flow, McapReadError> {
+        let Some(channel) = self.report.channels.get(&header.channel_id) else {
+            self.report.stopped_early = Some(format!(
+                "message on unknown channel {} (damaged file)",
+                header.channel_id
+            ));
+            return Ok(Flow::Stop);
+        };
+        on_message(channel, header, data).map_err(|message| McapReadError::Message {
+            path: self.path.to_path_buf(),
+            topic: channel.topic.clone(),
+            log_time_ns: header.log_time,
+            message,
+        })?;
+        self.report.n_messages += 1;
+        self.last_log_time_ns = self.last_log_time_ns.max(Some(header.log_time));
+        Ok(Flow::Continue)
+    }
+
+    fn finish(mut self) -> Result<ReadReport, McapReadError> {
+        if !self.saw_record {
+            return Err(McapReadError::NotMcap {
+                path: self.path.to_path_buf(),
+                message: "no records".into(),
+            });
+        }
+        self.report.unfinished = self.report.stopped_early.as_ref().map(|reason| Unfinished {
+            // The read may stop at damage before the end (a killed writer's last chunk is often
+            // cut short); whether the file has its footer is read from its end.
+            footer_missing: self.hit_eof
+                || !crate::recover::is_finished(self.path).unwrap_or(false),
+            reason: reason.clone(),
+            n_messages: self.report.n_messages,
+            last_log_time_ns: self.last_log_time_ns,
+        });
+        if self.read_bytes < self.total_bytes && self.report.stopped_early.is_none() {
+            // The reader had all it needed before the end of the file (trailing bytes).
+            (self.on_progress)(self.total_bytes, self.total_bytes);
+        }
+        Ok(self.report)
+    }
 }

@@ -1,4 +1,5 @@
-//! The arguments the clients share: how to read CSV recordings (`CsvArgs`, feature `analysis`), the `--add EFFECT`
+//! The arguments the clients share: how to read recordings (`CsvArgs`, feature `analysis`: text
+//! units, columns, labels, the gyro's file, the IMU topic), the `--add EFFECT`
 //! parser, the one value parser for every float flag ([`finite_f64`]), and telling a closed
 //! output pipe (`imu-noise rec.mcap --json | head`) from a real failure.
 
@@ -40,42 +41,73 @@ pub fn parse_effect(spec: &str, flag: &str) -> Result<Vec<(Triad, EffectKind)>, 
 mod csv_args {
     use std::path::{Path, PathBuf};
 
-    use imu_analysis::input::{AccelUnit, CsvOptions, GyroUnit};
+    use imu_analysis::input::{AccelUnit, ColumnRef, Columns, CsvOptions, GyroUnit, InputOptions};
 
-    /// How to read CSV recordings (MCAP recordings carry their own units).
+    /// How to read recordings: text units, columns and labels, the gyro's own file, and the
+    /// IMU topic of an MCAP file or rosbag2 directory (MCAP recordings carry their own units).
     #[derive(Clone, Debug, clap::Args)]
     pub struct CsvArgs {
-        /// CSV recordings: seconds per unit of the time column (1 for s, 1e-9 for ns).
+        /// Text recordings: seconds per unit of the time column (1 for s, 1e-9 for ns).
         #[arg(long, default_value_t = 1.0, value_name = "S", value_parser = super::finite_f64)]
         pub csv_time_scale_s: f64,
-        /// CSV recordings: unit of the accelerometer columns: m/s2, g, or counts:SCALE (raw
-        /// counts times SCALE m/s^2 per count).
+        /// Text recordings: unit of the accelerometer columns: m/s2, g, or
+        /// counts:SCALE[@OFFSET] (raw counts less OFFSET, times SCALE m/s^2 per count; SCALE and
+        /// OFFSET each one number or X,Y,Z, e.g. counts:0.00241@32768 for unsigned 16-bit
+        /// counts with mid-scale zero).
         #[arg(long, default_value = "m/s2", value_name = "UNIT")]
         pub csv_accel: AccelUnit,
-        /// CSV recordings: unit of the gyro columns: rad/s, deg/s, or counts:SCALE (rad/s per
-        /// count).
+        /// Text recordings: unit of the gyro columns: rad/s, deg/s, or counts:SCALE[@OFFSET]
+        /// (rad/s per count; as for --csv-accel).
         #[arg(long, default_value = "rad/s", value_name = "UNIT")]
         pub csv_gyro: GyroUnit,
-        /// The gyro's own CSV file (`time, gx, gy, gz`, on the accelerometer's clock) for a CSV
-        /// recording that holds only the accelerometer (`time, ax, ay, az`); with several CSV
-        /// recordings, one per recording, in order.
-        #[arg(long = "gyro-csv", value_name = "GYRO.csv")]
+        /// The gyro's own text file (`time, gx, gy, gz`, on the accelerometer's clock, any
+        /// layout) for a text recording that holds only the accelerometer (`time, ax, ay, az`);
+        /// with several text recordings, one per recording, in order.
+        #[arg(long = "gyro-csv", value_name = "GYRO.txt")]
         pub gyro_csv: Vec<PathBuf>,
+        /// Text recordings: the columns of time, ax, ay, az, gx, gy, gz (time, ax, ay, az with
+        /// --gyro-csv), each a 0-based index (the first column is 0) or a name from the header
+        /// line, e.g. `--columns t,ax,ay,az,gx,gy,gz` or `--columns 0,4,5,6,1,2,3`. Default: the
+        /// first columns in that order, a label column left out.
+        #[arg(long, value_name = "T,AX,AY,AZ[,GX,GY,GZ]", value_delimiter = ',')]
+        pub columns: Vec<ColumnRef>,
+        /// The --gyro-csv file's columns of time, gx, gy, gz (0-based indices or header names).
+        #[arg(
+            long,
+            value_name = "T,GX,GY,GZ",
+            value_delimiter = ',',
+            requires = "gyro_csv"
+        )]
+        pub gyro_columns: Vec<ColumnRef>,
+        /// Text recordings: the column naming the part of a labelled session each sample
+        /// belongs to (0-based index or header name). Default: a header column named `part` or
+        /// `label`, if any.
+        #[arg(long, value_name = "COLUMN")]
+        pub label_column: Option<ColumnRef>,
+        /// The sensor_msgs/msg/Imu topic to read when an MCAP file or rosbag2 directory has
+        /// several (without it, several are an error that lists them).
+        #[arg(long, value_name = "TOPIC")]
+        pub topic: Option<String>,
     }
 
-    fn is_csv(p: &Path) -> bool {
-        matches!(
-            p.extension().and_then(|e| e.to_str()),
-            Some("csv") | Some("txt")
-        )
+    /// A text recording, told by content: not a directory and no MCAP magic bytes (a file
+    /// that cannot be opened goes by its extension; reading it will say why it cannot be).
+    fn is_text(p: &Path) -> bool {
+        if p.is_dir() {
+            return false;
+        }
+        match imu_bus::mcap_read::has_mcap_magic(p) {
+            Ok(mcap) => !mcap,
+            Err(_) => p.extension().and_then(|e| e.to_str()) != Some("mcap"),
+        }
     }
 
     impl CsvArgs {
         /// The reading options of `recordings[k]`: the units, and its gyro file when
-        /// `--gyro-csv` was given (the k-th CSV recording takes the k-th file).
+        /// `--gyro-csv` was given (the k-th text recording takes the k-th file).
         pub fn options_for(&self, recordings: &[PathBuf], k: usize) -> Result<CsvOptions, String> {
             let csv: Vec<usize> = (0..recordings.len())
-                .filter(|&i| is_csv(&recordings[i]))
+                .filter(|&i| is_text(&recordings[i]))
                 .collect();
             let gyro_file = if self.gyro_csv.is_empty() {
                 None
@@ -96,6 +128,27 @@ mod csv_args {
                 accel: self.csv_accel,
                 gyro: self.csv_gyro,
                 gyro_file,
+            })
+        }
+
+        /// Everything needed to read `recordings[k]` (one file, the files of one session or a
+        /// directory) from `source`: [`CsvArgs::options_for`], the columns and the topic.
+        pub fn input_options(
+            &self,
+            recordings: &[PathBuf],
+            k: usize,
+            source: imu_analysis::Source,
+        ) -> Result<InputOptions, String> {
+            let list = |v: &[ColumnRef]| (!v.is_empty()).then(|| v.to_vec());
+            Ok(InputOptions {
+                source,
+                csv: self.options_for(recordings, k)?,
+                columns: Columns {
+                    main: list(&self.columns),
+                    gyro: list(&self.gyro_columns),
+                    label: self.label_column.clone(),
+                },
+                topic: self.topic.clone(),
             })
         }
     }

@@ -4,12 +4,12 @@
 //! stdout (where `--json` goes) is never touched.
 
 use std::io::IsTerminal;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use imu_analysis::input::{CsvOptions, ImuSeries, InputError, Source};
+use imu_analysis::input::{CsvOptions, ImuSeries, InputError, InputOptions, Source};
 
 /// Inputs at least this large get a bar from the start, bytes.
 pub const SHOW_ABOVE_BYTES: u64 = 20 * 1024 * 1024;
@@ -78,6 +78,25 @@ pub fn read_any(path: &Path, source: Source, csv: &CsvOptions) -> Result<ImuSeri
         imu_analysis::input::read_any_with_progress(path, source, csv, &mut |done, total| {
             progress.update(done, total)
         });
+    progress.finish();
+    series
+}
+
+/// [`imu_analysis::input::read_input`] (one file, the files of one session, a session or
+/// rosbag2 directory) with a bar of the bytes read over all its files.
+pub fn read_input(paths: &[PathBuf], options: &InputOptions) -> Result<ImuSeries, InputError> {
+    let name = match paths {
+        [one] => one
+            .file_name()
+            .unwrap_or(one.as_os_str())
+            .to_string_lossy()
+            .into_owned(),
+        many => format!("{} files", many.len()),
+    };
+    let mut progress = ReadProgress::new(format!("reading {name}"));
+    let series = imu_analysis::input::read_input(paths, options, &mut |done, total| {
+        progress.update(done, total)
+    });
     progress.finish();
     series
 }

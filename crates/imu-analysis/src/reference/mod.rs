@@ -68,12 +68,9 @@ pub enum OpenError {
     },
 }
 
-/// True if the file starts with the MCAP magic bytes.
+/// True if the file starts with the MCAP magic bytes (the one check, in imu-bus).
 fn is_mcap(path: &std::path::Path) -> std::io::Result<bool> {
-    use std::io::Read;
-    let mut magic = [0u8; 8];
-    let n = std::fs::File::open(path)?.read(&mut magic)?;
-    Ok(n == 8 && magic == *b"\x89MCAP0\r\n")
+    imu_bus::mcap_read::has_mcap_magic(path)
 }
 
 impl Reference {

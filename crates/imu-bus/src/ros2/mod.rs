@@ -1,5 +1,6 @@
 //! ROS 2 messages for the MCAP log: a CDR (XCDR1, little-endian) encoder and decoder, the message
-//! types imud records, and their `ros2msg` schema text exactly as rosbag2 writes it.
+//! types imud records, and their `ros2msg` schema text exactly as rosbag2 writes it; `bag`: the
+//! files of a rosbag2 directory.
 //!
 //! The standard types (`sensor_msgs/msg/Imu`, `Temperature`, `MagneticField` and their
 //! `std_msgs`, `builtin_interfaces` and `geometry_msgs` parts) match the upstream `.msg` files
@@ -14,6 +15,7 @@
 
 use crate::sample::{DaemonStatus, RawSample, raw_flags};
 
+pub mod bag;
 mod cdr;
 mod definitions;
 mod messages;

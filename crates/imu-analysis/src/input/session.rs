@@ -1,0 +1,284 @@
+//! Recordings of several files read as one: imud's rotated files of a session (given one by one
+//! or as their directory), a rosbag2 directory (the files its `metadata.yaml` lists), or any
+//! single file. Each file's format is told by content (MCAP magic bytes, else text); the parts
+//! are put in time order, their times joined on one base, and the gaps between them reported.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use imu_bus::McapReadError;
+use imu_bus::mcap_read::has_mcap_magic;
+use imu_bus::ros2::bag;
+
+use super::{
+    Columns, CsvOptions, ImuSeries, InputError, InputInfo, Labels, Source, read_mcap_with_progress,
+    read_text,
+};
+
+/// How to read a recording of one or more files.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct InputOptions {
+    /// Which stream of an imud recording.
+    pub source: Source,
+    /// Units of text files, and the gyro's own file.
+    pub csv: CsvOptions,
+    /// Columns of text files.
+    pub columns: Columns,
+    /// The `sensor_msgs/msg/Imu` topic to read when a file has several.
+    pub topic: Option<String>,
+}
+
+/// Time between two consecutive files of a session beyond one sample interval: samples that
+/// no file holds.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SessionGap {
+    /// The file before the gap.
+    pub after: PathBuf,
+    /// The file after it.
+    pub before: PathBuf,
+    /// Where the gap starts, s on the session's time base.
+    pub at_s: f64,
+    /// From the last sample before to the first after, s.
+    pub gap_s: f64,
+    /// Samples missing at the session's median interval.
+    pub missing_samples: u64,
+}
+
+/// A gap is a step between files longer than this many median sample intervals.
+const GAP_INTERVALS: f64 = 1.5;
+
+/// The files `paths` stand for, in the order given: a rosbag2 directory is the files its
+/// metadata lists, any other directory its MCAP files (told by their magic bytes) by name, a
+/// file itself.
+pub fn session_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>, InputError> {
+    let mut out = Vec::new();
+    for p in paths {
+        if bag::is_bag_dir(p) {
+            out.extend(bag::bag_files(p)?.files);
+        } else if p.is_dir() {
+            out.extend(mcap_files_in(p)?);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+fn mcap_files_in(dir: &Path) -> Result<Vec<PathBuf>, InputError> {
+    let io = |source| InputError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let p = entry.map_err(io)?.path();
+        if p.is_file() && has_mcap_magic(&p).unwrap_or(false) {
+            files.push(p);
+        }
+    }
+    files.sort();
+    if files.is_empty() {
+        return Err(InputError::NoData {
+            path: dir.to_path_buf(),
+            message: "a directory without MCAP files or a rosbag2 metadata.yaml: give the \
+                      recording's files"
+                .into(),
+        });
+    }
+    Ok(files)
+}
+
+/// Reads the recording `paths` stand for ([`session_files`]) as one series, reporting
+/// `(bytes read, total bytes)` over all its files.
+pub fn read_input(
+    paths: &[PathBuf],
+    options: &InputOptions,
+    on_progress: &mut dyn FnMut(u64, u64),
+) -> Result<ImuSeries, InputError> {
+    let files = session_files(paths)?;
+    if files.len() > 1 && options.csv.gyro_file.is_some() {
+        return Err(InputError::Session {
+            message: format!(
+                "a gyro file (--gyro-csv) goes with one accelerometer file, got {} files",
+                files.len()
+            ),
+        });
+    }
+    let sizes: Vec<u64> = files
+        .iter()
+        .map(|f| std::fs::metadata(f).map_or(0, |m| m.len()))
+        .collect();
+    let total: u64 = sizes.iter().sum();
+    let mut parts = Vec::with_capacity(files.len());
+    let mut done = 0;
+    for (f, size) in files.iter().zip(&sizes) {
+        parts.push(read_file(f, options, &mut |d, _| {
+            on_progress(done + d, total)
+        })?);
+        done += size;
+    }
+    if parts.len() == 1 {
+        return Ok(parts.pop().expect("one part"));
+    }
+    join(parts)
+}
+
+/// One file, its format told by content.
+fn read_file(
+    path: &Path,
+    options: &InputOptions,
+    on_progress: &mut dyn FnMut(u64, u64),
+) -> Result<ImuSeries, InputError> {
+    let io = |source| InputError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if has_mcap_magic(path).map_err(io)? {
+        return read_mcap_with_progress(
+            path,
+            options.source,
+            options.topic.as_deref(),
+            on_progress,
+        );
+    }
+    if !looks_like_text(path).map_err(io)? {
+        return Err(InputError::Mcap(McapReadError::NotMcap {
+            path: path.to_path_buf(),
+            message: "no MCAP magic bytes, and not text either (binary data)".into(),
+        }));
+    }
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    on_progress(0, size);
+    let series = read_text(path, &options.csv, &options.columns)?;
+    on_progress(size, size);
+    Ok(series)
+}
+
+/// True if the first 64 KiB hold no NUL byte: text in any 8-bit encoding (a Latin-1 `deg C`
+/// in a header is still text), never binary data.
+fn looks_like_text(path: &Path) -> std::io::Result<bool> {
+    let mut head = Vec::with_capacity(1 << 16);
+    std::fs::File::open(path)?
+        .take(1 << 16)
+        .read_to_end(&mut head)?;
+    Ok(!head.contains(&0))
+}
+
+/// The parts of one session as one series: time order, one time base, gaps found.
+fn join(mut parts: Vec<ImuSeries>) -> Result<ImuSeries, InputError> {
+    parts.sort_by_key(|p| p.t0_ns);
+    check_topics(&parts)?;
+    let interval_s = 1.0 / parts[0].sample_rate_hz();
+    let t0 = parts[0].t0_ns;
+    let mut out = ImuSeries {
+        t0_ns: t0,
+        input: InputInfo {
+            topic: parts[0].input.topic.clone(),
+            ..InputInfo::default()
+        },
+        ..ImuSeries::default()
+    };
+    let mut early = Vec::new();
+    let mut label_parts = Vec::new();
+    for part in parts {
+        let offset_s = (part.t0_ns as i128 - t0 as i128) as f64 * 1e-9;
+        let first = part.input.files.first().cloned().unwrap_or_default();
+        if let (Some(&last), Some(&next)) = (out.t_s.last(), part.t_s.first()) {
+            let step_s = offset_s + next - last;
+            let before = out.input.files.last().cloned().unwrap_or_default();
+            if step_s <= 0.0 {
+                return Err(InputError::Session {
+                    message: format!(
+                        "{} starts {:.3} s before {} ends: files that overlap in time are not \
+                         one session",
+                        first.display(),
+                        -step_s,
+                        before.display()
+                    ),
+                });
+            }
+            if interval_s.is_finite() && step_s > GAP_INTERVALS * interval_s {
+                out.input.gaps.push(SessionGap {
+                    after: before,
+                    before: first.clone(),
+                    at_s: last,
+                    gap_s: step_s,
+                    missing_samples: (step_s / interval_s).round().max(1.0) as u64 - 1,
+                });
+            }
+        }
+        out.t_s.extend(part.t_s.iter().map(|t| t + offset_s));
+        out.accel_m_s2.extend(part.accel_m_s2);
+        out.gyro_rad_s.extend(part.gyro_rad_s);
+        out.temp
+            .extend(part.temp.iter().map(|&(t, c)| (t + offset_s, c)));
+        if let Some(why) = part.stopped_early {
+            early.push(format!("{}: {why}", first.display()));
+        }
+        if part.unfinished.is_some() {
+            out.unfinished = part.unfinished;
+            out.input.unfinished_file = part.input.unfinished_file;
+        }
+        label_parts.push(part.labels);
+        out.input.files.extend(part.input.files);
+    }
+    out.labels = join_labels(label_parts);
+    out.stopped_early = (!early.is_empty()).then(|| early.join("; "));
+    out.origin = origin(&out.input);
+    Ok(out)
+}
+
+/// Every file of a corrected session must have been read on the same topic.
+fn check_topics(parts: &[ImuSeries]) -> Result<(), InputError> {
+    let topic = &parts[0].input.topic;
+    if parts.iter().all(|p| p.input.topic == *topic) {
+        return Ok(());
+    }
+    let listed: Vec<String> = parts
+        .iter()
+        .map(|p| {
+            format!(
+                "{} ({})",
+                p.input
+                    .files
+                    .first()
+                    .map_or(String::new(), |f| f.display().to_string()),
+                p.input.topic.as_deref().unwrap_or("text")
+            )
+        })
+        .collect();
+    Err(InputError::Session {
+        message: format!(
+            "the files were read on different topics: {}; choose one with --topic",
+            listed.join(", ")
+        ),
+    })
+}
+
+/// Labels of the parts, names merged: `None` unless every part has labels.
+fn join_labels(parts: Vec<Option<Labels>>) -> Option<Labels> {
+    let mut out = Labels::default();
+    for labels in parts {
+        let l = labels?;
+        for &i in &l.per_sample {
+            out.push(&l.names[i as usize]);
+        }
+    }
+    Some(out)
+}
+
+/// `a + b + c (topic)`, or the first and last of many files.
+fn origin(info: &InputInfo) -> String {
+    let topic = info
+        .topic
+        .as_ref()
+        .map_or(String::new(), |t| format!(" ({t})"));
+    let names: Vec<String> = info.files.iter().map(|f| f.display().to_string()).collect();
+    let listed = match names.as_slice() {
+        [first, .., last] if names.len() > 3 => {
+            format!("{first} .. {last} ({} files)", names.len())
+        }
+        _ => names.join(" + "),
+    };
+    format!("{listed}{topic}")
+}

@@ -1,0 +1,182 @@
+//! Recordings of several files read as one: imud's rotated files of a session (and a restart
+//! later, a gap that is reported), and a rosbag2 directory written by Python `rosbags` (an
+//! independent writer) with two IMU topics: an error listing both without a topic, the right
+//! values with one.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use imu_analysis::input::{InputError, InputOptions, read_input};
+use imu_bus::CorrectedSample;
+use imu_bus::recording::{LogRecord, Recorder, RecordingConfig, list_recordings};
+
+const T0_NS: u64 = 1_700_000_000_000_000_000;
+const DT_NS: u64 = 10_000_000;
+
+/// The truth of sample `k`: accel, gyro.
+fn truth(k: u64) -> ([f64; 3], [f64; 3]) {
+    let x = k as f64;
+    (
+        [0.01 * x, -0.5, 9.75 - 1e-3 * x],
+        [1e-4 * x, 2e-3, -3e-4 * x],
+    )
+}
+
+/// One daemon run: samples `ks` on the corrected stream, rotated into files of ~24 KiB.
+fn record_run(dir: &Path, ks: std::ops::Range<u64>) {
+    let config = RecordingConfig {
+        dir: dir.to_path_buf(),
+        prefix: "imud".into(),
+        rotate_size_bytes: 24 * 1024,
+        rotate_interval_s: 0.0,
+        ..RecordingConfig::default()
+    };
+    let rec = Recorder::start(config, vec![("imud.device".into(), BTreeMap::new())]).unwrap();
+    for k in ks {
+        let (a, g) = truth(k);
+        let t = T0_NS + k * DT_NS;
+        assert!(rec.log(LogRecord::Corrected(CorrectedSample {
+            seq: k,
+            t_sample_ns: t,
+            t_wall_ns: t,
+            accel_m_s2: a,
+            gyro_rad_s: g,
+            ..CorrectedSample::default()
+        })));
+    }
+    rec.finish().unwrap();
+}
+
+#[test]
+fn rotated_imud_files_are_one_recording_with_the_gap_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    record_run(dir.path(), 0..600);
+    let first_run = list_recordings(dir.path(), "imud").unwrap();
+    assert!(first_run.len() >= 3, "rotation made {first_run:?}");
+    // The daemon restarted one second later: samples 700.. in new files (index from 0 again).
+    std::thread::sleep(std::time::Duration::from_millis(1100));
+    record_run(dir.path(), 700..900);
+    let all = list_recordings(dir.path(), "imud").unwrap();
+    assert!(all.len() > first_run.len());
+    let options = InputOptions::default();
+    // The directory, and the files given one by one in any order, are the same recording.
+    let from_dir = read_input(&[dir.path().to_path_buf()], &options, &mut |_, _| {}).unwrap();
+    let mut shuffled = all.clone();
+    shuffled.reverse();
+    let from_files = read_input(&shuffled, &options, &mut |_, _| {}).unwrap();
+    assert_eq!(from_dir, from_files);
+    let s = from_dir;
+    let ks: Vec<u64> = (0..600).chain(700..900).collect();
+    assert_eq!(s.len(), ks.len());
+    assert_eq!(s.t0_ns, T0_NS);
+    for (i, &k) in ks.iter().enumerate() {
+        let (a, g) = truth(k);
+        assert!(
+            (s.t_s[i] - (k * DT_NS) as f64 * 1e-9).abs() < 1e-9,
+            "t of {k}"
+        );
+        assert_eq!(s.accel_m_s2[i], a, "accel of {k}");
+        assert_eq!(s.gyro_rad_s[i], g, "gyro of {k}");
+    }
+    assert_eq!(s.input.files.len(), all.len());
+    assert_eq!(s.input.topic.as_deref(), Some("/imu/data"));
+    // One gap, between the runs: samples 600..=699 missing; none between rotated files.
+    assert_eq!(s.input.gaps.len(), 1, "{:?}", s.input.gaps);
+    let gap = &s.input.gaps[0];
+    assert_eq!(gap.missing_samples, 100);
+    assert!((gap.gap_s - 1.01).abs() < 1e-9 && (gap.at_s - 5.99).abs() < 1e-9);
+    assert_eq!(gap.after, *first_run.last().unwrap());
+    // Files of one session that overlap in time are refused.
+    let twice = [all[0].clone(), all[0].clone()];
+    let e = read_input(&twice, &options, &mut |_, _| {}).unwrap_err();
+    assert!(
+        matches!(e, InputError::Session { .. }) && e.to_string().contains("overlap"),
+        "{e}"
+    );
+}
+
+/// Writes the rosbag2 directory with Python `rosbags`; `None` when the peer is unavailable
+/// and that is allowed (fails under IMUD_REQUIRE_PEERS).
+fn write_bag(dir: &Path, n: u64) -> Option<PathBuf> {
+    let script = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/python"))
+        .join("write_rosbag2.py");
+    let bag = dir.join("bag");
+    let unavailable = |why: String| {
+        assert!(
+            std::env::var_os("IMUD_REQUIRE_PEERS").is_none(),
+            "Python peer unavailable: {why} (python3 -m pip install -r requirements-dev.txt)"
+        );
+        eprintln!("skipping the rosbag2 test (install requirements-dev.txt): {why}");
+        None
+    };
+    match Command::new("python3")
+        .arg(&script)
+        .arg(&bag)
+        .arg(n.to_string())
+        .arg(T0_NS.to_string())
+        .output()
+    {
+        Ok(out) if out.status.success() => Some(bag),
+        Ok(out) if out.status.code() == Some(77) => {
+            unavailable(String::from_utf8_lossy(&out.stderr).trim().to_string())
+        }
+        Ok(out) => panic!(
+            "{} failed: {}",
+            script.display(),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+        Err(e) => unavailable(format!("cannot run python3: {e}")),
+    }
+}
+
+#[test]
+fn a_rosbag2_directory_with_two_imu_topics() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 40;
+    let Some(bag) = write_bag(dir.path(), n) else {
+        return;
+    };
+    let paths = [bag.clone()];
+    let e = read_input(&paths, &InputOptions::default(), &mut |_, _| {}).unwrap_err();
+    let text = e.to_string();
+    assert!(matches!(e, InputError::AmbiguousTopic { .. }), "{text}");
+    assert!(
+        text.contains("/imu/a (20 messages), /imu/b (20 messages)") && text.contains("--topic"),
+        "{text}"
+    );
+    for (topic, sign) in [("/imu/a", 1.0), ("/imu/b", -1.0)] {
+        let options = InputOptions {
+            topic: Some(topic.into()),
+            ..InputOptions::default()
+        };
+        let s = read_input(&paths, &options, &mut |_, _| {}).unwrap();
+        assert_eq!(s.len(), n as usize, "{topic}: both files of the bag");
+        assert_eq!(s.t0_ns, T0_NS);
+        for k in 0..n as usize {
+            let x = k as f64;
+            let a = [0.125 * x, -0.5, 9.75].map(|v| sign * v);
+            let g = [1e-3 * x, 2e-3, -3e-3 * x].map(|v| sign * v);
+            assert_eq!(s.accel_m_s2[k], a, "{topic} accel {k}");
+            assert_eq!(s.gyro_rad_s[k], g, "{topic} gyro {k}");
+            assert!((s.t_s[k] - 0.01 * x).abs() < 1e-9);
+        }
+        assert_eq!(s.input.topic.as_deref(), Some(topic));
+        assert_eq!(
+            s.input.files,
+            vec![bag.join("bag_0.mcap"), bag.join("bag_1.mcap")]
+        );
+        assert!(s.input.gaps.is_empty(), "{:?}", s.input.gaps);
+    }
+    let options = InputOptions {
+        topic: Some("/imu/c".into()),
+        ..InputOptions::default()
+    };
+    let e = read_input(&paths, &options, &mut |_, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("no sensor_msgs/msg/Imu topic `/imu/c`") && e.contains("/imu/b"),
+        "{e}"
+    );
+}
