@@ -470,11 +470,19 @@ pub fn detect(series: &ImuSeries, opts: &SegmentOptions) -> Result<Segmentation,
     let sg = window_std(&series.gyro_rad_s, w);
     let thr_a = opts.threshold_factor * quantile(&sa, opts.floor_quantile);
     let thr_g = opts.threshold_factor * quantile(&sg, opts.floor_quantile);
-    let quiet: Vec<bool> = sa
+    let mut quiet: Vec<bool> = sa
         .iter()
         .zip(&sg)
         .map(|(a, g)| *a <= thr_a && *g <= thr_g)
         .collect();
+    // A labelled session's parts bound its segments: a segment never spans two parts.
+    if let Some(labels) = &series.labels {
+        for (i, w) in labels.per_sample.windows(2).enumerate() {
+            if w[0] != w[1] {
+                quiet[i + 1] = false;
+            }
+        }
+    }
     let (runs, mut dropped) = kept_runs(series, &quiet, opts, rate_hz);
     let candidates: Vec<Segment> = runs
         .iter()
@@ -779,5 +787,23 @@ mod tests {
             "{notes}"
         );
         assert!(notes.contains("a still pose needs 2 s"), "{notes}");
+    }
+
+    #[test]
+    fn labelled_parts_bound_the_segments() {
+        // 20 s still at one orientation, labelled as two parts: two segments, split where the
+        // label changes, not one.
+        let mut s = series(&[(20.0, [0.0, 0.0, 9.8], [0.0; 3])], 100.0);
+        let mut labels = crate::input::Labels::default();
+        for k in 0..s.len() {
+            labels.push(if k < 1200 { "rest-a" } else { "rest-b" });
+        }
+        let seg = detect(&s, &SegmentOptions::default()).unwrap();
+        assert_eq!(seg.segments.len(), 1);
+        s.labels = Some(labels);
+        let seg = detect(&s, &SegmentOptions::default()).unwrap();
+        assert_eq!(seg.segments.len(), 2, "{:?}", seg.segments);
+        assert!(seg.segments[0].range().end <= 1200, "{:?}", seg.segments[0]);
+        assert!(seg.segments[1].first_sample > 1200, "{:?}", seg.segments[1]);
     }
 }
