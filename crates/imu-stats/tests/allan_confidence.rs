@@ -30,12 +30,14 @@ fn greenhall(taus: TauSet, confidence: f64) -> Options {
     }
 }
 
-/// Stable32 1.60 on PHASE.DAT, octave taus, confidence factor 0.683: (m, min sigma, sigma,
-/// max sigma) per kind. Source: allantools (github.com/aewallin/allantools, commit 599dc9e),
+/// (m, min sigma, sigma, max sigma) of one Stable32 row.
+type Row = (usize, f64, f64, f64);
+
+/// Stable32 1.60 on PHASE.DAT, octave taus, confidence factor 0.683: the rows per kind. Source: allantools (github.com/aewallin/allantools, commit 599dc9e),
 /// tests/phasedat/phase_dat_{adev,oadev,mdev,hdev,ohdev,tdev,totdev}_octave.txt. Stable32
 /// identified alpha = 0 (white FM) at every tau.
 #[rustfmt::skip]
-fn stable32_tables() -> Vec<(Kind, Vec<(usize, f64, f64, f64)>)> {
+fn stable32_tables() -> Vec<(Kind, Vec<Row>)> {
     // A flat table of published values.
     vec![
         (Kind::Adev, vec![
@@ -231,6 +233,10 @@ fn bounds_equal_allantools_in_the_same_run() {
                     1e-6,
                 );
             }
+            assert!(
+                compared >= 9,
+                "{name} {kind:?}: only {compared} taus in common"
+            );
         }
         if name == "mixed" {
             assert!(
