@@ -17,7 +17,9 @@ use imu_analysis::input::{AccelUnit, GyroUnit};
 use imu_analysis::{ImuSeries, Source};
 use imu_cli::progress::read_any;
 use imu_stats::allan::{self, DevPoint, EdfMethod, Kind, NoiseType, Options, TauSet};
-use imu_stats::noise_terms::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
+use imu_stats::noise_terms::{
+    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_with, slope_readoffs,
+};
 use serde::Serialize;
 use taus::TauArg;
 
@@ -233,8 +235,8 @@ fn analyse(series: &ImuSeries, req: &Request) -> Result<Vec<AxisReport>> {
                 .map(|&kind| kind_report(kind, unit, &y, rate_hz, &opts))
                 .collect::<Result<Vec<_>>>()
                 .with_context(context)?;
-            let fit =
-                fit_terms(&curve).with_context(|| format!("noise terms of {sensor} {axis}"))?;
+            let fit = fit_terms_with(&curve, &FitOptions::default())
+                .with_context(|| format!("noise terms of {sensor} {axis}"))?;
             out.push(AxisReport {
                 sensor,
                 axis,

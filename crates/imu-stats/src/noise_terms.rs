@@ -70,7 +70,8 @@ pub struct Term {
     pub value: f64,
     /// 1-sigma uncertainty (for a zero estimate: a 1-sigma upper bound).
     pub sigma: f64,
-    /// `value > SIGNIFICANCE_SIGMAS * sigma`: the data need this term.
+    /// `value > SIGNIFICANCE_SIGMAS * sigma` (2 sigma with [`TermSelection::AllFive`]): the
+    /// data need this term.
     pub significant: bool,
 }
 
@@ -185,13 +186,38 @@ pub enum RampTerm {
 /// Options of [`fit_terms_with`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FitOptions {
-    /// Whether the rate ramp R is fitted.
+    /// Which terms are reported, and how their significance is judged.
+    pub selection: TermSelection,
+    /// Whether the rate ramp R is fitted (with [`TermSelection::Supported`]).
     pub ramp: RampTerm,
 }
 
-/// [`fit_terms_with`] with the default options (rate ramp only where the curve shows it).
+/// How the fit decides which terms the curve supports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TermSelection {
+    /// Only the terms the curve supports: correlated-tau (sandwich) uncertainties,
+    /// [`SIGNIFICANCE_SIGMAS`], insignificant terms dropped and the rest refitted (see
+    /// [`fit_terms_with`]). What imu-noise reports.
+    #[default]
+    Supported,
+    /// All five terms as fitted, uncertainties as if the points were independent, significant
+    /// at 2 sigma: the fit [`fit_terms`] has always made, which the workbench's noise floor
+    /// (and its calibrated negative controls) is built on. It reports spurious B and K on some
+    /// white-noise records.
+    AllFive,
+}
+
+/// All five terms as fitted ([`TermSelection::AllFive`]): the workbench floor's fit. For terms
+/// the curve supports, use [`fit_terms_with`] and the default options.
 pub fn fit_terms(curve: &DevCurve) -> Result<NoiseTerms, NoiseError> {
-    fit_terms_with(curve, &FitOptions::default())
+    fit_terms_with(
+        curve,
+        &FitOptions {
+            selection: TermSelection::AllFive,
+            ramp: RampTerm::Include,
+        },
+    )
 }
 
 /// Fits the IEEE terms to an ADEV/OADEV curve (see the module docs). The curve's EDF weights
@@ -221,8 +247,11 @@ pub fn fit_terms_with(curve: &DevCurve, options: &FitOptions) -> Result<NoiseTer
         RampTerm::Exclude => false,
         RampTerm::Auto => ramp_region_present(curve),
     };
+    if options.selection == TermSelection::AllFive {
+        return fit_allowed(None, &pts, &[true; 5], Uncertainty::Independent).map(|f| f.terms);
+    }
     let record = single_record(curve.kind, &pts);
-    let mut current = fit_allowed(record, &pts, &allowed)?;
+    let mut current = fit_allowed(record, &pts, &allowed, Uncertainty::CorrelatedTaus)?;
     loop {
         let t = current.terms.as_array();
         let drop = [0, 2, 3, 4]
@@ -234,7 +263,7 @@ pub fn fit_terms_with(curve: &DevCurve, options: &FitOptions) -> Result<NoiseTer
         };
         let mut fewer = allowed;
         fewer[j] = false;
-        let reduced = fit_allowed(record, &pts, &fewer)?;
+        let reduced = fit_allowed(record, &pts, &fewer, Uncertainty::CorrelatedTaus)?;
         // A term the residuals cannot do without stays even if its estimate is uncertain (an
         // exact curve's tiny Q): the drop may not raise the weighted residual sum by more than
         // DROP_F times the fuller fit's residual variance.
@@ -259,10 +288,20 @@ struct Fitted {
 }
 
 /// The iteratively reweighted NNLS fit over the allowed terms, with each term's uncertainty.
+/// How the term uncertainties treat the points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Uncertainty {
+    /// As independent (the inverse normal matrix; significance at 2 sigma).
+    Independent,
+    /// As correlated between taus (the sandwich; significance at [`SIGNIFICANCE_SIGMAS`]).
+    CorrelatedTaus,
+}
+
 fn fit_allowed(
     record: Option<usize>,
     pts: &[&DevPoint],
     allowed: &[bool; 5],
+    uncertainty: Uncertainty,
 ) -> Result<Fitted, NoiseError> {
     // Iteratively reweighted: the first pass weights by the measured variance, later passes by
     // the fitted model's (measured-variance weights favour points that happen to fall low).
@@ -282,10 +321,22 @@ fn fit_allowed(
     } = result.expect("IRLS_PASSES > 0");
     let rows = weighted_rows(record, pts, Some(&c));
     let taus: Vec<f64> = pts.iter().map(|p| p.tau_s).collect();
-    let cov = sandwich(&rows, &taus, &scale, &set, &inv);
+    let correlated = uncertainty == Uncertainty::CorrelatedTaus;
+    let cov = if correlated {
+        sandwich(&rows, &taus, &scale, &set, &inv)
+    } else {
+        inv
+    };
     let all = [0, 1, 2, 3, 4];
-    let full = solve(&normal_equations(&rows, &scale, &all).0, &DVector::zeros(5))
-        .map(|(_, inv)| sandwich(&rows, &taus, &scale, &all, &inv));
+    let full =
+        solve(&normal_equations(&rows, &scale, &all).0, &DVector::zeros(5)).map(|(_, inv)| {
+            if correlated {
+                sandwich(&rows, &taus, &scale, &all, &inv)
+            } else {
+                inv
+            }
+        });
+    let threshold = if correlated { SIGNIFICANCE_SIGMAS } else { 2.0 };
     let term = |j: usize| -> Term {
         let var_c = if let Some(k) = set.iter().position(|&s| s == j) {
             cov[(k, k)] / (scale[j] * scale[j])
@@ -304,7 +355,7 @@ fn fit_allowed(
         Term {
             value,
             sigma,
-            significant: value > SIGNIFICANCE_SIGMAS * sigma,
+            significant: value > threshold * sigma,
         }
     };
     let dof = pts.len().saturating_sub(set.len()).max(1);

@@ -4,7 +4,7 @@
 //! real rate ramp is found (Auto) and excluded when asked.
 
 use imu_stats::allan::{EdfMethod, Kind, Options, TauSet, deviation};
-use imu_stats::noise_terms::{FitOptions, NoiseTerms, RampTerm, fit_terms, fit_terms_with};
+use imu_stats::noise_terms::{FitOptions, NoiseTerms, RampTerm, fit_terms_with};
 
 const RATE_HZ: f64 = 100.0;
 
@@ -107,6 +107,7 @@ fn rate_ramp_only_where_the_curve_shows_it_or_when_asked() {
         &y,
         &FitOptions {
             ramp: RampTerm::Exclude,
+            ..FitOptions::default()
         },
     );
     assert_eq!(excluded.r_u_per_s.value, 0.0, "{excluded:?}");
@@ -116,16 +117,18 @@ fn rate_ramp_only_where_the_curve_shows_it_or_when_asked() {
         &walk,
         &FitOptions {
             ramp: RampTerm::Include,
+            ..FitOptions::default()
         },
     );
     assert!(!included.r_u_per_s.significant, "{included:?}");
     assert!(included.k_u_sqrt_hz.significant, "{included:?}");
-    // The default entry point is Auto.
-    let opts = Options {
-        taus: TauSet::PerDecade(8),
-        edf: EdfMethod::Greenhall,
-        ..Options::default()
-    };
-    let curve = deviation(Kind::Oadev, &y, 1.0 / RATE_HZ, &opts).unwrap();
-    assert_eq!(fit_terms(&curve).unwrap(), auto);
+    // The default options are Auto.
+    let auto_again = fit(
+        &y,
+        &FitOptions {
+            ramp: RampTerm::Auto,
+            ..FitOptions::default()
+        },
+    );
+    assert_eq!(auto_again, auto);
 }
