@@ -18,8 +18,8 @@
 //! Allan-variance estimate, var(sigma^2) = sigma^4 (2 / EDF + 0.05^2) (the second term is a
 //! model-error floor, see [`MODEL_ERROR_FLOOR`]); the first pass takes sigma^2 from the data,
 //! later passes (iteratively reweighted, 4 in all) from the fitted model, because weights from
-//! the noisy data themselves favour points that happen to fall low. Term uncertainties are
-//! the sandwich covariance of that weighted fit under an assumed correlation of the Allan
+//! the noisy data themselves favour points that happen to fall low. Term uncertainties (with
+//! [`TermSelection::Supported`]) are the sandwich covariance of that weighted fit under an assumed correlation of the Allan
 //! variances at different taus (see `sandwich`; on the passive set; for a term fitted as zero,
 //! the 1-sigma upper bound from the full five-term covariance): treating the overlapping
 //! estimates as independent made B and K look significant on pure white noise.
@@ -28,7 +28,8 @@
 //! estimate exceeds [`SIGNIFICANCE_SIGMAS`] standard deviations; the others are dropped one at a
 //! time and the rest refitted (a spurious B or R otherwise takes the place of a real K). The
 //! rate ramp R is considered only when asked for or when the curve has a ramp region
-//! ([`RampTerm`]).
+//! ([`RampTerm`]). [`fit_terms`] keeps the earlier fit of all five terms with independent-point
+//! uncertainties ([`TermSelection::AllFive`]), which the workbench's noise floor is built on.
 
 use serde::Serialize;
 use thiserror::Error;
