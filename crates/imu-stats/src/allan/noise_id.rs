@@ -13,7 +13,7 @@ pub const MIN_POINTS: usize = 30;
 
 /// The power-law exponent alpha (S_y(f) ~ f^alpha) of phase `x` at averaging factor `m`,
 /// differencing at most `d_max` times (2 for the Allan variances, 3 for the Hadamard ones).
-/// `None` if the decimated series has fewer than [`MIN_POINTS`] points.
+/// `None` if the decimated series has fewer than `MIN_POINTS` (30) points.
 pub fn autocorrelation_alpha(x: &[f64], m: usize, d_max: u32) -> Option<i32> {
     let decimated: Vec<f64> = x.iter().step_by(m.max(1)).copied().collect();
     if decimated.len() < MIN_POINTS {
