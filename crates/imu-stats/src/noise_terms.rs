@@ -19,10 +19,11 @@
 //! model-error floor, see [`MODEL_ERROR_FLOOR`]); the first pass takes sigma^2 from the data,
 //! later passes (iteratively reweighted, 4 in all) from the fitted model, because weights from
 //! the noisy data themselves favour points that happen to fall low. Term uncertainties (with
-//! [`TermSelection::Supported`]) are the sandwich covariance of that weighted fit under an assumed correlation of the Allan
-//! variances at different taus (see `sandwich`; on the passive set; for a term fitted as zero,
-//! the 1-sigma upper bound from the full five-term covariance): treating the overlapping
-//! estimates as independent made B and K look significant on pure white noise.
+//! [`TermSelection::Supported`]) are the sandwich covariance of that weighted fit under an
+//! assumed correlation of the Allan variances at different taus (see `sandwich`; on the passive
+//! set; for a term fitted as zero, the 1-sigma upper bound from the full five-term covariance):
+//! treating the overlapping estimates as independent made B and K look significant on pure
+//! white noise.
 //!
 //! Term selection ([`fit_terms_with`]): a term is kept only if the curve supports it, i.e. its
 //! estimate exceeds [`SIGNIFICANCE_SIGMAS`] standard deviations; the others are dropped one at a
