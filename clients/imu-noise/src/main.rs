@@ -1,18 +1,27 @@
-//! `imu-noise`: Allan deviation and IEEE Std 952/1293 noise terms of a static recording, per
-//! sensor and axis, as a table (or `--json`), SVG plots and a Kalibr-compatible imu.yaml.
+//! `imu-noise`: Allan-family deviations (ADEV, OADEV, MDEV, HDEV, OHDEV, TDEV, TOTDEV, with
+//! confidence intervals) and IEEE Std 952/1293 noise terms of a static recording, per sensor and
+//! axis, as a table (or `--json`), SVG plots and a Kalibr-compatible imu.yaml.
+//!
+//! Files: `taus.rs` (the `--taus` argument), `table.rs` (the text output), `plots.rs` (SVG).
+
+mod plots;
+mod table;
+mod taus;
 
 use std::io::{IsTerminal, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use imu_analysis::input::{AccelUnit, GyroUnit};
-use imu_analysis::render::svg::{Chart, Series, Style, write_svg};
 use imu_analysis::{ImuSeries, Source};
 use imu_cli::progress::read_input;
-use imu_stats::allan::{self, Kind, Options, TauSet};
-use imu_stats::noise_terms::{NoiseTerms, SlopeReadoffs, fit_terms, slope_readoffs};
+use imu_stats::allan::{self, DevPoint, EdfMethod, Kind, NoiseType, Options, TauSet};
+use imu_stats::noise_terms::{
+    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_with, slope_readoffs,
+};
 use serde::Serialize;
+use taus::TauArg;
 
 const G_M_S2: f64 = 9.80665;
 const RAD_TO_DEG: f64 = 180.0 / std::f64::consts::PI;
@@ -32,15 +41,29 @@ struct Cli {
     /// Write a Kalibr-compatible imu.yaml here.
     #[arg(long, value_name = "IMU.yaml")]
     kalibr: Option<PathBuf>,
-    /// Write one SVG per sensor/axis into this directory.
+    /// Write SVG plots into this directory: the OADEV with the fitted terms
+    /// (adev-SENSOR-AXIS.svg) and each other --kind (dev-KIND-SENSOR-AXIS.svg).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
+    /// Deviations to compute, comma-separated: adev, oadev, mdev, hdev, ohdev, tdev, totdev.
+    #[arg(long, value_delimiter = ',', default_value = "oadev")]
+    kind: Vec<Kind>,
+    /// Two-sided confidence level of the bounds (0.683 is "1 sigma", Stable32's default).
+    #[arg(long, default_value = "0.683", value_parser = confidence_level)]
+    confidence: f64,
+    /// How the bounds' degrees of freedom are computed: `greenhall` (Greenhall's EDF with
+    /// lag-1 autocorrelation noise identification, as Stable32) or `sp1065` (closed forms with
+    /// the noise type from the local slope).
+    #[arg(long, value_enum, default_value = "greenhall")]
+    edf: EdfArg,
     /// Which stream of an imud recording to analyse.
     #[arg(long, value_enum, default_value = "corrected")]
     source: SourceArg,
-    /// Tau set: `octave`, `all` or `N-per-decade` (e.g. `10-per-decade`).
+    /// Tau set: `octave`, `decade` (Stable32's 1, 2, 4 x 10^k), `all`, `N-per-decade` (e.g.
+    /// `10-per-decade`), or taus in seconds (`1,2,4,10`; each rounded to a whole number of
+    /// sample periods). The noise-term fit uses this set too, or 8-per-decade for a list.
     #[arg(long, default_value = "8-per-decade")]
-    taus: TauSet,
+    taus: TauArg,
     /// ROS topic written into the Kalibr file.
     #[arg(long, default_value = "/imu/data")]
     rostopic: String,
@@ -60,6 +83,50 @@ enum SourceArg {
     Raw,
 }
 
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum EdfArg {
+    Greenhall,
+    Sp1065,
+}
+
+impl From<EdfArg> for EdfMethod {
+    fn from(a: EdfArg) -> Self {
+        match a {
+            EdfArg::Greenhall => EdfMethod::Greenhall,
+            EdfArg::Sp1065 => EdfMethod::Sp1065,
+        }
+    }
+}
+
+fn confidence_level(s: &str) -> Result<f64, String> {
+    let c = imu_cli::args::finite_f64(s)?;
+    if c > 0.0 && c < 1.0 {
+        Ok(c)
+    } else {
+        Err(format!("confidence {c} must lie strictly between 0 and 1"))
+    }
+}
+
+/// One deviation curve of one axis, every point with the noise type its bounds assumed.
+#[derive(Debug, Serialize)]
+struct KindReport {
+    kind: Kind,
+    /// Unit of `dev`, `dev_lo`, `dev_hi` (TDEV: the rate unit times seconds).
+    unit: String,
+    edf_method: EdfMethod,
+    confidence: f64,
+    points: Vec<PointReport>,
+}
+
+#[derive(Debug, Serialize)]
+struct PointReport {
+    #[serde(flatten)]
+    point: DevPoint,
+    /// Power-law noise type the EDF assumed, and its exponent alpha (S_y ~ f^alpha).
+    noise: NoiseType,
+    alpha: i32,
+}
+
 /// Result for one sensor axis.
 #[derive(Debug, Serialize)]
 struct AxisReport {
@@ -77,7 +144,10 @@ struct AxisReport {
     /// Display units: N, B, K in deg/sqrt(h), deg/h, deg/h/sqrt(h) (gyro) or
     /// micro-g/sqrt(Hz), micro-g, micro-g*sqrt(Hz) (accel).
     display: Display,
+    /// The OADEV curve the terms were fitted to.
     curve: allan::DevCurve,
+    /// Every `--kind` asked for.
+    deviations: Vec<KindReport>,
     /// Present when the recording was read without its footer (a killed writer): how far the
     /// read got (the same facts as the warning on stderr).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -121,7 +191,15 @@ fn display(sensor: &str, t: &NoiseTerms) -> Display {
     }
 }
 
-fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
+/// What to compute, from the command line.
+struct Request {
+    kinds: Vec<Kind>,
+    taus: TauArg,
+    edf: EdfMethod,
+    confidence: f64,
+}
+
+fn analyse(series: &ImuSeries, req: &Request) -> Result<Vec<AxisReport>> {
     let rate_hz = series.sample_rate_hz();
     anyhow::ensure!(
         rate_hz.is_finite() && rate_hz > 0.0,
@@ -130,8 +208,17 @@ fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
         series.len()
     );
     let opts = Options {
-        taus,
-        ..Options::default()
+        taus: req.taus.resolve(rate_hz)?,
+        edf: req.edf,
+        confidence: req.confidence,
+        noise: None,
+    };
+    let fit_opts = Options {
+        taus: match &req.taus {
+            TauArg::Set(set) => set.clone(),
+            TauArg::Seconds(_) => TauSet::PerDecade(8),
+        },
+        ..opts.clone()
     };
     let progress = std::io::stderr().is_terminal();
     let mut out = Vec::new();
@@ -144,10 +231,17 @@ fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
                 eprint!("\ranalysing {sensor} {axis} ({} samples)...", data.len());
             }
             let y: Vec<f64> = data.iter().map(|v| v[i]).collect();
-            let curve = allan::deviation(Kind::Oadev, &y, 1.0 / rate_hz, &opts)
-                .with_context(|| format!("Allan deviation of {sensor} {axis}"))?;
-            let fit =
-                fit_terms(&curve).with_context(|| format!("noise terms of {sensor} {axis}"))?;
+            let context = || format!("Allan deviation of {sensor} {axis}");
+            let curve = allan::deviation(Kind::Oadev, &y, 1.0 / rate_hz, &fit_opts)
+                .with_context(context)?;
+            let deviations = req
+                .kinds
+                .iter()
+                .map(|&kind| kind_report(kind, unit, &y, rate_hz, &opts))
+                .collect::<Result<Vec<_>>>()
+                .with_context(context)?;
+            let fit = fit_terms_with(&curve, &FitOptions::default())
+                .with_context(|| format!("noise terms of {sensor} {axis}"))?;
             out.push(AxisReport {
                 sensor,
                 axis,
@@ -159,6 +253,7 @@ fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
                 display: display(sensor, &fit),
                 fit,
                 curve,
+                deviations,
                 input_unfinished: None,
                 input: series.input.clone(),
             });
@@ -170,122 +265,35 @@ fn analyse(series: &ImuSeries, taus: TauSet) -> Result<Vec<AxisReport>> {
     Ok(out)
 }
 
-fn opt(v: Option<f64>) -> String {
-    v.map_or_else(|| "-".into(), |v| format!("{v:.3e}"))
-}
-
-fn print_table(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()> {
-    writeln!(
-        w,
-        "Fitted IEEE terms (weighted NNLS on the Allan variance; +- 1 sigma); U = m/s^2 (accel), rad/s (gyro)"
-    )?;
-    writeln!(
-        w,
-        "{:<7}{:<3}{:>24}{:>24}{:>24}{:>12}{:>12}  display units",
-        "sensor", "ax", "N [U/sqrt(Hz)]", "B [U]", "K [U*sqrt(Hz)]", "Q [U*s]", "R [U/s]"
-    )?;
-    for r in reports {
-        let t = &r.fit;
-        let pm = |x: &imu_stats::noise_terms::Term| format!("{:.3e}+-{:.1e}", x.value, x.sigma);
-        writeln!(
-            w,
-            "{:<7}{:<3}{:>24}{:>24}{:>24}{:>12.2e}{:>12.2e}  N {:.4} {}, B {:.4} {}, K {:.4} {}",
-            r.sensor,
-            r.axis,
-            pm(&t.n_u_per_sqrt_hz),
-            pm(&t.b_u),
-            pm(&t.k_u_sqrt_hz),
-            t.q_u_s.value,
-            t.r_u_per_s.value,
-            r.display.n,
-            r.display.n_unit,
-            r.display.b,
-            r.display.b_unit,
-            r.display.k,
-            r.display.k_unit,
-        )?;
-    }
-    writeln!(
-        w,
-        "\nDiscrete per-sample values and classic slope read-offs (N at tau=1 on the -1/2 line, B = min ADEV/0.664, K at tau=3 on the +1/2 line):"
-    )?;
-    writeln!(
-        w,
-        "{:<7}{:<3}{:>10}{:>20}{:>22}{:>16}{:>16}{:>16}",
-        "sensor",
-        "ax",
-        "rate [Hz]",
-        "white/sample [U]",
-        "RW step/sample [U]",
-        "N read [U/rtHz]",
-        "B read [U]",
-        "K read [U*rtHz]"
-    )?;
-    for r in reports {
-        writeln!(
-            w,
-            "{:<7}{:<3}{:>10.2}{:>20.3e}{:>22.3e}{:>16}{:>16}{:>16}",
-            r.sensor,
-            r.axis,
-            r.sample_rate_hz,
-            r.white_per_sample_u,
-            r.random_walk_step_per_sample_u,
-            opt(r.slope_readoffs.n_u_per_sqrt_hz),
-            opt(r.slope_readoffs.b_u),
-            opt(r.slope_readoffs.k_u_sqrt_hz),
-        )?;
-    }
-    Ok(())
-}
-
-fn plot(dir: &Path, r: &AxisReport) -> Result<()> {
-    let c = &r.curve;
-    let pts = |f: &dyn Fn(&allan::DevPoint) -> f64| -> Vec<(f64, f64)> {
-        c.points.iter().map(|p| (p.tau_s, f(p))).collect()
-    };
-    let mut series = vec![
-        Series {
-            name: format!("{:.0}% confidence", c.confidence * 100.0),
-            points: pts(&|p| p.dev_lo),
-            style: Style::Band {
-                upper: pts(&|p| p.dev_hi),
-            },
+fn kind_report(
+    kind: Kind,
+    unit: &str,
+    y: &[f64],
+    rate_hz: f64,
+    opts: &Options,
+) -> Result<KindReport> {
+    let (curve, noise) = allan::deviation_with_noise(kind, y, 1.0 / rate_hz, opts)
+        .with_context(|| kind.name().to_uppercase())?;
+    Ok(KindReport {
+        kind,
+        unit: if kind == Kind::Tdev {
+            format!("{unit}*s")
+        } else {
+            unit.to_string()
         },
-        Series {
-            name: "OADEV".into(),
-            points: pts(&|p| p.dev),
-            style: Style::Points,
-        },
-        Series {
-            name: "fit".into(),
-            points: pts(&|p| r.fit.adev(p.tau_s)),
-            style: Style::Line,
-        },
-    ];
-    for (k, name) in ["Q", "N", "B", "K", "R"].iter().enumerate() {
-        let line: Vec<(f64, f64)> = c
+        edf_method: opts.edf,
+        confidence: opts.confidence,
+        points: curve
             .points
-            .iter()
-            .map(|p| (p.tau_s, r.fit.term_adevs(p.tau_s)[k]))
-            .collect();
-        if line.iter().any(|p| p.1 > 0.0) {
-            series.push(Series {
-                name: format!("{name} term"),
-                points: line,
-                style: Style::Line,
-            });
-        }
-    }
-    let chart = Chart {
-        title: format!("{} {}: overlapping Allan deviation", r.sensor, r.axis),
-        x_label: "tau [s]".into(),
-        y_label: format!("sigma(tau) [{}]", r.unit),
-        log_x: true,
-        log_y: true,
-        series,
-    };
-    let path = dir.join(format!("adev-{}-{}.svg", r.sensor, r.axis));
-    write_svg(&chart, &path).with_context(|| format!("writing {}", path.display()))
+            .into_iter()
+            .zip(noise)
+            .map(|(point, noise)| PointReport {
+                point,
+                noise,
+                alpha: noise.alpha(),
+            })
+            .collect(),
+    })
 }
 
 fn kalibr_yaml(reports: &[AxisReport], rostopic: &str) -> String {
@@ -346,14 +354,20 @@ fn run(cli: &Cli) -> Result<()> {
     if let Some(w) = series.motion_warning() {
         eprintln!("imu-noise: warning: {shown}: {w}");
     }
-    let mut reports = analyse(&series, cli.taus)?;
+    let request = Request {
+        kinds: dedup_kinds(&cli.kind),
+        taus: cli.taus.clone(),
+        edf: cli.edf.into(),
+        confidence: cli.confidence,
+    };
+    let mut reports = analyse(&series, &request)?;
     for r in &mut reports {
         r.input_unfinished.clone_from(&unfinished);
     }
     if let Some(dir) = &cli.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for r in &reports {
-            plot(dir, r)?;
+            plots::write_axis(dir, r)?;
         }
     }
     if let Some(path) = &cli.kalibr {
@@ -365,10 +379,21 @@ fn run(cli: &Cli) -> Result<()> {
         serde_json::to_writer_pretty(&mut out, &reports)?;
         writeln!(out)?;
     } else {
-        print_table(&reports, &mut out)?;
+        table::print(&reports, &mut out)?;
     }
     out.flush()?;
     Ok(())
+}
+
+/// The kinds in the order given, each once.
+fn dedup_kinds(kinds: &[Kind]) -> Vec<Kind> {
+    let mut out: Vec<Kind> = Vec::new();
+    for &k in kinds {
+        if !out.contains(&k) {
+            out.push(k);
+        }
+    }
+    out
 }
 
 fn main() -> std::process::ExitCode {

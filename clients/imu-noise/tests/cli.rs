@@ -94,3 +94,189 @@ fn missing_file_is_an_error_with_the_path() {
     assert_eq!(out.status.code(), Some(66));
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/rec.mcap"));
 }
+
+fn run_json(csv: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_imu-noise"))
+        .arg(csv)
+        .arg("--json")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// The white-noise truth of `write_csv` (N = 1e-3 U/sqrt(Hz)) for each kind at `tau_s` (m >> 1):
+/// ADEV, OADEV, HDEV, OHDEV, TOTDEV N/sqrt(tau); MDEV N/sqrt(2 tau); TDEV tau MDEV/sqrt(3).
+fn white_fm_truth(kind: &str, tau_s: f64) -> f64 {
+    let adev = 1e-3 / tau_s.sqrt();
+    match kind {
+        "mdev" => adev / 2f64.sqrt(),
+        "tdev" => tau_s * adev / 2f64.sqrt() / 3f64.sqrt(),
+        _ => adev,
+    }
+}
+
+/// Every kind at once, at an explicit tau list: the bounds cover the white-noise truth as
+/// often as their confidence level says (210 points per run; the seven kinds of one axis and
+/// tau are correlated, so the band is wide), every point says its noise type (white FM here at
+/// most taus), and every kind is plotted.
+#[test]
+fn every_kind_with_bounds_at_explicit_taus() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("static.csv");
+    write_csv(&csv);
+    let plots = dir.path().join("plots");
+    for (confidence, min_cover, max_cover) in [(0.683, 0.55, 0.82), (0.95, 0.9, 0.99)] {
+        let (inside, total) = kinds_at_taus(&csv, confidence, &plots);
+        let cover = inside as f64 / total as f64;
+        assert!(
+            (min_cover..=max_cover).contains(&cover),
+            "{confidence} bounds cover the truth at {inside} of {total} points"
+        );
+    }
+    for kind in ["adev", "mdev", "hdev", "ohdev", "tdev", "totdev"] {
+        let svg = std::fs::read_to_string(plots.join(format!("dev-{kind}-gyro-x.svg"))).unwrap();
+        assert!(svg.contains(&format!("data-name=\"{}\"", kind.to_uppercase())));
+    }
+}
+
+/// One run of every kind at taus 0.5..10 s: checks the shape of the JSON, returns how many
+/// points' bounds hold the truth, of how many.
+fn kinds_at_taus(
+    csv: &std::path::Path,
+    confidence: f64,
+    plots: &std::path::Path,
+) -> (usize, usize) {
+    let kinds = ["adev", "oadev", "mdev", "hdev", "ohdev", "tdev", "totdev"];
+    let v = run_json(
+        csv,
+        &[
+            "--kind",
+            &kinds.join(","),
+            "--taus",
+            "0.5,1,2,5,10",
+            "--confidence",
+            &confidence.to_string(),
+            "--plot",
+            plots.to_str().unwrap(),
+        ],
+    );
+    let axes = v.as_array().unwrap();
+    assert_eq!(axes.len(), 6);
+    let (mut white, mut inside, mut total) = (0, 0, 0);
+    for a in axes {
+        let devs = a["deviations"].as_array().unwrap();
+        let names: Vec<&str> = devs.iter().map(|d| d["kind"].as_str().unwrap()).collect();
+        assert_eq!(names, kinds);
+        for d in devs {
+            let kind = d["kind"].as_str().unwrap();
+            assert_eq!(d["confidence"], confidence);
+            assert_eq!(d["edf_method"], "greenhall");
+            let taus: Vec<f64> = d["points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| p["tau_s"].as_f64().unwrap())
+                .collect();
+            assert_eq!(taus.len(), 5, "{kind}: {taus:?}");
+            for (p, want) in d["points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .zip([0.5, 1.0, 2.0, 5.0, 10.0])
+            {
+                let tau = p["tau_s"].as_f64().unwrap();
+                assert!((tau - want).abs() < 1e-9, "{kind}: tau {tau}");
+                let (lo, hi) = (p["dev_lo"].as_f64().unwrap(), p["dev_hi"].as_f64().unwrap());
+                let truth = white_fm_truth(kind, tau);
+                assert!(lo < hi, "{kind} tau {tau}: [{lo:e}, {hi:e}]");
+                if lo < truth && truth < hi {
+                    inside += 1;
+                }
+                total += 1;
+                if p["noise"] == "white-fm" && p["alpha"] == 0 {
+                    white += 1;
+                }
+            }
+        }
+        let unit = devs[5]["unit"].as_str().unwrap();
+        assert!(unit.ends_with("*s"), "TDEV unit {unit}");
+    }
+    assert!(
+        white * 10 >= total * 9,
+        "white FM identified at {white} of {total} points"
+    );
+    (inside, total)
+}
+
+/// Stable32's decade set, and the text table's block per kind.
+#[test]
+fn decade_taus_and_the_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("static.csv");
+    write_csv(&csv);
+    let v = run_json(&csv, &["--kind", "mdev", "--taus", "decade"]);
+    let taus: Vec<f64> = v[0]["deviations"][0]["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["tau_s"].as_f64().unwrap())
+        .collect();
+    let want = [
+        0.01, 0.02, 0.04, 0.1, 0.2, 0.4, 1.0, 2.0, 4.0, 10.0, 20.0, 40.0,
+    ];
+    assert_eq!(taus.len(), want.len(), "{taus:?}");
+    for (t, w) in taus.iter().zip(want) {
+        assert!((t / w - 1.0).abs() < 1e-9, "{taus:?}");
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_imu-noise"))
+        .arg(&csv)
+        .args(["--kind", "hdev,totdev", "--taus", "octave"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    for block in [
+        "HDEV of accel [m/s^2]",
+        "HDEV of gyro [rad/s]",
+        "TOTDEV of gyro [rad/s]",
+    ] {
+        assert!(text.contains(block), "{block} missing in\n{text}");
+    }
+}
+
+/// Unknown kinds, bad tau lists and confidence levels outside (0, 1) are usage errors (64)
+/// that name the bad value.
+#[test]
+fn bad_kind_taus_and_confidence_are_usage_errors() {
+    for (flag, value) in [
+        ("--kind", "oadev,allan"),
+        ("--taus", "1,two"),
+        ("--taus", "0.001"),
+        ("--confidence", "1.5"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("static.csv");
+        write_csv(&csv);
+        let out = Command::new(env!("CARGO_BIN_EXE_imu-noise"))
+            .arg(&csv)
+            .args([flag, value])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let bad = value.rsplit(',').next().unwrap();
+        assert!(stderr.contains(bad), "{flag} {value}: {stderr}");
+        if value != "0.001" {
+            assert_eq!(out.status.code(), Some(64), "{flag} {value}: {stderr}");
+        } else {
+            assert!(
+                stderr.contains("shorter than the sample period"),
+                "{stderr}"
+            );
+        }
+    }
+}

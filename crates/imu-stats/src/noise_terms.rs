@@ -18,10 +18,19 @@
 //! Allan-variance estimate, var(sigma^2) = sigma^4 (2 / EDF + 0.05^2) (the second term is a
 //! model-error floor, see [`MODEL_ERROR_FLOOR`]); the first pass takes sigma^2 from the data,
 //! later passes (iteratively reweighted, 4 in all) from the fitted model, because weights from
-//! the noisy data themselves favour points that happen to fall low. Term uncertainties
-//! propagate the inverse normal matrix (on the passive set; for a term fitted as zero, the
-//! 1-sigma upper bound from the full five-term covariance). Adjacent OADEV points are
-//! correlated, so these uncertainties are somewhat optimistic.
+//! the noisy data themselves favour points that happen to fall low. Term uncertainties (with
+//! [`TermSelection::Supported`]) are the sandwich covariance of that weighted fit under an
+//! assumed correlation of the Allan variances at different taus (see `sandwich`; on the passive
+//! set; for a term fitted as zero, the 1-sigma upper bound from the full five-term covariance):
+//! treating the overlapping estimates as independent made B and K look significant on pure
+//! white noise.
+//!
+//! Term selection ([`fit_terms_with`]): a term is kept only if the curve supports it, i.e. its
+//! estimate exceeds [`SIGNIFICANCE_SIGMAS`] standard deviations; the others are dropped one at a
+//! time and the rest refitted (a spurious B or R otherwise takes the place of a real K). The
+//! rate ramp R is considered only when asked for or when the curve has a ramp region
+//! ([`RampTerm`]). [`fit_terms`] keeps the earlier fit of all five terms with independent-point
+//! uncertainties ([`TermSelection::AllFive`]), which the workbench's noise floor is built on.
 
 use serde::Serialize;
 use thiserror::Error;
@@ -63,9 +72,16 @@ pub struct Term {
     pub value: f64,
     /// 1-sigma uncertainty (for a zero estimate: a 1-sigma upper bound).
     pub sigma: f64,
-    /// `value > 2 sigma`: the data need this term.
+    /// `value > SIGNIFICANCE_SIGMAS * sigma` (2 sigma with [`TermSelection::AllFive`]): the
+    /// data need this term.
     pub significant: bool,
 }
+
+/// Standard deviations a term's estimate must exceed to be reported significant (and kept).
+/// Three, not two: an axis tests up to four terms and a recording has six axes, so at 2 sigma
+/// about one recording in two would show a spurious term (20 white-noise seeds at 2 sigma gave
+/// two false B/K; see `tests/noise_fit_truth.rs`).
+pub const SIGNIFICANCE_SIGMAS: f64 = 3.0;
 
 /// The five IEEE terms fitted to an Allan variance, in units of U (the rate unit).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -103,6 +119,17 @@ impl NoiseTerms {
         let c = self.coefficients();
         let a = basis(tau_s);
         std::array::from_fn(|i| (a[i] * c[i]).sqrt())
+    }
+
+    /// The five terms in the order Q, N, B, K, R.
+    pub fn as_array(&self) -> [Term; 5] {
+        [
+            self.q_u_s,
+            self.n_u_per_sqrt_hz,
+            self.b_u,
+            self.k_u_sqrt_hz,
+            self.r_u_per_s,
+        ]
     }
 
     fn coefficients(&self) -> [f64; 5] {
@@ -144,38 +171,177 @@ fn solve(a: &DMatrix<f64>, b: &DVector<f64>) -> Option<(DVector<f64>, DMatrix<f6
     crate::linear::solve_with_inverse(a, b, 1e-13)
 }
 
-/// Fits the five IEEE terms to an ADEV/OADEV curve (see the module docs). The curve's EDF
-/// weights the points; the units of the result are those of the rate data.
+/// Whether the rate-ramp term R is fitted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RampTerm {
+    /// Only when the curve has a rate-ramp region: somewhere it rises significantly faster
+    /// than the +1/2 slope of a random walk (see [`ramp_region_present`]).
+    #[default]
+    Auto,
+    /// Always fitted.
+    Include,
+    /// Never fitted.
+    Exclude,
+}
+
+/// Options of [`fit_terms_with`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FitOptions {
+    /// Which terms are reported, and how their significance is judged.
+    pub selection: TermSelection,
+    /// Whether the rate ramp R is fitted (with [`TermSelection::Supported`]).
+    pub ramp: RampTerm,
+}
+
+/// How the fit decides which terms the curve supports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TermSelection {
+    /// Only the terms the curve supports: correlated-tau (sandwich) uncertainties,
+    /// [`SIGNIFICANCE_SIGMAS`], insignificant terms dropped and the rest refitted (see
+    /// [`fit_terms_with`]). What imu-noise reports.
+    #[default]
+    Supported,
+    /// All five terms as fitted, uncertainties as if the points were independent, significant
+    /// at 2 sigma: the fit [`fit_terms`] has always made, which the workbench's noise floor
+    /// (and its calibrated negative controls) is built on. It reports spurious B and K on some
+    /// white-noise records.
+    AllFive,
+}
+
+/// All five terms as fitted ([`TermSelection::AllFive`]): the workbench floor's fit. For terms
+/// the curve supports, use [`fit_terms_with`] and the default options.
 pub fn fit_terms(curve: &DevCurve) -> Result<NoiseTerms, NoiseError> {
+    fit_terms_with(
+        curve,
+        &FitOptions {
+            selection: TermSelection::AllFive,
+            ramp: RampTerm::Include,
+        },
+    )
+}
+
+/// Fits the IEEE terms to an ADEV/OADEV curve (see the module docs). The curve's EDF weights
+/// the points; the units of the result are those of the rate data. Terms the curve does not
+/// support are left out: starting from all five (R only as `options.ramp` says), the least
+/// significant of Q, B, K, R whose estimate is not significant is dropped and the rest refitted,
+/// until every remaining term is significant (N, the white noise, always stays). A dropped term
+/// is reported as 0 with a 1-sigma upper bound.
+pub fn fit_terms_with(curve: &DevCurve, options: &FitOptions) -> Result<NoiseTerms, NoiseError> {
     if !matches!(curve.kind, Kind::Adev | Kind::Oadev) {
         return Err(NoiseError::WrongKind { kind: curve.kind });
     }
-    let pts: Vec<_> = curve
+    let mut pts: Vec<_> = curve
         .points
         .iter()
         .filter(|p| p.dev > 0.0 && p.dev.is_finite() && p.edf > 0.0)
         .collect();
+    pts.sort_by(|a, b| a.tau_s.total_cmp(&b.tau_s));
     if pts.len() < 3 {
         return Err(NoiseError::TooFewPoints {
             n_points: pts.len(),
         });
     }
+    let mut allowed = [true; 5];
+    allowed[4] = match options.ramp {
+        RampTerm::Include => true,
+        RampTerm::Exclude => false,
+        RampTerm::Auto => ramp_region_present(curve),
+    };
+    if options.selection == TermSelection::AllFive {
+        return fit_allowed(None, &pts, &[true; 5], Uncertainty::Independent).map(|f| f.terms);
+    }
+    let record = single_record(curve.kind, &pts);
+    let mut current = fit_allowed(record, &pts, &allowed, Uncertainty::CorrelatedTaus)?;
+    loop {
+        let t = current.terms.as_array();
+        let drop = [0, 2, 3, 4]
+            .into_iter()
+            .filter(|&j| allowed[j] && t[j].value > 0.0 && !t[j].significant)
+            .min_by(|&i, &j| (t[i].value / t[i].sigma).total_cmp(&(t[j].value / t[j].sigma)));
+        let Some(j) = drop else {
+            return Ok(current.terms);
+        };
+        let mut fewer = allowed;
+        fewer[j] = false;
+        let reduced = fit_allowed(record, &pts, &fewer, Uncertainty::CorrelatedTaus)?;
+        // A term the residuals cannot do without stays even if its estimate is uncertain (an
+        // exact curve's tiny Q): the drop may not raise the weighted residual sum by more than
+        // DROP_F times the fuller fit's residual variance.
+        let scale = current.rss / current.dof as f64;
+        if reduced.rss - current.rss > DROP_F * scale {
+            return Ok(current.terms);
+        }
+        allowed = fewer;
+        current = reduced;
+    }
+}
+
+/// Largest rise of the weighted residual sum of squares, in units of the fuller fit's residual
+/// variance, for which an insignificant term is dropped.
+const DROP_F: f64 = 25.0;
+
+/// A fit with its weighted residual sum of squares and degrees of freedom.
+struct Fitted {
+    terms: NoiseTerms,
+    rss: f64,
+    dof: usize,
+}
+
+/// The iteratively reweighted NNLS fit over the allowed terms, with each term's uncertainty.
+/// How the term uncertainties treat the points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Uncertainty {
+    /// As independent (the inverse normal matrix; significance at 2 sigma).
+    Independent,
+    /// As correlated between taus (the sandwich; significance at [`SIGNIFICANCE_SIGMAS`]).
+    CorrelatedTaus,
+}
+
+fn fit_allowed(
+    record: Option<usize>,
+    pts: &[&DevPoint],
+    allowed: &[bool; 5],
+    uncertainty: Uncertainty,
+) -> Result<Fitted, NoiseError> {
     // Iteratively reweighted: the first pass weights by the measured variance, later passes by
     // the fitted model's (measured-variance weights favour points that happen to fall low).
     let mut reference: Option<[f64; 5]> = None;
     let mut result = None;
     for _ in 0..IRLS_PASSES {
-        let (rss, c, set, inv, scale) = nnls_pass(&pts, reference.as_ref())?;
-        reference = Some(c);
-        result = Some((rss, c, set, inv, scale));
+        let pass = nnls_pass(record, pts, reference.as_ref(), allowed)?;
+        reference = Some(pass.c);
+        result = Some(pass);
     }
-    let (rss, c, set, inv, scale) = result.expect("IRLS_PASSES > 0");
-    let rows = weighted_rows(&pts, Some(&c));
-    let normal = |set: &[usize]| normal_equations(&rows, &scale, set);
-    let full = solve(&normal(&[0, 1, 2, 3, 4]).0, &DVector::zeros(5)).map(|(_, inv)| inv);
+    let Pass {
+        rss,
+        c,
+        set,
+        inv,
+        scale,
+    } = result.expect("IRLS_PASSES > 0");
+    let rows = weighted_rows(record, pts, Some(&c));
+    let taus: Vec<f64> = pts.iter().map(|p| p.tau_s).collect();
+    let correlated = uncertainty == Uncertainty::CorrelatedTaus;
+    let cov = if correlated {
+        sandwich(&rows, &taus, &scale, &set, &inv)
+    } else {
+        inv
+    };
+    let all = [0, 1, 2, 3, 4];
+    let full =
+        solve(&normal_equations(&rows, &scale, &all).0, &DVector::zeros(5)).map(|(_, inv)| {
+            if correlated {
+                sandwich(&rows, &taus, &scale, &all, &inv)
+            } else {
+                inv
+            }
+        });
+    let threshold = if correlated { SIGNIFICANCE_SIGMAS } else { 2.0 };
     let term = |j: usize| -> Term {
         let var_c = if let Some(k) = set.iter().position(|&s| s == j) {
-            inv[(k, k)] / (scale[j] * scale[j])
+            cov[(k, k)] / (scale[j] * scale[j])
         } else if let Some(f) = &full {
             f[(j, j)] / (scale[j] * scale[j])
         } else {
@@ -191,11 +357,11 @@ pub fn fit_terms(curve: &DevCurve) -> Result<NoiseTerms, NoiseError> {
         Term {
             value,
             sigma,
-            significant: value > 2.0 * sigma,
+            significant: value > threshold * sigma,
         }
     };
     let dof = pts.len().saturating_sub(set.len()).max(1);
-    Ok(NoiseTerms {
+    let terms = NoiseTerms {
         q_u_s: term(0),
         n_u_per_sqrt_hz: term(1),
         b_u: term(2),
@@ -203,6 +369,50 @@ pub fn fit_terms(curve: &DevCurve) -> Result<NoiseTerms, NoiseError> {
         r_u_per_s: term(4),
         chi2_per_dof: rss / dof as f64,
         n_points: pts.len(),
+    };
+    Ok(Fitted { terms, rss, dof })
+}
+
+/// Covariance of the weighted least-squares estimate (scaled columns, on `set`) when the
+/// whitened residuals are correlated as overlapping Allan variances are: the sandwich
+/// `inv (A^T R A) inv`, with the assumed correlation `R_ij = sqrt(tau_i / tau_j)` for
+/// `tau_i <= tau_j` (estimates at nearby taus share most of their data; an octave apart about
+/// 0.7, a decade apart about 0.3). Treating the points as independent made B and K look
+/// significant on pure white noise. The correlation is separable, so `A^T R A` is one pass with
+/// a running sum (O(points), not O(points^2), for curves with thousands of taus).
+fn sandwich(
+    rows: &Rows,
+    taus: &[f64],
+    scale: &[f64; 5],
+    set: &[usize],
+    inv: &DMatrix<f64>,
+) -> DMatrix<f64> {
+    let k = set.len();
+    let mut m = DMatrix::<f64>::zeros(k, k);
+    let mut running = DVector::<f64>::zeros(k);
+    for ((a, _), &tau) in rows.iter().zip(taus) {
+        let row = DVector::from_fn(k, |r, _| a[set[r]] / scale[set[r]]);
+        let root = tau.sqrt();
+        // Earlier (shorter) taus i < j: sum_i row_i sqrt(tau_i), times row_j / sqrt(tau_j).
+        let cross = &running * row.transpose() / root;
+        m += &row * row.transpose() + &cross + cross.transpose();
+        running += &row * root;
+    }
+    inv * m * inv
+}
+
+/// Whether the curve shows a rate-ramp region: two points an octave or more apart between
+/// which the deviation rises faster than a random walk (+1/2 slope) could make it even at the
+/// ends of their confidence intervals, i.e. `dev_lo(later) > dev_hi(earlier) (tau ratio)^(1/2)`,
+/// with a mean slope of at least +3/4 (a ramp's +1).
+pub fn ramp_region_present(curve: &DevCurve) -> bool {
+    let p = &curve.points;
+    p.iter().enumerate().any(|(i, a)| {
+        p[i + 1..].iter().any(|b| {
+            let ratio = b.tau_s / a.tau_s;
+            let slope = (b.dev / a.dev).ln() / ratio.ln();
+            ratio >= 2.0 && slope >= 0.75 && b.dev_lo > a.dev_hi * ratio.sqrt()
+        })
     })
 }
 
@@ -229,12 +439,60 @@ fn model_var(c: &[f64; 5], tau_s: f64) -> f64 {
 
 type Rows = Vec<([f64; 5], f64)>;
 
-fn weighted_rows(pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Rows {
+/// Stable32's stop ratio for the Allan variances: taus past a quarter of the record rest on one
+/// or two independent differences, whose chance excursions move all those points together (a
+/// white-noise hour whose last three taus sat 2.5 to 12 times above the white variance gave a
+/// "significant" K).
+const STOP_RATIO: usize = 4;
+
+/// Variance factor of the points past the stop ratio: they stay in the fit (an exact curve is
+/// still fitted exactly) but with a tenth of their weight.
+const BEYOND_STOP_VARIANCE_FACTOR: f64 = 10.0;
+
+/// Phase points of the one record behind an OADEV curve (n_terms + 2m, the same at every
+/// point); `None` for ADEV curves and for curves pooled over several records (or made up), where
+/// the EDF refinements below are not applied and the curve's own EDF is used as given.
+fn single_record(kind: Kind, pts: &[&DevPoint]) -> Option<usize> {
+    if kind != Kind::Oadev {
+        return None;
+    }
+    let n = pts.first().map(|p| p.n_terms + 2 * p.m)?;
+    pts.iter().all(|p| p.n_terms + 2 * p.m == n).then_some(n)
+}
+
+/// Greenhall's EDF of point `p` for the noise type of the model term that dominates at its tau
+/// (Q white PM, N white FM, B flicker FM, K and R random-walk FM). The weights use the smaller
+/// of this and the curve's own EDF: a noise type identified from a few dozen decimated points
+/// at long taus can be wrong (white FM taken for flicker PM gave a point ten times the EDF it
+/// has, and a spurious K), and neither estimate should give a point more weight than the other.
+fn model_edf(n_phase: usize, p: &DevPoint, c: &[f64; 5]) -> f64 {
+    let a = basis(p.tau_s);
+    let dominant = (0..5)
+        .max_by(|&i, &j| (a[i] * c[i]).total_cmp(&(a[j] * c[j])))
+        .unwrap_or(1);
+    let alpha = [2, 0, -1, -2, -2][dominant];
+    match Kind::Oadev.estimator() {
+        Some(est) => crate::allan::edf_greenhall(alpha, est, p.m, n_phase),
+        None => p.edf,
+    }
+}
+
+fn weighted_rows(record: Option<usize>, pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Rows {
     pts.iter()
         .map(|p| {
             let avar = p.dev * p.dev;
             let ref_var = reference.map_or(avar, |c| model_var(c, p.tau_s).max(0.1 * avar));
-            let rel_var = 2.0 / p.edf + MODEL_ERROR_FLOOR * MODEL_ERROR_FLOOR;
+            let mut edf = p.edf;
+            let mut rel_factor = 1.0;
+            if let Some(n_phase) = record {
+                if let Some(c) = reference {
+                    edf = edf.min(model_edf(n_phase, p, c));
+                }
+                if p.m * STOP_RATIO > n_phase {
+                    rel_factor = BEYOND_STOP_VARIANCE_FACTOR;
+                }
+            }
+            let rel_var = (2.0 / edf + MODEL_ERROR_FLOOR * MODEL_ERROR_FLOOR) * rel_factor;
             let sw = 1.0 / (rel_var.sqrt() * ref_var);
             (basis(p.tau_s).map(|a| a * sw), avar * sw)
         })
@@ -259,11 +517,24 @@ fn normal_equations(rows: &Rows, scale: &[f64; 5], set: &[usize]) -> (DMatrix<f6
 /// Best passive-set solution: (cost, coefficients, passive set, inverse normal matrix).
 type Candidate = (f64, [f64; 5], Vec<usize>, DMatrix<f64>);
 
-type Pass = (f64, [f64; 5], Vec<usize>, DMatrix<f64>, [f64; 5]);
+/// One NNLS pass: weighted residual sum of squares, coefficients (Q^2 .. R^2), passive set,
+/// inverse of its scaled normal matrix, column scales.
+struct Pass {
+    rss: f64,
+    c: [f64; 5],
+    set: Vec<usize>,
+    inv: DMatrix<f64>,
+    scale: [f64; 5],
+}
 
-/// One exact NNLS solve over all 31 non-empty passive sets.
-fn nnls_pass(pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Result<Pass, NoiseError> {
-    let rows = weighted_rows(pts, reference);
+/// One exact NNLS solve over every non-empty passive set of allowed terms.
+fn nnls_pass(
+    record: Option<usize>,
+    pts: &[&DevPoint],
+    reference: Option<&[f64; 5]>,
+    allowed: &[bool; 5],
+) -> Result<Pass, NoiseError> {
+    let rows = weighted_rows(record, pts, reference);
     // Column scaling for conditioning.
     let scale: [f64; 5] = std::array::from_fn(|j| {
         rows.iter()
@@ -284,7 +555,7 @@ fn nnls_pass(pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Result<Pass, No
     let mut best: Option<Candidate> = None;
     for mask in 1u32..32 {
         let set: Vec<usize> = (0..5).filter(|j| mask & (1 << j) != 0).collect();
-        if set.len() > pts.len() {
+        if set.len() > pts.len() || set.iter().any(|&j| !allowed[j]) {
             continue;
         }
         let (ata, atb) = normal(&set);
@@ -308,7 +579,13 @@ fn nnls_pass(pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Result<Pass, No
             n_points: pts.len(),
         });
     };
-    Ok((rss, c, set, inv, scale))
+    Ok(Pass {
+        rss,
+        c,
+        set,
+        inv,
+        scale,
+    })
 }
 
 /// Reads N, B, K off the curve by slope (tolerance +-0.15 on the slope).

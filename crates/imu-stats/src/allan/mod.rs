@@ -11,29 +11,39 @@
 //! x86-64 v3 and later, through the `pulp` crate, whose dispatch keeps this crate free of
 //! `unsafe`); the build itself stays baseline x86-64.
 //!
-//! Confidence intervals: the equivalent degrees of freedom (EDF) of the overlapping Allan
-//! variance follow the closed-form approximations in NIST SP 1065 Table 5 (Howe, Allan, Barnes),
-//! one per power-law noise type, selected per tau from the local ADEV slope unless a type is
-//! given. Other deviations use a conservative EDF equal to the number of non-overlapping
-//! difference terms. The chi-squared bounds use the exact quantiles (`statrs`).
+//! Confidence intervals ([`EdfMethod`]): either Greenhall's EDF algorithm with the noise type
+//! identified per tau by the lag-1 autocorrelation of the phase, as Stable32 and allantools
+//! compute them (`greenhall.rs`, `noise_id.rs`; total deviation by NIST SP 1065 Table 7), or
+//! the closed-form NIST SP 1065 Table 5 approximations with the noise type from the local ADEV
+//! slope (the default, because the bounded-memory [`StreamingOadev`] can compute it too; other
+//! kinds than OADEV then get a plain count of difference terms). The chi-squared bounds use
+//! the exact quantiles (`statrs`).
 //!
-//! Files: `kernels.rs` (phase integration, the blocked SIMD OADEV sums), `confidence.rs` (EDF
-//! and bounds), `streaming.rs` (bounded-memory OADEV).
+//! Files: `taus.rs` (tau sets), `kernels.rs` (phase integration, the blocked SIMD OADEV sums),
+//! `confidence.rs` (SP 1065 EDF and the bounds), `greenhall.rs` (Greenhall's EDF),
+//! `noise_id.rs` (lag-1 autocorrelation noise identification), `streaming.rs`
+//! (bounded-memory OADEV).
 
 mod confidence;
+mod greenhall;
 mod kernels;
+mod noise_id;
 mod streaming;
+mod taus;
 
 use serde::Serialize;
 use thiserror::Error;
 
 pub use confidence::{confidence_interval, edf_oadev};
+pub use greenhall::{Estimator, edf_greenhall, edf_totdev};
 pub use kernels::phase_from_rate;
 use kernels::{
     LongArray, PARALLEL_MIN_PHASE_POINTS, integrate_into, oadev_sums, second_difference_sum_sq,
     sum_by,
 };
+pub use noise_id::autocorrelation_alpha;
 pub use streaming::StreamingOadev;
+pub use taus::TauSet;
 
 /// Errors of the Allan-deviation computations.
 #[derive(Debug, Error, PartialEq)]
@@ -94,6 +104,52 @@ impl Kind {
             Kind::Mdev | Kind::Tdev | Kind::Hdev | Kind::Ohdev => n / 3,
         }
     }
+
+    /// The estimator's shape for Greenhall's EDF (`None` for TOTDEV, which has its own).
+    pub fn estimator(self) -> Option<Estimator> {
+        let (d, overlapping, modified) = match self {
+            Kind::Adev => (2, false, false),
+            Kind::Oadev => (2, true, false),
+            Kind::Mdev | Kind::Tdev => (2, true, true),
+            Kind::Hdev => (3, false, false),
+            Kind::Ohdev => (3, true, false),
+            Kind::Totdev => return None,
+        };
+        Some(Estimator {
+            d,
+            overlapping,
+            modified,
+        })
+    }
+
+    /// Lower-case name (`oadev`), as on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Adev => "adev",
+            Kind::Oadev => "oadev",
+            Kind::Mdev => "mdev",
+            Kind::Hdev => "hdev",
+            Kind::Ohdev => "ohdev",
+            Kind::Tdev => "tdev",
+            Kind::Totdev => "totdev",
+        }
+    }
+}
+
+impl std::str::FromStr for Kind {
+    type Err = String;
+
+    /// Parses the lower-case name (`adev`, `oadev`, ..., `totdev`).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown deviation {s:?}: use adev, oadev, mdev, hdev, ohdev, tdev or totdev"
+                )
+            })
+    }
 }
 
 /// Power-law noise type (of the rate data y), used to pick an EDF formula.
@@ -110,6 +166,10 @@ pub enum NoiseType {
     FlickerFm,
     /// Random-walk frequency modulation (slope +1/2; IMU rate random walk K).
     RandomWalkFm,
+    /// Flicker-walk frequency modulation (ADEV slope +1; only the Hadamard variances converge).
+    FlickerWalkFm,
+    /// Random-run frequency modulation (ADEV slope +3/2; only the Hadamard variances converge).
+    RandomRunFm,
 }
 
 impl NoiseType {
@@ -125,67 +185,46 @@ impl NoiseType {
             NoiseType::RandomWalkFm
         }
     }
-}
 
-/// Which averaging factors m (tau = m tau0) to evaluate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-pub enum TauSet {
-    /// m = 1, 2, 4, 8, ... up to the kind's limit.
-    Octave,
-    /// `n` log-spaced m per decade (rounded, duplicates removed), starting at m = 1.
-    PerDecade(u32),
-    /// m = 1, 2, 3, ... every factor (slow for long series; for short ones and tests).
-    All,
-}
-
-impl TauSet {
-    /// The averaging factors for a series of `n_phase` phase points and the given maximum m.
-    pub fn factors(self, max_m: usize) -> Vec<usize> {
-        let mut out = Vec::new();
+    /// The exponent alpha of the fractional-frequency spectrum S_y(f) ~ f^alpha.
+    pub fn alpha(self) -> i32 {
         match self {
-            TauSet::Octave => {
-                let mut m = 1usize;
-                while m <= max_m {
-                    out.push(m);
-                    m = m.saturating_mul(2);
-                }
-            }
-            TauSet::PerDecade(n) => {
-                let n = f64::from(n.max(1));
-                let mut k = 0u32;
-                loop {
-                    let m = 10f64.powf(f64::from(k) / n).round() as usize;
-                    if m > max_m {
-                        break;
-                    }
-                    if out.last() != Some(&m) {
-                        out.push(m);
-                    }
-                    k += 1;
-                }
-            }
-            TauSet::All => out.extend(1..=max_m),
+            NoiseType::WhitePm => 2,
+            NoiseType::FlickerPm => 1,
+            NoiseType::WhiteFm => 0,
+            NoiseType::FlickerFm => -1,
+            NoiseType::RandomWalkFm => -2,
+            NoiseType::FlickerWalkFm => -3,
+            NoiseType::RandomRunFm => -4,
         }
-        out
+    }
+
+    /// The noise type of exponent `alpha` (clamped into -4..=2).
+    pub fn from_alpha(alpha: i32) -> Self {
+        match alpha.clamp(-4, 2) {
+            2 => NoiseType::WhitePm,
+            1 => NoiseType::FlickerPm,
+            0 => NoiseType::WhiteFm,
+            -1 => NoiseType::FlickerFm,
+            -2 => NoiseType::RandomWalkFm,
+            -3 => NoiseType::FlickerWalkFm,
+            _ => NoiseType::RandomRunFm,
+        }
     }
 }
 
-impl std::str::FromStr for TauSet {
-    type Err = String;
-
-    /// Parses `octave`, `all` or `N-per-decade` (e.g. `10-per-decade`).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "octave" => Ok(TauSet::Octave),
-            "all" => Ok(TauSet::All),
-            _ => s
-                .strip_suffix("-per-decade")
-                .and_then(|n| n.parse::<u32>().ok())
-                .filter(|&n| n > 0)
-                .map(TauSet::PerDecade)
-                .ok_or_else(|| format!("bad tau set {s:?}: use octave, all or N-per-decade")),
-        }
-    }
+/// How the equivalent degrees of freedom (and so the confidence intervals) are computed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EdfMethod {
+    /// NIST SP 1065 Table 5 closed forms for OADEV and TOTDEV (noise type from the local
+    /// slope), the count of non-overlapping terms for the others; what [`StreamingOadev`]
+    /// computes in bounded memory.
+    #[default]
+    Sp1065,
+    /// Greenhall's EDF algorithm with lag-1 autocorrelation noise identification per tau, as
+    /// Stable32 and allantools; the total deviation by SP 1065 Table 7.
+    Greenhall,
 }
 
 /// One deviation value with its statistics.
@@ -221,13 +260,15 @@ pub struct DevCurve {
 }
 
 /// Options of [`deviation`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Options {
     /// Averaging factors.
     pub taus: TauSet,
+    /// How the EDF of each point is computed.
+    pub edf: EdfMethod,
     /// Two-sided confidence level of the intervals (default 0.683, "1 sigma").
     pub confidence: f64,
-    /// Noise type for the EDF; `None` picks it per tau from the local OADEV slope.
+    /// Noise type for the EDF; `None` identifies it per tau (by the method of `edf`).
     pub noise: Option<NoiseType>,
 }
 
@@ -235,6 +276,7 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             taus: TauSet::Octave,
+            edf: EdfMethod::Sp1065,
             confidence: 0.683,
             noise: None,
         }
@@ -333,10 +375,20 @@ pub fn deviation(
     tau0_s: f64,
     options: &Options,
 ) -> Result<DevCurve, AllanError> {
+    deviation_with_noise(kind, y, tau0_s, options).map(|(curve, _)| curve)
+}
+
+/// As [`deviation`], also returning the noise type each point's EDF assumed.
+pub fn deviation_with_noise(
+    kind: Kind,
+    y: &[f64],
+    tau0_s: f64,
+    options: &Options,
+) -> Result<(DevCurve, Vec<NoiseType>), AllanError> {
     check(y.len(), tau0_s)?;
     let mut x = LongArray::zeros(y.len() + 1);
     integrate_into(y, tau0_s, &mut x);
-    deviation_from_phase(kind, &x, tau0_s, options)
+    deviation_from_phase_with_noise(kind, &x, tau0_s, options)
 }
 
 /// As [`deviation`], from phase data `x` (integrated rate, unit of y times seconds).
@@ -346,24 +398,36 @@ pub fn deviation_from_phase(
     tau0_s: f64,
     options: &Options,
 ) -> Result<DevCurve, AllanError> {
+    deviation_from_phase_with_noise(kind, x, tau0_s, options).map(|(curve, _)| curve)
+}
+
+/// As [`deviation_from_phase`], also returning the noise type each point's EDF assumed.
+pub fn deviation_from_phase_with_noise(
+    kind: Kind,
+    x: &[f64],
+    tau0_s: f64,
+    options: &Options,
+) -> Result<(DevCurve, Vec<NoiseType>), AllanError> {
     check(x.len().saturating_sub(1), tau0_s)?;
-    let cx = if matches!(kind, Kind::Mdev | Kind::Tdev) {
-        let mut c = Vec::with_capacity(x.len() + 1);
-        c.push(0.0);
-        let mut s = 0.0;
-        for &v in x {
-            s += v;
-            c.push(s);
-        }
-        c
-    } else {
-        Vec::new()
+    let factors = averaging_factors(kind, x.len(), &options.taus)?;
+    let cx = phase_cumulative_sum(kind, x);
+    let mut points = deviation_points(kind, x, &cx, tau0_s, &factors);
+    let noise = assign_intervals(kind, x, &mut points, options);
+    let curve = DevCurve {
+        kind,
+        tau0_s,
+        confidence: options.confidence,
+        points,
     };
-    let n = x.len();
-    let factors = options.taus.factors(kind.max_m(n));
+    Ok((curve, noise))
+}
+
+/// The tau set's factors for this kind and length; an error if there are none.
+fn averaging_factors(kind: Kind, n_phase: usize, taus: &TauSet) -> Result<Vec<usize>, AllanError> {
+    let factors = taus.factors(kind.max_m(n_phase));
     if factors.is_empty() {
         return Err(AllanError::TooShort {
-            n_samples: n - 1,
+            n_samples: n_phase - 1,
             needed: if matches!(kind, Kind::Adev | Kind::Oadev | Kind::Totdev) {
                 2
             } else {
@@ -371,6 +435,34 @@ pub fn deviation_from_phase(
             },
         });
     }
+    Ok(factors)
+}
+
+/// The cumulative sum of `x` with a leading 0 for MDEV/TDEV (their m-term inner sums become
+/// differences of it); empty for the other kinds.
+fn phase_cumulative_sum(kind: Kind, x: &[f64]) -> Vec<f64> {
+    if !matches!(kind, Kind::Mdev | Kind::Tdev) {
+        return Vec::new();
+    }
+    let mut c = Vec::with_capacity(x.len() + 1);
+    c.push(0.0);
+    let mut s = 0.0;
+    for &v in x {
+        s += v;
+        c.push(s);
+    }
+    c
+}
+
+/// The deviation at every factor, intervals not yet set.
+fn deviation_points(
+    kind: Kind,
+    x: &[f64],
+    cx: &[f64],
+    tau0_s: f64,
+    factors: &[usize],
+) -> Vec<DevPoint> {
+    let n = x.len();
     // OADEV: every tau in one blocked pass (see `oadev_sums`).
     let fused: Vec<(usize, f64)> = if kind == Kind::Oadev {
         let ms: Vec<usize> = factors
@@ -389,7 +481,7 @@ pub fn deviation_from_phase(
                 let tau = m as f64 * tau0_s;
                 (sum / (2.0 * terms as f64 * tau * tau), terms)
             }
-            None => variance_at(kind, x, &cx, m, tau0_s)?,
+            None => variance_at(kind, x, cx, m, tau0_s)?,
         };
         Some(DevPoint {
             m,
@@ -401,70 +493,118 @@ pub fn deviation_from_phase(
             dev_hi: 0.0,
         })
     };
-    // Long series: the taus are independent passes over memory; split them over two threads
-    // (interleaved, so both get short and long taus). Results do not depend on the split.
-    let mut points: Vec<DevPoint> =
-        if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && kind != Kind::Oadev {
-            let (mut a, b) = std::thread::scope(|scope| {
-                let other = scope.spawn(|| {
-                    factors
-                        .iter()
-                        .skip(1)
-                        .step_by(2)
-                        .filter_map(|&m| point(m))
-                        .collect::<Vec<_>>()
-                });
-                let mine: Vec<DevPoint> = factors
-                    .iter()
-                    .step_by(2)
-                    .filter_map(|&m| point(m))
-                    .collect();
-                (mine, other.join().expect("deviation worker panicked"))
-            });
-            a.extend(b);
-            a.sort_by_key(|p| p.m);
-            a
-        } else {
-            factors.iter().filter_map(|&m| point(m)).collect()
+    if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && kind != Kind::Oadev {
+        on_two_threads(factors, point)
+    } else {
+        factors.iter().filter_map(|&m| point(m)).collect()
+    }
+}
+
+/// Long series: the taus are independent passes over memory; split them over two threads
+/// (interleaved, so both get short and long taus). Results do not depend on the split.
+fn on_two_threads(
+    factors: &[usize],
+    point: impl Fn(usize) -> Option<DevPoint> + Sync,
+) -> Vec<DevPoint> {
+    let (mut a, b) = std::thread::scope(|scope| {
+        let other = scope.spawn(|| {
+            factors
+                .iter()
+                .skip(1)
+                .step_by(2)
+                .filter_map(|&m| point(m))
+                .collect::<Vec<_>>()
+        });
+        let mine: Vec<DevPoint> = factors
+            .iter()
+            .step_by(2)
+            .filter_map(|&m| point(m))
+            .collect();
+        (mine, other.join().expect("deviation worker panicked"))
+    });
+    a.extend(b);
+    a.sort_by_key(|p| p.m);
+    a
+}
+
+/// Sets each point's EDF and confidence bounds by `options.edf`; returns the noise types used.
+fn assign_intervals(
+    kind: Kind,
+    x: &[f64],
+    points: &mut [DevPoint],
+    options: &Options,
+) -> Vec<NoiseType> {
+    let n = x.len();
+    let noise: Vec<NoiseType> = match (options.noise, options.edf) {
+        (Some(t), _) => vec![t; points.len()],
+        (None, EdfMethod::Sp1065) => slope_noise_types(kind, points),
+        (None, EdfMethod::Greenhall) => autocorrelation_noise_types(kind, x, points),
+    };
+    for (p, &t) in points.iter_mut().zip(&noise) {
+        p.edf = match options.edf {
+            EdfMethod::Sp1065 => sp1065_edf(kind, n, p, t),
+            EdfMethod::Greenhall => match kind.estimator() {
+                Some(est) => edf_greenhall(t.alpha(), est, p.m, n),
+                None => edf_totdev(t.alpha(), p.m, n),
+            },
         };
-    // EDF: noise type per tau from the local slope of this curve (or the given type).
-    let slopes: Vec<f64> = (0..points.len())
+        let (lo, hi) = confidence_interval(p.dev, p.edf, options.confidence);
+        p.dev_lo = lo;
+        p.dev_hi = hi;
+    }
+    noise
+}
+
+/// Noise type per tau from the local log-log slope of this curve (TDEV shifted by -1 to the
+/// ADEV slope).
+fn slope_noise_types(kind: Kind, points: &[DevPoint]) -> Vec<NoiseType> {
+    (0..points.len())
         .map(|i| {
             let (a, b) = (i.saturating_sub(1), (i + 1).min(points.len() - 1));
-            if a == b {
+            let slope = if a == b {
                 -0.5
             } else {
                 (points[b].dev / points[a].dev).ln() / (points[b].tau_s / points[a].tau_s).ln()
-            }
-        })
-        .collect();
-    for (p, slope) in points.iter_mut().zip(slopes) {
-        let noise = options.noise.unwrap_or_else(|| {
+            };
             let s = if kind == Kind::Tdev {
                 slope - 1.0
             } else {
                 slope
             };
             NoiseType::from_adev_slope(s)
-        });
-        p.edf = match kind {
-            Kind::Oadev => edf_oadev(n, p.m, noise),
-            // Conservative: one degree of freedom per non-overlapping difference.
-            Kind::Adev | Kind::Hdev => p.n_terms as f64,
-            Kind::Ohdev => ((n - 1) / p.m).saturating_sub(2).max(1) as f64,
-            Kind::Mdev | Kind::Tdev => ((n - 1) / p.m).saturating_sub(2).max(1) as f64,
-            Kind::Totdev => edf_oadev(n, p.m, noise),
-        };
-        let (lo, hi) = confidence_interval(p.dev, p.edf, options.confidence);
-        p.dev_lo = lo;
-        p.dev_hi = hi;
+        })
+        .collect()
+}
+
+/// Noise type per tau by the lag-1 autocorrelation of the decimated phase. Where the decimated
+/// series is too short to identify (the longest taus), the nearest identified tau's type is
+/// carried over; a series too short at every tau is taken as white FM.
+fn autocorrelation_noise_types(kind: Kind, x: &[f64], points: &[DevPoint]) -> Vec<NoiseType> {
+    let d_max = kind.estimator().map_or(2, |e| e.d);
+    let ids: Vec<Option<i32>> = points
+        .iter()
+        .map(|p| autocorrelation_alpha(x, p.m, d_max))
+        .collect();
+    let lowest = kind.estimator().map_or(-2, |e| greenhall::min_alpha(e.d));
+    (0..ids.len())
+        .map(|i| {
+            let nearest = (0..ids.len())
+                .filter_map(|j| ids[j].map(|a| (i.abs_diff(j), a)))
+                .min_by_key(|&(dist, _)| dist)
+                .map_or(0, |(_, a)| a);
+            NoiseType::from_alpha(nearest.clamp(lowest, 2))
+        })
+        .collect()
+}
+
+/// The SP 1065 EDF of one point (see [`EdfMethod::Sp1065`]).
+fn sp1065_edf(kind: Kind, n: usize, p: &DevPoint, noise: NoiseType) -> f64 {
+    match kind {
+        Kind::Oadev | Kind::Totdev => edf_oadev(n, p.m, noise),
+        // Conservative: one degree of freedom per non-overlapping difference.
+        Kind::Adev | Kind::Hdev => p.n_terms as f64,
+        Kind::Ohdev | Kind::Mdev | Kind::Tdev => ((n - 1) / p.m).saturating_sub(2).max(1) as f64,
     }
-    Ok(DevCurve {
-        kind,
-        tau0_s,
-        confidence: options.confidence,
-        points,
-    })
 }
 
 #[cfg(test)]

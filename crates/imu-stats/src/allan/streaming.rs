@@ -6,9 +6,10 @@ use super::{DevCurve, DevPoint, Kind, NoiseType, confidence_interval, edf_oadev}
 ///
 /// Keeps a ring of the last `2 m_max + 1` phase values and, per octave m = 2^k <= `m_max`, the
 /// running sum of squared second differences; memory is O(m_max), independent of the recording
-/// length, and the cost is O(log m_max) per sample. Results equal [`deviation`] with
-/// [`Kind::Oadev`] and [`TauSet::Octave`] (same phase integration, same summation order, up to
-/// the batch's four-way accumulator split).
+/// length, and the cost is O(log m_max) per sample. Results equal
+/// [`deviation`](super::deviation) with [`Kind::Oadev`] and
+/// [`TauSet::Octave`](super::TauSet::Octave) (same phase integration, same summation order, up
+/// to the batch's four-way accumulator split).
 #[derive(Debug, Clone)]
 pub struct StreamingOadev {
     tau0_s: f64,
@@ -70,7 +71,7 @@ impl StreamingOadev {
     }
 
     /// The OADEV curve so far (taus with at least one term), with EDF and intervals as in
-    /// [`deviation`] using `noise` (or the local slope if `None`).
+    /// [`deviation`](super::deviation) using `noise` (or the local slope if `None`).
     pub fn curve(&self, confidence: f64, noise: Option<NoiseType>) -> DevCurve {
         let mut points: Vec<DevPoint> = self
             .sums
