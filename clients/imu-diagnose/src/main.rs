@@ -204,7 +204,7 @@ struct CandidateRow {
     f: f64,
     p_value: f64,
     delta_aic: f64,
-    share_of_excess: f64,
+    share_of_excess: Option<f64>,
     significant: bool,
     claimed: bool,
     explanation: String,
@@ -434,13 +434,13 @@ fn print_candidates(out: &mut impl Write, d: &TriadDiagnosis) -> std::io::Result
         };
         writeln!(
             out,
-            "    {:<22} {:>3} {:>10.3} {:>9.2e} {:>9.1} {:>6.2}  {:<11}  {}",
+            "    {:<22} {:>3} {:>10.3} {:>9.2e} {:>9.1} {:>6}  {:<11}  {}",
             c.effect.id(),
             c.new_params,
             c.f,
             c.p_value,
             c.delta_aic,
-            c.share_of_excess,
+            c.share_of_excess_cell(),
             state,
             c.explanation
         )?;

@@ -145,13 +145,13 @@ fn show(d: &TriadDiagnosis) {
     eprintln!("{}", d.verdict);
     for c in d.candidates.iter().take(4) {
         eprintln!(
-            "  {:<20} dp {:>2} F {:>9.2} p {:>9.2e} dAIC {:>9.1} share {:>5.2} sig {} claimed {}",
+            "  {:<20} dp {:>2} F {:>9.2} p {:>9.2e} dAIC {:>9.1} share {:>5} sig {} claimed {}",
             c.effect.id(),
             c.new_params,
             c.f,
             c.p_value,
             c.delta_aic,
-            c.share_of_excess,
+            c.share_of_excess_cell(),
             c.significant,
             c.claimed
         );

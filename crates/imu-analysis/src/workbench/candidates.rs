@@ -67,8 +67,10 @@ pub(super) fn rank_and_claim(
     }
     if let Some(top) = candidates.first_mut() {
         let confused = ambiguities.iter().any(|a| a.effects.contains(&top.effect));
-        top.claimed =
-            !consistent && top.significant && top.share_of_excess >= opts.min_share && !confused;
+        top.claimed = !consistent
+            && top.significant
+            && top.share_of_excess.is_some_and(|s| s >= opts.min_share)
+            && !confused;
     }
     ambiguities
 }
@@ -113,7 +115,7 @@ pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -
         f: f64::NAN,
         p_value: f64::NAN,
         delta_aic: f64::NEG_INFINITY,
-        share_of_excess: 0.0,
+        share_of_excess: None,
         residual_rms: [f64::NAN; 3],
         significant: false,
         claimed: false,
@@ -210,7 +212,7 @@ impl CandidateScore {
             f: self.f,
             p_value: self.p_value,
             delta_aic: self.likelihood_ratio - 2.0 * self.new_params as f64,
-            share_of_excess: self.explained_chi2 / self.excess_chi2,
+            share_of_excess: super::share_of(self.explained_chi2, self.excess_chi2),
             residual_rms: self.residual_rms,
             significant: self.p_value < alpha,
             claimed: false,

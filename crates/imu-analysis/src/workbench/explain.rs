@@ -214,10 +214,10 @@ impl VerdictFacts<'_> {
         if let Some(c) = self.candidates.first().filter(|c| c.new_params > 0) {
             let _ = write!(
                 s,
-                " (Best candidate {}: p = {:.1e}, explains {:.0} % of the excess.)",
+                " (Best candidate {}: p = {:.1e}, {}.)",
                 c.effect,
                 c.p_value,
-                100.0 * c.share_of_excess.clamp(0.0, 1.0)
+                c.share_of_excess_text()
             );
         }
         let a = worst;
@@ -260,10 +260,10 @@ impl VerdictFacts<'_> {
 fn write_missing_effect(s: &mut String, c: &Candidate) {
     let _ = write!(
         s,
-        " Missing effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
+        " Missing effect: {} (F-test p = {:.1e}, {}).",
         c.explanation,
         c.p_value,
-        100.0 * c.share_of_excess.min(1.0)
+        c.share_of_excess_text()
     );
 }
 

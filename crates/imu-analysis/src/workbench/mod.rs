@@ -238,8 +238,10 @@ pub struct Candidate {
     pub p_value: f64,
     /// AIC improvement (positive = better).
     pub delta_aic: f64,
-    /// Share of the model's excess chi-square (chi2 - dof) the effect explains.
-    pub share_of_excess: f64,
+    /// Share of the model's excess chi-square (chi2 - dof) the effect explains, in [0, 1] (an
+    /// effect can lower the chi-square by more than the excess: that is all of it); None when
+    /// the model has no excess (chi2 <= dof), so there is nothing to share.
+    pub share_of_excess: Option<f64>,
     /// Residual RMS per axis with the effect, U.
     pub residual_rms: [f64; 3],
     /// p < alpha.
@@ -258,6 +260,29 @@ pub struct Candidate {
     /// Explained pattern (base residual - residual with the effect, floor-normalised).
     #[serde(skip)]
     pattern: Vec<f64>,
+}
+
+impl Candidate {
+    /// `explains 62 % of the excess`, or that there was none, for verdicts.
+    pub fn share_of_excess_text(&self) -> String {
+        match self.share_of_excess {
+            Some(s) => format!("explains {:.0} % of the excess", 100.0 * s),
+            None => "the model shows no excess to explain".into(),
+        }
+    }
+
+    /// The share as a table cell: two decimals, or `-` without an excess.
+    pub fn share_of_excess_cell(&self) -> String {
+        self.share_of_excess
+            .map_or_else(|| "-".into(), |s| format!("{s:.2}"))
+    }
+}
+
+/// The share of `excess_chi2` that `explained_chi2` is, bounded to [0, 1]; None when there is
+/// no excess.
+pub(crate) fn share_of(explained_chi2: f64, excess_chi2: f64) -> Option<f64> {
+    (excess_chi2 > 0.0 && explained_chi2.is_finite())
+        .then(|| (explained_chi2 / excess_chi2).clamp(0.0, 1.0))
 }
 
 /// Two candidates this recording cannot tell apart.
@@ -478,4 +503,23 @@ pub struct Ladder {
     pub calibration: imu_model::Calibration,
     /// Conventions and decisions behind it (reference-free: gravity, Earth rate, gyro gains).
     pub notes: Vec<String>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::share_of;
+
+    #[test]
+    fn the_share_of_excess_is_a_share_or_absent() {
+        assert_eq!(share_of(3.0, 12.0), Some(0.25));
+        // An effect can lower chi2 by more than the excess (it also fits noise): all of it.
+        assert_eq!(share_of(31.0, 12.0), Some(1.0));
+        // A worse fit explains none of it.
+        assert_eq!(share_of(-2.0, 12.0), Some(0.0));
+        // No excess (chi2 <= dof), or next to none: nothing to share, not 5e12.
+        assert_eq!(share_of(3.0, 0.0), None);
+        assert_eq!(share_of(3.0, -4.0), None);
+        assert_eq!(share_of(f64::NAN, 12.0), None);
+        assert!(share_of(3.0, 6e-13).unwrap() <= 1.0);
+    }
 }

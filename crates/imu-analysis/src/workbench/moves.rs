@@ -284,10 +284,10 @@ fn moves_text(kinds: &[EffectKind], verdict: &MovesVerdict, candidates: &[Candid
     if let Some(c) = candidates.iter().find(|c| c.claimed) {
         let _ = write!(
             text,
-            " Missing gain effect: {} (F-test p = {:.1e}, explains {:.0} % of the excess).",
+            " Missing gain effect: {} (F-test p = {:.1e}, {}).",
             c.explanation,
             c.p_value,
-            100.0 * c.share_of_excess.min(1.0)
+            c.share_of_excess_text()
         );
     }
     text

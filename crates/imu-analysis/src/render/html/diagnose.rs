@@ -307,7 +307,7 @@ fn candidate_row(c: &Candidate) -> Vec<Markup> {
         text(g(c.f)),
         text(g(c.p_value)),
         text(format!("{:.1}", c.delta_aic)),
-        text(format!("{:.2}", c.share_of_excess)),
+        text(c.share_of_excess_cell()),
         if c.claimed {
             strong("claimed")
         } else if c.significant {
