@@ -42,9 +42,8 @@ fn repo_path(rel: &str) -> PathBuf {
         .join(rel)
 }
 
-#[test]
-fn hand_held_raw_poses_calibrate_without_preprocessing() {
-    let dir = tempfile::tempdir().unwrap();
+/// The hand-held-raw scenario recorded through the daemon's offline pipeline into `dir`.
+fn record_hand_held_raw(dir: &Path) -> PathBuf {
     let truth_model = repo_path("config/models/raw-uncompensated.toml");
     let mut sim = imu_sim::SimOptions::from_files(
         &repo_path("config/scenarios/hand-held-raw.toml"),
@@ -53,13 +52,20 @@ fn hand_held_raw_poses_calibrate_without_preprocessing() {
     .unwrap();
     sim.seed = 23;
     let mut c = imud::config::Config::default();
-    c.log.dir = dir.path().join("log");
+    c.log.dir = dir.join("log");
     c.name = "raw".into();
-    let out = imud::offline::record(sim, &c).unwrap();
-    let model = dir.path().join("model.toml");
+    imud::offline::record(sim, &c).unwrap().files.remove(0)
+}
+
+/// Runs `imu-calibrate INPUT... --reference-free` from a neutral model against the truth and
+/// checks what both tests check: every pose found, the offsets estimated and said, every
+/// parameter within 3 standard errors of the truth.
+fn calibrate_and_check(dir: &Path, inputs: &[&std::ffi::OsStr]) {
+    let truth_model = repo_path("config/models/raw-uncompensated.toml");
+    let model = dir.join("model.toml");
     std::fs::write(&model, MODEL).unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_imu-calibrate"))
-        .arg(&out.files[0])
+        .args(inputs)
         .args(["--reference-free", "--latitude-deg", "40"])
         .args(["--gravity-m-s2", "9.80665", "--model"])
         .arg(&model)
@@ -100,4 +106,53 @@ fn hand_held_raw_poses_calibrate_without_preprocessing() {
         }
     }
     assert_eq!(fitted, 9 + 12, "{rows:?}");
+}
+
+#[test]
+fn hand_held_raw_poses_calibrate_without_preprocessing() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = record_hand_held_raw(dir.path());
+    calibrate_and_check(dir.path(), &[rec.as_os_str()]);
+}
+
+/// Raw counts as an unsigned 16-bit ADC gives them: zero rate or force at mid-scale 32768.
+const ACCEL_COUNT_M_S2: f64 = 0.0024;
+const GYRO_COUNT_RAD_S: f64 = 0.0003;
+
+#[test]
+fn raw_counts_in_two_whitespace_text_files_calibrate_with_one_command() {
+    // The same session exported as another tool would: accel and gyro in two files of
+    // whitespace-separated `t x y z`, unsigned 16-bit counts around 32768, no header (the first
+    // line is data), extension .txt.
+    let dir = tempfile::tempdir().unwrap();
+    let rec = record_hand_held_raw(dir.path());
+    let s = imu_analysis::input::read_mcap(&rec, imu_analysis::Source::Raw, None).unwrap();
+    let counts = |v: f64, lsb: f64| (v / lsb).round() as i64 + 32768;
+    let write = |name: &str, rows: &[[f64; 3]], lsb: f64| {
+        let mut text = String::new();
+        for (t, v) in s.t_s.iter().zip(rows) {
+            let c = v.map(|x| counts(x, lsb));
+            assert!(c.iter().all(|c| (0..65536).contains(c)), "{c:?}");
+            text.push_str(&format!("{t:.6}  {}  {}  {}\n", c[0], c[1], c[2]));
+        }
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let acc = write("acc.txt", &s.accel_m_s2, ACCEL_COUNT_M_S2);
+    let gyro = write("gyro.txt", &s.gyro_rad_s, GYRO_COUNT_RAD_S);
+    let accel_unit = format!("counts:{ACCEL_COUNT_M_S2}@32768");
+    let gyro_unit = format!("counts:{GYRO_COUNT_RAD_S}@32768");
+    calibrate_and_check(
+        dir.path(),
+        &[
+            acc.as_os_str(),
+            "--gyro-csv".as_ref(),
+            gyro.as_os_str(),
+            "--csv-accel".as_ref(),
+            accel_unit.as_ref(),
+            "--csv-gyro".as_ref(),
+            gyro_unit.as_ref(),
+        ],
+    );
 }
