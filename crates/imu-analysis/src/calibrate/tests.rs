@@ -217,6 +217,23 @@ fn the_unknown_input_widens_the_bias_with_or_without_a_noise_model() {
     }
 }
 
+/// Noise-free points of `truth` at the static inputs `dirs`, each with a 1e-3 standard error.
+fn exact_points(truth: &TriadModel, dirs: &[[f64; 3]]) -> Vec<FitPoint> {
+    dirs.iter()
+        .map(|d| {
+            let x = Vec3::from(*d);
+            FitPoint {
+                true_input: x,
+                measured: truth.forward(x, &Conditions::default()),
+                std_error: Vec3::repeat(1e-3),
+                conditions: Conditions::default(),
+                t_s: 0.0,
+                duration_s: 0.0,
+            }
+        })
+        .collect()
+}
+
 #[test]
 fn recovers_exact_parameters_and_flags_unobservable_g_sensitivity() {
     use EffectKind::*;
@@ -236,20 +253,7 @@ fn recovers_exact_parameters_and_flags_unobservable_g_sensitivity() {
         [g / 2f64.sqrt(), g / 2f64.sqrt(), 0.0],
         [0.0, g / 2f64.sqrt(), -g / 2f64.sqrt()],
     ];
-    let points: Vec<FitPoint> = dirs
-        .iter()
-        .map(|d| {
-            let x = Vec3::from(*d);
-            FitPoint {
-                true_input: x,
-                measured: truth.forward(x, &Conditions::default()),
-                std_error: Vec3::repeat(1e-3),
-                conditions: Conditions::default(),
-                t_s: 0.0,
-                duration_s: 0.0,
-            }
-        })
-        .collect();
+    let points = exact_points(&truth, &dirs);
     let r = fit_triad(
         &model(&[Bias, Scale, Misalignment]),
         Triad::Accel,
@@ -319,20 +323,7 @@ fn raw_offsets_and_percent_scales_converge_from_a_neutral_start() {
         [0.0, s, -s],
         [-s, 0.0, s],
     ];
-    let points: Vec<FitPoint> = dirs
-        .iter()
-        .map(|d| {
-            let x = Vec3::from(*d);
-            FitPoint {
-                true_input: x,
-                measured: truth.forward(x, &Conditions::default()),
-                std_error: Vec3::repeat(1e-3),
-                conditions: Conditions::default(),
-                t_s: 0.0,
-                duration_s: 0.0,
-            }
-        })
-        .collect();
+    let points = exact_points(&truth, &dirs);
     let r = fit_triad(
         &model(&[Bias, Scale, Misalignment]),
         Triad::Accel,
