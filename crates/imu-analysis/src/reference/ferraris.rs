@@ -37,6 +37,9 @@ pub struct Ferraris {
     /// Plan name, for reports.
     #[serde(default)]
     pub name: Option<String>,
+    /// What the session is, for reports.
+    #[serde(default)]
+    pub description: Option<String>,
     /// Latitude, degrees: gives local gravity and the vertical part of Earth's rate.
     #[serde(default)]
     pub latitude_deg: Option<f64>,
