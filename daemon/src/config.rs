@@ -315,23 +315,39 @@ impl Config {
 
     /// Checks values that parse but make no sense.
     pub fn validate(&self, source: &Source) -> Result<(), ConfigError> {
-        let invalid = |key: &str, message: String| ConfigError::Invalid {
-            file: source.file.clone(),
-            line: imu_model::line_of_key(&source.text, key).unwrap_or(0),
-            key: key.to_string(),
-            message,
-        };
-        let positive = |v: f64| v.is_finite() && v > 0.0;
+        let problem = self
+            .name_problem()
+            .or_else(|| self.device_problem())
+            .or_else(|| self.log_publish_problem());
+        match problem {
+            None => Ok(()),
+            Some((key, message)) => Err(ConfigError::Invalid {
+                file: source.file.clone(),
+                line: imu_model::line_of_key(&source.text, key).unwrap_or(0),
+                key: key.to_string(),
+                message,
+            }),
+        }
+    }
+
+    /// The instance name's problem, as (key, message).
+    fn name_problem(&self) -> Option<(&'static str, String)> {
         // The same rule as every client that opens the instance's services (imu-echo).
         if let Err(e) = imu_bus::shm::validate_instance_name(&self.name) {
-            return Err(invalid(
+            return Some((
                 "name",
                 format!("{e} (it names shared-memory services and files)"),
             ));
         }
+        None
+    }
+
+    /// The first problem of the `[device]` settings (and the status interval), as (key, message).
+    fn device_problem(&self) -> Option<(&'static str, String)> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
         let d = &self.device;
         if !(300..=4_000_000).contains(&d.baud) {
-            return Err(invalid(
+            return Some((
                 "device.baud",
                 format!(
                     "{} is not a serial line rate (38400 is the 3DM-GX1 default)",
@@ -340,7 +356,7 @@ impl Config {
             ));
         }
         if !positive(d.poll_rate_hz) || d.poll_rate_hz > 10_000.0 {
-            return Err(invalid(
+            return Some((
                 "device.poll-rate-hz",
                 format!("{} Hz must be in (0, 10000]", d.poll_rate_hz),
             ));
@@ -348,7 +364,7 @@ impl Config {
         if !(d.temperature_rate_hz.is_finite() && d.temperature_rate_hz >= 0.0)
             || d.temperature_rate_hz > d.poll_rate_hz
         {
-            return Err(invalid(
+            return Some((
                 "device.temperature-rate-hz",
                 format!(
                     "{} Hz must be >= 0 and at most poll-rate-hz",
@@ -365,41 +381,40 @@ impl Config {
             ("publish.status-interval-s", self.publish.status_interval_s),
         ] {
             if !positive(v) {
-                return Err(invalid(
-                    key,
-                    format!("{v} must be a positive number of seconds"),
-                ));
+                return Some((key, format!("{v} must be a positive number of seconds")));
             }
         }
         if d.reconnect_max_s < d.reconnect_min_s {
-            return Err(invalid(
+            return Some((
                 "device.reconnect-max-s",
                 "must be at least reconnect-min-s".into(),
             ));
         }
         let g = d.fallback_gains;
         if g.accel == 0 || g.gyro == 0 || g.mag == 0 {
-            return Err(invalid(
+            return Some((
                 "device.fallback-gains",
                 "GainScale words must be non-zero".into(),
             ));
         }
+        None
+    }
+
+    /// The first problem of the `[log]` and `[publish]` settings, as (key, message).
+    fn log_publish_problem(&self) -> Option<(&'static str, String)> {
         if self.log.queue_capacity == 0 {
-            return Err(invalid("log.queue-capacity", "must be at least 1".into()));
+            return Some(("log.queue-capacity", "must be at least 1".into()));
         }
         if !(self.log.rotate_interval_s.is_finite() && self.log.rotate_interval_s >= 0.0) {
-            return Err(invalid(
-                "log.rotate-interval-s",
-                "must be >= 0 (0: never)".into(),
-            ));
+            return Some(("log.rotate-interval-s", "must be >= 0 (0: never)".into()));
         }
         if self.publish.subscriber_buffer == 0 || self.publish.max_subscribers == 0 {
-            return Err(invalid(
+            return Some((
                 "publish.subscriber-buffer",
                 "buffers and subscriber counts must be at least 1".into(),
             ));
         }
-        Ok(())
+        None
     }
 
     /// The effective configuration as TOML (for `imud --print-config`).

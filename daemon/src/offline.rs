@@ -114,24 +114,69 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
     std::fs::create_dir_all(&config.log.dir)
         .with_context(|| format!("creating {}", config.log.dir.display()))?;
     let mut device = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
-    let mut truth = match &sim.truth_out {
-        Some(path) => {
-            let run = BTreeMap::from([
-                ("scenario-name".to_string(), sim.scenario.name.clone()),
-                ("seed".to_string(), sim.seed.to_string()),
-                ("rate-hz".to_string(), sim.scenario.rate_hz.to_string()),
-                ("pacing".to_string(), "offline".to_string()),
-            ]);
-            let mut w =
-                TruthWriter::create(path, &run, &sim.scenario_text, &sim.truth.to_toml_string())?;
-            for s in device.timeline().segments() {
-                w.write_segment(&imu_sim::segment_record(s))?;
-            }
-            Some(w)
-        }
-        None => None,
+    let truth = open_truth(&sim, &device)?;
+    let mut sinks = Sinks {
+        publishers: None,
+        recorder: Some(start_recorder(&sim, config)?),
     };
-    let recorder = Recorder::start(
+    let period_s = device.sample_period_s();
+    let duration_s = device.timeline().duration_s();
+    anyhow::ensure!(
+        duration_s.is_finite(),
+        "offline recording needs a scenario that ends (the last segment has no duration-s)"
+    );
+    let gains = read_gains(&mut device, config);
+    let pipeline = start_pipeline(&sim, config, gains, period_s, &mut sinks)?;
+    let mut run = Run {
+        device,
+        decoder: ReplyDecoder::new(),
+        pipeline,
+        sinks,
+        truth,
+        cmd: config.device.command.command(),
+        temp_every: temperature_every(config, period_s),
+        queue_capacity: config.log.queue_capacity,
+        report: OfflineReport {
+            samples: 0,
+            temperatures: 0,
+            files: Vec::new(),
+            truth: sim.truth_out.clone(),
+        },
+    };
+    let mut bytes = Vec::with_capacity(64);
+    let mut k: u64 = 0;
+    loop {
+        let t_s = k as f64 * period_s;
+        if t_s >= duration_s {
+            break;
+        }
+        run.step(k, t_s, &mut bytes)?;
+        k += 1;
+    }
+    run.finish(config)
+}
+
+/// Opens the truth file `sim.truth_out` (if asked for) and writes the timeline's segments to it.
+fn open_truth(sim: &SimOptions, device: &DeviceCore) -> anyhow::Result<Option<TruthWriter>> {
+    let Some(path) = &sim.truth_out else {
+        return Ok(None);
+    };
+    let run = BTreeMap::from([
+        ("scenario-name".to_string(), sim.scenario.name.clone()),
+        ("seed".to_string(), sim.seed.to_string()),
+        ("rate-hz".to_string(), sim.scenario.rate_hz.to_string()),
+        ("pacing".to_string(), "offline".to_string()),
+    ]);
+    let mut w = TruthWriter::create(path, &run, &sim.scenario_text, &sim.truth.to_toml_string())?;
+    for s in device.timeline().segments() {
+        w.write_segment(&imu_sim::segment_record(s))?;
+    }
+    Ok(Some(w))
+}
+
+/// Starts the MCAP recorder into `config.log.dir` with the config and the scenario as metadata.
+fn start_recorder(sim: &SimOptions, config: &Config) -> anyhow::Result<Recorder> {
+    Recorder::start(
         RecordingConfig {
             dir: config.log.dir.clone(),
             prefix: config.name.clone(),
@@ -156,61 +201,17 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
             ),
         ],
     )
-    .context("starting the MCAP recorder")?;
-    let mut sinks = Sinks {
-        publishers: None,
-        recorder: Some(recorder),
-    };
-    let mut decoder = ReplyDecoder::new();
-    let cmd = config.device.command.command();
-    let period_s = device.sample_period_s();
-    let duration_s = device.timeline().duration_s();
-    anyhow::ensure!(
-        duration_s.is_finite(),
-        "offline recording needs a scenario that ends (the last segment has no duration-s)"
-    );
+    .context("starting the MCAP recorder")
+}
 
-    // The start-up exchange, through the codec, as on a line.
-    let ask = |device: &mut DeviceCore, c: Command, t_s: f64| -> Option<Reply> {
-        let bytes = device.handle(c, t_s).reply?.to_bytes();
-        Reply::decode(&bytes).ok()
-    };
-    let gain = |r: Option<Reply>, fallback: u16| match r {
-        Some(Reply::EepromRead { value, .. }) if value != 0 => (value, false),
-        _ => (fallback, true),
-    };
+/// The start-up exchange, through the codec, as on a line: reads the three gain scales from the
+/// EEPROM, falling back to `config.device.fallback-gains` where the device gives none.
+fn read_gains(device: &mut DeviceCore, config: &Config) -> Gains {
     let fb = config.device.fallback_gains;
-    let (accel, fa) = gain(
-        ask(
-            &mut device,
-            Command::ReadEeprom {
-                address: imu_proto::device::ACCEL_GAIN_SCALE_ADDR,
-            },
-            0.0,
-        ),
-        fb.accel,
-    );
-    let (gyro, fg) = gain(
-        ask(
-            &mut device,
-            Command::ReadEeprom {
-                address: imu_proto::device::GYRO_GAIN_SCALE_ADDR,
-            },
-            0.0,
-        ),
-        fb.gyro,
-    );
-    let (mag, fm) = gain(
-        ask(
-            &mut device,
-            Command::ReadEeprom {
-                address: imu_proto::device::MAG_GAIN_SCALE_ADDR,
-            },
-            0.0,
-        ),
-        fb.mag,
-    );
-    let gains = Gains {
+    let (accel, fa) = read_gain(device, imu_proto::device::ACCEL_GAIN_SCALE_ADDR, fb.accel);
+    let (gyro, fg) = read_gain(device, imu_proto::device::GYRO_GAIN_SCALE_ADDR, fb.gyro);
+    let (mag, fm) = read_gain(device, imu_proto::device::MAG_GAIN_SCALE_ADDR, fb.mag);
+    Gains {
         accel,
         gyro,
         mag,
@@ -219,7 +220,30 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
             gyro: fg,
             mag: fm,
         },
-    };
+    }
+}
+
+/// One gain scale read from EEPROM `address` at t = 0, and whether `fallback` replaced it.
+fn read_gain(device: &mut DeviceCore, address: u16, fallback: u16) -> (u16, bool) {
+    let reply = device
+        .handle(Command::ReadEeprom { address }, 0.0)
+        .reply
+        .and_then(|r| Reply::decode(&r.to_bytes()).ok());
+    match reply {
+        Some(Reply::EepromRead { value, .. }) if value != 0 => (value, false),
+        _ => (fallback, true),
+    }
+}
+
+/// The pipeline for a new session with `gains`, the configured calibration applied and logged,
+/// and the device metadata written to the recorder.
+fn start_pipeline(
+    sim: &SimOptions,
+    config: &Config,
+    gains: Gains,
+    period_s: f64,
+    sinks: &mut Sinks,
+) -> anyhow::Result<Pipeline> {
     let calibration = match &config.calibration.path {
         Some(p) => Some(std::sync::Arc::new(ActiveCalibration::new(
             imu_model::Calibration::load(p)?,
@@ -246,78 +270,107 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
         metadata.extend(gains.metadata());
         r.update_metadata("imud.device", metadata);
     }
-    let temp_every = if config.device.temperature_rate_hz > 0.0 {
+    Ok(pipeline)
+}
+
+/// Every how many samples a temperature is polled (`u64::MAX`: never).
+fn temperature_every(config: &Config, period_s: f64) -> u64 {
+    if config.device.temperature_rate_hz > 0.0 {
         ((1.0 / period_s) / config.device.temperature_rate_hz)
             .round()
             .max(1.0) as u64
     } else {
         u64::MAX
-    };
-    let mut report = OfflineReport {
-        samples: 0,
-        temperatures: 0,
-        files: Vec::new(),
-        truth: sim.truth_out.clone(),
-    };
-    let mut bytes = Vec::with_capacity(64);
-    let mut k: u64 = 0;
-    loop {
-        let t_s = k as f64 * period_s;
-        if t_s >= duration_s {
-            break;
-        }
+    }
+}
+
+/// The state of an offline run between samples.
+struct Run {
+    device: DeviceCore,
+    decoder: ReplyDecoder,
+    pipeline: Pipeline,
+    sinks: Sinks,
+    truth: Option<TruthWriter>,
+    /// The data command polled every sample.
+    cmd: Command,
+    /// Every how many samples a temperature is polled.
+    temp_every: u64,
+    queue_capacity: usize,
+    report: OfflineReport,
+}
+
+impl Run {
+    /// Sample `k` at `t_s`: the device's replies encoded into `bytes`, decoded, run through the
+    /// pipeline, and their truth written.
+    fn step(&mut self, k: u64, t_s: f64, bytes: &mut Vec<u8>) -> anyhow::Result<()> {
         bytes.clear();
         let mut truths = Vec::with_capacity(2);
-        if k.is_multiple_of(temp_every) {
-            let (reply, t) = device.data_reply(Command::Temperature, t_s);
-            reply.encode(&mut bytes);
+        if k.is_multiple_of(self.temp_every) {
+            let (reply, t) = self.device.data_reply(Command::Temperature, t_s);
+            reply.encode(bytes);
             truths.push(t);
-            report.temperatures += 1;
+            self.report.temperatures += 1;
         }
-        let (reply, t) = device.data_reply(cmd, t_s);
-        reply.encode(&mut bytes);
+        let (reply, t) = self.device.data_reply(self.cmd, t_s);
+        reply.encode(bytes);
         truths.push(t);
-        report.samples += 1;
-        decoder.push(&bytes);
+        self.report.samples += 1;
+        self.decoder.push(bytes);
         let t_ns = (t_s * 1e9) as u64;
-        while let Some(ev) = decoder.next_event() {
-            pipeline.on_event(ev, MONO_ORIGIN_NS + t_ns, WALL_ORIGIN_NS + t_ns, &mut sinks);
+        while let Some(ev) = self.decoder.next_event() {
+            self.pipeline.on_event(
+                ev,
+                MONO_ORIGIN_NS + t_ns,
+                WALL_ORIGIN_NS + t_ns,
+                &mut self.sinks,
+            );
         }
-        if let Some(w) = &mut truth {
+        if let Some(w) = &mut self.truth {
             for t in &truths {
                 w.write_sample(t)?;
             }
         }
-        // Offline there is no reason to drop: wait for the writer when its queue fills.
-        if let Some(r) = &sinks.recorder
-            && k.is_multiple_of(1024)
-        {
-            let logged = 3 * report.samples + 2 * report.temperatures;
-            while {
-                let s = r.stats();
-                logged.saturating_sub(s.written + s.dropped_queue_full + s.dropped_not_logging)
-                    > (config.log.queue_capacity as u64) / 2
-            } {
-                std::thread::sleep(std::time::Duration::from_millis(1));
-            }
+        if k.is_multiple_of(1024) {
+            self.wait_for_writer();
         }
-        k += 1;
+        Ok(())
     }
-    if let Some(w) = truth {
-        w.finish()?;
+
+    /// Offline there is no reason to drop: waits for the writer while its queue is over half full.
+    fn wait_for_writer(&self) {
+        let Some(r) = &self.sinks.recorder else {
+            return;
+        };
+        let logged = 3 * self.report.samples + 2 * self.report.temperatures;
+        while {
+            let s = r.stats();
+            logged.saturating_sub(s.written + s.dropped_queue_full + s.dropped_not_logging)
+                > (self.queue_capacity as u64) / 2
+        } {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
     }
-    let recorder = sinks.recorder.take().expect("recorder");
-    let stats = recorder.finish().context("finishing the recording")?;
-    anyhow::ensure!(
-        stats.dropped_queue_full + stats.dropped_not_logging == 0,
-        "the recorder dropped {} records: {:?}",
-        stats.dropped_queue_full + stats.dropped_not_logging,
-        stats.last_error
-    );
-    report.files = imu_bus::recording::list_recordings(&config.log.dir, &config.name)
-        .with_context(|| format!("listing {}", config.log.dir.display()))?
-        .into_iter()
-        .filter(|f| Some(f) != report.truth.as_ref())
-        .collect();
-    Ok(report)
+
+    /// Closes the truth file and the recording (failing if any record was dropped) and lists the
+    /// files written.
+    fn finish(mut self, config: &Config) -> anyhow::Result<OfflineReport> {
+        if let Some(w) = self.truth {
+            w.finish()?;
+        }
+        let recorder = self.sinks.recorder.take().expect("recorder");
+        let stats = recorder.finish().context("finishing the recording")?;
+        anyhow::ensure!(
+            stats.dropped_queue_full + stats.dropped_not_logging == 0,
+            "the recorder dropped {} records: {:?}",
+            stats.dropped_queue_full + stats.dropped_not_logging,
+            stats.last_error
+        );
+        let mut report = self.report;
+        report.files = imu_bus::recording::list_recordings(&config.log.dir, &config.name)
+            .with_context(|| format!("listing {}", config.log.dir.display()))?
+            .into_iter()
+            .filter(|f| Some(f) != report.truth.as_ref())
+            .collect();
+        Ok(report)
+    }
 }

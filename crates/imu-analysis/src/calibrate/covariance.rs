@@ -112,6 +112,39 @@ pub fn segment_covariance(
     session_covariance(points, &Sessions::default(), a, shared, white_scale)
 }
 
+/// The index of the earliest point of each session (None for a session without points).
+fn first_of_sessions(points: &[FitPoint], sessions: &Sessions) -> Vec<Option<usize>> {
+    let n = points.len();
+    let mut first: Vec<Option<usize>> = vec![None; sessions.count(n)];
+    for k in 0..n {
+        let f = &mut first[sessions.of(k)];
+        if f.is_none_or(|j| points[k].t_s < points[j].t_s) {
+            *f = Some(k);
+        }
+    }
+    first
+}
+
+/// The bank of `shared`'s flicker: (correlation time s, variance) of each Gauss-Markov
+/// process; empty without a flicker or a longest correlation time.
+fn flicker_bank(shared: &SharedNoise) -> Vec<(f64, f64)> {
+    match shared.flicker_tau_max_s {
+        Some(tau_max_s) if shared.flicker_var > 0.0 => {
+            let unit_model = imu_model::NoiseModel {
+                bias_instability_tau_max_s: tau_max_s,
+                ..Default::default()
+            };
+            let b2 = shared.flicker_var / imu_stats::noise_terms::BIAS_INSTABILITY_FACTOR.powi(2);
+            unit_model
+                .flicker_bank(FLICKER_BANK_DT_S)
+                .into_iter()
+                .map(|(t, u)| (t, u * b2))
+                .collect()
+        }
+        _ => Vec::new(),
+    }
+}
+
 /// [`segment_covariance`] of points from several sessions: the shared noise within each
 /// session (its random walk from `shared.random_walk_origin_s` on the session's clock, else
 /// from its first segment; its flicker increments from its first segment), the turn-on bias
@@ -125,13 +158,7 @@ pub fn session_covariance(
 ) -> DMatrix<f64> {
     let n = points.len();
     // The first segment of each session and the start of its random walk.
-    let mut first: Vec<Option<usize>> = vec![None; sessions.count(n)];
-    for k in 0..n {
-        let f = &mut first[sessions.of(k)];
-        if f.is_none_or(|j| points[k].t_s < points[j].t_s) {
-            *f = Some(k);
-        }
-    }
+    let first = first_of_sessions(points, sessions);
     let k0 = |k: usize| first[sessions.of(k)].unwrap_or(k);
     let t0 = |k: usize| {
         shared
@@ -155,22 +182,7 @@ pub fn session_covariance(
             unit * flicker_structure((points[k].t_s - points[l].t_s).abs() / t)
         }
     };
-    // The bank: (correlation time, variance) of each Gauss-Markov process.
-    let bank: Vec<(f64, f64)> = match shared.flicker_tau_max_s {
-        Some(tau_max_s) if shared.flicker_var > 0.0 => {
-            let unit_model = imu_model::NoiseModel {
-                bias_instability_tau_max_s: tau_max_s,
-                ..Default::default()
-            };
-            let b2 = shared.flicker_var / imu_stats::noise_terms::BIAS_INSTABILITY_FACTOR.powi(2);
-            unit_model
-                .flicker_bank(FLICKER_BANK_DT_S)
-                .into_iter()
-                .map(|(t, u)| (t, u * b2))
-                .collect()
-        }
-        _ => Vec::new(),
-    };
+    let bank = flicker_bank(shared);
     let flicker = |k: usize, l: usize| {
         if shared.flicker_tau_max_s.is_some() {
             let (pk, pl) = (&points[k], &points[l]);

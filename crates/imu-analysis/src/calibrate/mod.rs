@@ -187,30 +187,106 @@ pub fn calibrate_recordings(
     opts: &CalibrateOptions,
 ) -> Result<CalibrationFit, CalibrateError> {
     use crate::segment::SegmentKind;
-    let several = recordings.len() > 1;
-    let in_recording = |i: usize, e: CalibrateError| {
-        if several {
-            CalibrateError::Recording {
-                number: i + 1,
-                origin: recordings[i].0.origin.clone(),
-                source: Box::new(e),
-            }
-        } else {
-            e
-        }
-    };
     if recordings.is_empty() {
         return Err(CalibrateError::NoRecording);
     }
+    let Observed {
+        obs,
+        mut notes,
+        gyro_bias_std_rad_s,
+    } = observe_recordings(recordings, opts)?;
+    if recordings.len() > 1 {
+        notes.push(bias_note(recordings.len(), opts));
+    }
+    let caveats = crate::reference::ReferenceCaveats {
+        gyro_bias_std_rad_s,
+        notes: Vec::new(),
+    };
+
+    let needed = |m: &TriadModel| m.n_params() / 3 + 1;
+    require_segments(
+        &obs,
+        SegmentKind::Static,
+        needed(&opts.accel).max(2),
+        "accel fit",
+    )?;
+    let (points, sessions) = joint_points(&obs, Triad::Accel, opts.accel_turn_on_bias_m_s2);
+    let accel = fit_loadable(
+        &opts.accel,
+        Triad::Accel,
+        &points,
+        &sessions,
+        &fit_options(opts, opts.accel_bias_drift_m_s2, None, &opts.accel_noise),
+    )?;
+
+    let plateaus = obs
+        .iter()
+        .any(|o| o.segmentation.count(SegmentKind::Plateau) > 0);
+    let (gyro_model, note) = gyro_model_with_plateaus(&opts.gyro, plateaus);
+    notes.extend(note);
+    require_segments(&obs, SegmentKind::Static, 1, "gyro fit")?;
+    let (points, sessions) = joint_points(&obs, Triad::Gyro, opts.gyro_turn_on_bias_rad_s);
+    let gyro = fit_loadable(
+        &gyro_model,
+        Triad::Gyro,
+        &points,
+        &sessions,
+        &fit_options(
+            opts,
+            opts.gyro_bias_drift_rad_s,
+            caveats.gyro_bias_std_rad_s,
+            &opts.gyro_noise,
+        ),
+    )?;
+
+    let mut calibration = imu_model::Calibration::identity();
+    calibration.accel = accel.model.clone();
+    calibration.gyro = gyro.model.clone();
+    let recordings = recording_fits(obs, recordings);
+    Ok(CalibrationFit {
+        segmentation: recordings[0].segmentation.clone(),
+        segment_truth: recordings[0].segment_truth.clone(),
+        recordings,
+        accel,
+        gyro,
+        calibration,
+        notes,
+    })
+}
+
+/// `e` naming recording `i` when there are several.
+fn in_recording(
+    recordings: &[(&crate::ImuSeries, &Reference)],
+    i: usize,
+    e: CalibrateError,
+) -> CalibrateError {
+    if recordings.len() > 1 {
+        CalibrateError::Recording {
+            number: i + 1,
+            origin: recordings[i].0.origin.clone(),
+            source: Box::new(e),
+        }
+    } else {
+        e
+    }
+}
+
+/// Each recording's fit points, the notes of their references and segmentations (prefixed with
+/// the recording when there are several), and the largest unknown gyro bias of the references.
+fn observe_recordings(
+    recordings: &[(&crate::ImuSeries, &Reference)],
+    opts: &CalibrateOptions,
+) -> Result<Observed, CalibrateError> {
+    let several = recordings.len() > 1;
     let mut notes = Vec::new();
     let mut obs = Vec::with_capacity(recordings.len());
     let mut gyro_bias_std_rad_s: Option<[f64; 3]> = None;
     for (i, (series, reference)) in recordings.iter().enumerate() {
         let o = Observations::from_recording(series, reference, &opts.segment, false)
-            .map_err(|e| in_recording(i, e))?;
+            .map_err(|e| in_recording(recordings, i, e))?;
         let caveats = reference
             .caveats(series, &o.segmentation.segments)
-            .map_err(|e| in_recording(i, e.into()))?;
+            .map_err(|e| in_recording(recordings, i, e.into()))?;
         let prefix = if several {
             format!("recording {} ({}): ", i + 1, series.origin)
         } else {
@@ -235,16 +311,33 @@ pub fn calibrate_recordings(
         }
         obs.push(o);
     }
-    if several {
-        notes.push(bias_note(recordings.len(), opts));
-    }
-    let caveats = crate::reference::ReferenceCaveats {
+    Ok(Observed {
+        obs,
+        notes,
         gyro_bias_std_rad_s,
-        notes: Vec::new(),
-    };
-    // A characterised noise carries the bias wander in the covariance of the means; without
-    // one, the wander is added to the bias standard errors. Known shared noise is kept.
-    let fit_opts = |drift, input, noise: &Option<imu_model::NoiseModel>| FitOptions {
+    })
+}
+
+/// What [`observe_recordings`] found.
+struct Observed {
+    /// Fit points per recording.
+    obs: Vec<Observations>,
+    /// Notes of the references and segmentations.
+    notes: Vec<String>,
+    /// The largest unknown gyro bias of the references (rad/s, 1 sigma per axis).
+    gyro_bias_std_rad_s: Option<[f64; 3]>,
+}
+
+/// The fit options of one triad. A characterised noise carries the bias wander in the
+/// covariance of the means; without one, the wander is added to the bias standard errors.
+/// Known shared noise is kept.
+fn fit_options(
+    opts: &CalibrateOptions,
+    drift: Option<[f64; 3]>,
+    input: Option<[f64; 3]>,
+    noise: &Option<imu_model::NoiseModel>,
+) -> FitOptions {
+    FitOptions {
         fixed: Vec::new(),
         bias_input_uncertainty: input,
         mean_noise: match (&opts.fit.mean_noise, noise) {
@@ -253,49 +346,16 @@ pub fn calibrate_recordings(
             (_, None) => MeanNoise::White { bias_drift: drift },
         },
         ..opts.fit.clone()
-    };
+    }
+}
 
-    let needed = |m: &TriadModel| m.n_params() / 3 + 1;
-    require_segments(
-        &obs,
-        SegmentKind::Static,
-        needed(&opts.accel).max(2),
-        "accel fit",
-    )?;
-    let (points, sessions) = joint_points(&obs, Triad::Accel, opts.accel_turn_on_bias_m_s2);
-    let accel = fit_loadable(
-        &opts.accel,
-        Triad::Accel,
-        &points,
-        &sessions,
-        &fit_opts(opts.accel_bias_drift_m_s2, None, &opts.accel_noise),
-    )?;
-
-    let plateaus = obs
-        .iter()
-        .any(|o| o.segmentation.count(SegmentKind::Plateau) > 0);
-    let (gyro_model, note) = gyro_model_with_plateaus(&opts.gyro, plateaus);
-    notes.extend(note);
-    require_segments(&obs, SegmentKind::Static, 1, "gyro fit")?;
-    let (points, sessions) = joint_points(&obs, Triad::Gyro, opts.gyro_turn_on_bias_rad_s);
-    let gyro = fit_loadable(
-        &gyro_model,
-        Triad::Gyro,
-        &points,
-        &sessions,
-        &fit_opts(
-            opts.gyro_bias_drift_rad_s,
-            caveats.gyro_bias_std_rad_s,
-            &opts.gyro_noise,
-        ),
-    )?;
-
-    let mut calibration = imu_model::Calibration::identity();
-    calibration.accel = accel.model.clone();
-    calibration.gyro = gyro.model.clone();
+/// Each recording's part of the joint fit: its segments and its ranges of the fit points.
+fn recording_fits(
+    obs: Vec<Observations>,
+    recordings: &[(&crate::ImuSeries, &Reference)],
+) -> Vec<RecordingFit> {
     let (mut a0, mut g0) = (0, 0);
-    let recordings: Vec<RecordingFit> = obs
-        .into_iter()
+    obs.into_iter()
         .zip(recordings)
         .map(|(o, (series, reference))| {
             let (na, ng) = (o.accel.len(), o.gyro.len());
@@ -310,16 +370,7 @@ pub fn calibrate_recordings(
             (a0, g0) = (a0 + na, g0 + ng);
             r
         })
-        .collect();
-    Ok(CalibrationFit {
-        segmentation: recordings[0].segmentation.clone(),
-        segment_truth: recordings[0].segment_truth.clone(),
-        recordings,
-        accel,
-        gyro,
-        calibration,
-        notes,
-    })
+        .collect()
 }
 
 /// What a joint fit assumes of the biases of its `n` recordings.

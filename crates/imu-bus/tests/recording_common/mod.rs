@@ -4,13 +4,14 @@
 #![allow(dead_code)] // each test crate uses a different part
 
 use std::borrow::Cow;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
 use imu_bus::recording::{
-    ImuNoiseVariances, LogRecord, RecordedCalibration, RecordedFrame, Recording, RecordingConfig,
-    imu_message, magnetic_field_message,
+    ImuNoiseVariances, LogRecord, RecordedCalibration, RecordedFrame, Recorder, Recording,
+    RecordingConfig, imu_message, magnetic_field_message,
 };
 use imu_bus::sample::{CorrectedSample, DaemonStatus, RawSample, raw_flags};
 use serde_json::Value;
@@ -295,5 +296,23 @@ pub fn run_peer(name: &str, args: &[&std::ffi::OsStr]) -> Option<Value> {
             String::from_utf8_lossy(&out.stderr)
         ),
         Err(e) => unavailable(format!("cannot run python3: {e}")),
+    }
+}
+
+/// Metadata like the daemon's device record.
+pub fn device_metadata() -> Vec<(String, BTreeMap<String, String>)> {
+    vec![(
+        "imud.device".to_string(),
+        BTreeMap::from([
+            ("serial".to_string(), "1234".to_string()),
+            ("firmware".to_string(), "3.1".to_string()),
+        ]),
+    )]
+}
+
+/// Logs every record, asserting none is refused.
+pub fn log_all(rec: &Recorder, records: &[LogRecord]) {
+    for r in records {
+        assert!(rec.log(r.clone()), "queue unexpectedly full");
     }
 }

@@ -141,6 +141,33 @@ impl Scenario {
     }
 }
 
+/// A static segment's keys (`is_last`: it may omit its duration).
+fn validate_static(
+    orientation: Option<&OrientationSpec>,
+    duration_s: Option<f64>,
+    move_s: Option<f64>,
+    is_last: bool,
+    ctx: &str,
+    invalid: Invalid<'_>,
+) -> Result<(), ScenarioError> {
+    let bad = |m: &str| Err(invalid(ctx.to_string(), m.to_string()));
+    if let Some(o) = orientation {
+        o.enu_from_sensor()
+            .map_err(|m| invalid(ctx.to_string(), m))?;
+    }
+    match duration_s {
+        None if !is_last => {
+            return bad("only the last segment may omit duration-s (it then runs forever)");
+        }
+        Some(d) if !positive(d) => return bad("duration-s must be positive"),
+        _ => {}
+    }
+    if move_s.is_some_and(|m| !positive(m)) {
+        return bad("move-s must be positive");
+    }
+    Ok(())
+}
+
 /// One segment's keys (`is_last`: it may omit its duration). A flat list of checks, one arm per
 /// segment kind, which is why it is long.
 fn validate_segment(
@@ -156,22 +183,14 @@ fn validate_segment(
             duration_s,
             move_s,
             ..
-        } => {
-            if let Some(o) = orientation {
-                o.enu_from_sensor()
-                    .map_err(|m| invalid(ctx.to_string(), m))?;
-            }
-            match duration_s {
-                None if !is_last => {
-                    return bad("only the last segment may omit duration-s (it then runs forever)");
-                }
-                Some(d) if !positive(*d) => return bad("duration-s must be positive"),
-                _ => {}
-            }
-            if move_s.is_some_and(|m| !positive(m)) {
-                return bad("move-s must be positive");
-            }
-        }
+        } => validate_static(
+            orientation.as_ref(),
+            *duration_s,
+            *move_s,
+            is_last,
+            ctx,
+            invalid,
+        )?,
         SegmentSpec::IndexTable {
             step_deg,
             positions,

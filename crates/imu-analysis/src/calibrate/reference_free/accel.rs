@@ -81,18 +81,8 @@ pub(super) fn fit_accel(
         |p: &[f64]| magnitude_residuals(&mut work, p, &measured, &conditions, &sigma_m_s2, g_m_s2);
     let start_note =
         start_from_ellipsoid(&model, &fixed, &measured, g_m_s2, &mut p0, &mut residual);
-    let sol =
-        least_squares(residual, &p0, &fixed, &names, &opts.lsq).map_err(|source| match source {
-            LsqError::TooFewResiduals { n_free, .. } => ReferenceFreeError::TooFewPoses {
-                triad,
-                found: poses.len(),
-                needed: n_free + 1,
-                n_free,
-                what: "after dropping unobservable parameters".into(),
-                still_s,
-            },
-            source => ReferenceFreeError::Lsq { triad, source },
-        })?;
+    let sol = least_squares(residual, &p0, &fixed, &names, &opts.lsq)
+        .map_err(|source| lsq_error(source, poses.len(), still_s))?;
     let ids = model.param_ids();
     check_primary_observable(&ids, &sol)?;
 
@@ -104,14 +94,7 @@ pub(super) fn fit_accel(
     let (up, magnitude_error_m_s2, rms) = (pose_fit.up, pose_fit.error_m_s2, pose_fit.rms_m_s2);
     model.residual_rms = Some(pose_fit.axis_rms_m_s2);
 
-    let mut warnings = conditioning_warnings(triad, &sol, &names, opts.weak_eigenvalue, "poses");
-    if poses.len() < 2 * n_free {
-        warnings.push(format!(
-            "accel: only {} poses for {n_free} parameters: standard errors are rough; {POSE_ADVICE}",
-            poses.len()
-        ));
-    }
-    push_axis_coverage_warnings(&up, &mut warnings);
+    let warnings = accel_warnings(&sol, &names, opts, poses.len(), n_free, &up);
     let unobservable = accel_unobservable(&gauge, &names, &requested, &sol);
     Ok(AccelOutcome {
         fit: TriadFit {
@@ -140,6 +123,43 @@ pub(super) fn fit_accel(
         magnitude_error_m_s2,
         start_note,
     })
+}
+
+/// The accel fit's error for a least-squares failure `source` with `n_poses` poses.
+fn lsq_error(source: LsqError, n_poses: usize, still_s: f64) -> ReferenceFreeError {
+    let triad = Triad::Accel;
+    match source {
+        LsqError::TooFewResiduals { n_free, .. } => ReferenceFreeError::TooFewPoses {
+            triad,
+            found: n_poses,
+            needed: n_free + 1,
+            n_free,
+            what: "after dropping unobservable parameters".into(),
+            still_s,
+        },
+        source => ReferenceFreeError::Lsq { triad, source },
+    }
+}
+
+/// The accel fit's warnings: conditioning, too few poses for `n_free` parameters, axes the
+/// poses' `up` directions leave uncovered.
+fn accel_warnings(
+    sol: &LsqSolution,
+    names: &[String],
+    opts: &ReferenceFreeOptions,
+    n_poses: usize,
+    n_free: usize,
+    up: &[Vec3],
+) -> Vec<String> {
+    let mut warnings =
+        conditioning_warnings(Triad::Accel, sol, names, opts.weak_eigenvalue, "poses");
+    if n_poses < 2 * n_free {
+        warnings.push(format!(
+            "accel: only {n_poses} poses for {n_free} parameters: standard errors are rough; {POSE_ADVICE}"
+        ));
+    }
+    push_axis_coverage_warnings(up, &mut warnings);
+    warnings
 }
 
 /// The standard error of each pose's |mean accel|: the mean's error along the gravity

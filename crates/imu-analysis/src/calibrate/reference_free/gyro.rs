@@ -59,68 +59,22 @@ pub(super) fn merge_gyro(
     let mut model = model.clone();
     let names = model.param_names(triad);
     let units = model.param_units(triad);
-    let mut params = model.params();
-    let mut std_errors = vec![None; params.len()];
-    let mut unobservable = Vec::new();
-    let mut warnings = Vec::new();
-    // (index in the merged layout, correlation block id, index in that block's free list)
-    let mut free_src: Vec<(usize, usize, usize)> = Vec::new();
+    let mut m = Merged::new(model.params());
     if let Some(o) = offsets {
-        for (c, &i) in o.free.iter().enumerate() {
-            let j = names.iter().position(|n| *n == o.names[i]).expect("subset");
-            free_src.push((j, 0, c));
-        }
-        for (i, n) in o.names.iter().enumerate() {
-            let j = names.iter().position(|x| x == n).expect("subset");
-            params[j] = o.params[i];
-            std_errors[j] = o.std_errors[i];
-        }
-        unobservable.extend(o.unobservable.iter().cloned());
-        warnings.extend(
-            o.warnings
-                .iter()
-                .map(|w| format!("gyro (still poses): {w}")),
-        );
+        m.add_offsets(o, &names);
     }
-    let gain_names: Vec<String> = {
-        let mut g = TriadModel::default();
-        for k in model.kinds() {
-            if k.is_gain() {
-                g.add(k);
-            }
-        }
-        g.param_names(triad)
-    };
     if let Some(s) = gains {
-        for (c, &i) in s.free.iter().enumerate() {
-            let j = names
-                .iter()
-                .position(|n| *n == gain_names[i])
-                .expect("subset");
-            free_src.push((j, 1, c));
-        }
-        for (i, n) in gain_names.iter().enumerate() {
-            let j = names.iter().position(|x| x == n).expect("subset");
-            params[j] = s.params[i];
-            std_errors[j] = s.std_errors[i];
-        }
-        unobservable.extend(s.unobservable.iter().cloned());
-        warnings.extend(conditioning_warnings(triad, s, &gain_names, weak, "moves"));
+        m.add_gains(s, &model, &names, weak);
     }
-    free_src.sort_by_key(|f| f.0);
-    let correlation: Vec<Vec<f64>> = free_src
-        .iter()
-        .map(|a| {
-            free_src
-                .iter()
-                .map(|b| match (a.1, b.1) {
-                    (0, 0) => offsets.map_or(0.0, |o| o.correlation[a.2][b.2]),
-                    (1, 1) => gains.map_or(0.0, |s| s.correlation[a.2][b.2]),
-                    _ => 0.0,
-                })
-                .collect()
-        })
-        .collect();
+    m.free_src.sort_by_key(|f| f.0);
+    let correlation = m.correlation(offsets, gains);
+    let Merged {
+        params,
+        std_errors,
+        unobservable,
+        warnings,
+        free_src,
+    } = m;
     model.set_params(&params);
     store_std_errors(&mut model, &std_errors, &[]);
     if let Some(o) = offsets {
@@ -150,6 +104,98 @@ pub(super) fn merge_gyro(
         iterations: gains.map_or(0, |s| s.iterations),
         converged: gains.is_none_or(|s| s.converged),
         warnings,
+    }
+}
+
+/// The gyro parameters being merged from the offset and gain fits, in the full model's layout.
+struct Merged {
+    params: Vec<f64>,
+    std_errors: Vec<Option<f64>>,
+    unobservable: Vec<Unobservable>,
+    warnings: Vec<String>,
+    /// (index in the merged layout, correlation block id, index in that block's free list)
+    free_src: Vec<(usize, usize, usize)>,
+}
+
+impl Merged {
+    /// Starting from the model's `params`, nothing fitted yet.
+    fn new(params: Vec<f64>) -> Self {
+        Merged {
+            std_errors: vec![None; params.len()],
+            params,
+            unobservable: Vec::new(),
+            warnings: Vec::new(),
+            free_src: Vec::new(),
+        }
+    }
+
+    /// Takes the still-pose offset fit `o` (correlation block 0).
+    fn add_offsets(&mut self, o: &FitResult, names: &[String]) {
+        for (c, &i) in o.free.iter().enumerate() {
+            let j = names.iter().position(|n| *n == o.names[i]).expect("subset");
+            self.free_src.push((j, 0, c));
+        }
+        for (i, n) in o.names.iter().enumerate() {
+            let j = names.iter().position(|x| x == n).expect("subset");
+            self.params[j] = o.params[i];
+            self.std_errors[j] = o.std_errors[i];
+        }
+        self.unobservable.extend(o.unobservable.iter().cloned());
+        self.warnings.extend(
+            o.warnings
+                .iter()
+                .map(|w| format!("gyro (still poses): {w}")),
+        );
+    }
+
+    /// Takes the move gain fit `s` of `model`'s gain effects (correlation block 1).
+    fn add_gains(&mut self, s: &LsqSolution, model: &TriadModel, names: &[String], weak: f64) {
+        let triad = Triad::Gyro;
+        let gain_names: Vec<String> = {
+            let mut g = TriadModel::default();
+            for k in model.kinds() {
+                if k.is_gain() {
+                    g.add(k);
+                }
+            }
+            g.param_names(triad)
+        };
+        for (c, &i) in s.free.iter().enumerate() {
+            let j = names
+                .iter()
+                .position(|n| *n == gain_names[i])
+                .expect("subset");
+            self.free_src.push((j, 1, c));
+        }
+        for (i, n) in gain_names.iter().enumerate() {
+            let j = names.iter().position(|x| x == n).expect("subset");
+            self.params[j] = s.params[i];
+            self.std_errors[j] = s.std_errors[i];
+        }
+        self.unobservable.extend(s.unobservable.iter().cloned());
+        self.warnings
+            .extend(conditioning_warnings(triad, s, &gain_names, weak, "moves"));
+    }
+
+    /// The correlation of the free parameters: each fit's own block, zero between the fits.
+    fn correlation(
+        &self,
+        offsets: Option<&FitResult>,
+        gains: Option<&LsqSolution>,
+    ) -> Vec<Vec<f64>> {
+        self.free_src
+            .iter()
+            .map(|a| {
+                self.free_src
+                    .iter()
+                    .map(|b| match (a.1, b.1) {
+                        (0, 0) => offsets.map_or(0.0, |o| o.correlation[a.2][b.2]),
+                        (1, 1) => gains.map_or(0.0, |s| s.correlation[a.2][b.2]),
+                        _ => 0.0,
+                    })
+                    .collect()
+            })
+            .collect()
     }
 }
 

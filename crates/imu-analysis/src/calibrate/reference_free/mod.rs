@@ -439,6 +439,47 @@ fn calibrate_reference_free_once(
     if accel.fit.model.has(EffectKind::Misalignment) {
         notes.push(GAUGE_NOTE.into());
     }
+    let GyroOutcome {
+        gyro,
+        gyro_static,
+        moves: move_out,
+    } = fit_gyro(series, &poses, &accel, opts, g_m_s2, &mut notes)?;
+
+    let poses_out = poses_out(&poses, &pose_index, &accel);
+    let calibration = fitted_calibration(&accel.fit.model, &gyro.model, &poses_out, &move_out);
+    Ok(ReferenceFreeFit {
+        segmentation,
+        gravity_m_s2: g_m_s2,
+        poses: poses_out,
+        moves: move_out,
+        accel: accel.fit,
+        gyro,
+        gyro_static,
+        calibration,
+        notes,
+    })
+}
+
+/// The gyro result of a reference-free fit.
+struct GyroOutcome {
+    /// The merged gyro fit.
+    gyro: TriadFit,
+    /// The still-pose offset fit, if the model has offsets.
+    gyro_static: Option<FitResult>,
+    /// The moves between the poses.
+    moves: Vec<Move>,
+}
+
+/// The gyro fit on the still `poses` whose up directions `accel` found: the model split into
+/// offsets (fitted to the still poses) and gains (fitted to the moves), merged; notes appended.
+fn fit_gyro(
+    series: &ImuSeries,
+    poses: &[&Segment],
+    accel: &AccelOutcome,
+    opts: &ReferenceFreeOptions,
+    g_m_s2: f64,
+    notes: &mut Vec<String>,
+) -> Result<GyroOutcome, ReferenceFreeError> {
     let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
 
     // Gyro: split the model into offsets (still poses) and gains (moves).
@@ -447,7 +488,7 @@ fn calibrate_reference_free_once(
 
     let gyro_static = if offsets.n_params() > 0 {
         Some(fit_gyro_static(
-            &poses,
+            poses,
             &accel.up,
             &conditions,
             &offsets,
@@ -459,7 +500,7 @@ fn calibrate_reference_free_once(
     };
     notes.push(gyro_bias_note(opts.latitude_deg));
 
-    let (moves, skipped) = prepare_moves(series, &poses, &accel.up, &conditions, g_m_s2);
+    let (moves, skipped) = prepare_moves(series, poses, &accel.up, &conditions, g_m_s2);
     if skipped > 0 {
         notes.push(format!(
             "{skipped} move(s) skipped: lost samples (the rate over a gap is unknown)"
@@ -477,20 +518,11 @@ fn calibrate_reference_free_once(
     let gyro_held = held(Triad::Gyro, &gyro.names, &opts.hold);
     gyro.unobservable
         .splice(0..0, held_entries(&gyro.names, &gyro_held));
-    push_gyro_notes(&gyro_model, &mut notes);
-
-    let poses_out = poses_out(&poses, &pose_index, &accel);
-    let calibration = fitted_calibration(&accel.fit.model, &gyro.model, &poses_out, &move_out);
-    Ok(ReferenceFreeFit {
-        segmentation,
-        gravity_m_s2: g_m_s2,
-        poses: poses_out,
-        moves: move_out,
-        accel: accel.fit,
+    push_gyro_notes(&gyro_model, notes);
+    Ok(GyroOutcome {
         gyro,
         gyro_static,
-        calibration,
-        notes,
+        moves: move_out,
     })
 }
 

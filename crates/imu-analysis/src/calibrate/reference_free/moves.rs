@@ -110,17 +110,7 @@ pub(crate) fn prepare_moves(
             skipped += 1;
             continue;
         }
-        // Straight line of time against sample index over both poses and the move.
-        let n = t.len() as f64;
-        let x_mean = (n - 1.0) / 2.0;
-        let t_mean = t.iter().sum::<f64>() / n;
-        let (mut sxy, mut sxx) = (0.0, 0.0);
-        for (i, ti) in t.iter().enumerate() {
-            let dx = i as f64 - x_mean;
-            sxy += dx * (ti - t_mean);
-            sxx += dx * dx;
-        }
-        let period_s = sxy / sxx;
+        let (x_mean, t_mean, period_s) = time_line(t);
         let time = |i: usize| t_mean + period_s * ((i - lo) as f64 - x_mean);
         let mid_a = time(a.first_sample) + 0.5 * period_s * (a.n - 1) as f64;
         let mid_b = time(b.first_sample) + 0.5 * period_s * (b.n - 1) as f64;
@@ -140,17 +130,7 @@ pub(crate) fn prepare_moves(
             int_a += (1.0 - w) * period_s;
             int_b += w * period_s;
         }
-        // Per-axis variances averaged over the axes: white gyro noise integrated over the
-        // move, the error of the two pose rates weighted by their share of the interpolation,
-        // and the error of the two gravity directions.
-        let mean_sq = |v: Vec3| v.norm_squared() / 3.0;
-        let white_var =
-            (mean_sq(Vec3::from(a.std_gyro_rad_s)) + mean_sq(Vec3::from(b.std_gyro_rad_s))) / 2.0;
-        let var_rad2 = white_var * period_s * duration_s
-            + int_a * int_a * mean_sq(mean_se(a.std_gyro_rad_s, a.n))
-            + int_b * int_b * mean_sq(mean_se(b.std_gyro_rad_s, b.n))
-            + (mean_sq(mean_se(a.std_accel_m_s2, a.n)) + mean_sq(mean_se(b.std_accel_m_s2, b.n)))
-                / (g_m_s2 * g_m_s2);
+        let var_rad2 = move_variance_rad2(a, b, period_s, duration_s, [int_a, int_b], g_m_s2);
         let (e1, e2) = normal_basis(up[k + 1]);
         out.push(MoveData {
             from_pose: k,
@@ -165,4 +145,40 @@ pub(crate) fn prepare_moves(
         });
     }
     (out, skipped)
+}
+
+/// Straight line of time `t` against sample index: (mean index, mean time, sample period s).
+fn time_line(t: &[f64]) -> (f64, f64, f64) {
+    let n = t.len() as f64;
+    let x_mean = (n - 1.0) / 2.0;
+    let t_mean = t.iter().sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (i, ti) in t.iter().enumerate() {
+        let dx = i as f64 - x_mean;
+        sxy += dx * (ti - t_mean);
+        sxx += dx * dx;
+    }
+    (x_mean, t_mean, sxy / sxx)
+}
+
+/// The variance of a move's integrated rotation from pose `a` to pose `b` (rad^2), per axis
+/// averaged over the axes: white gyro noise integrated over the move, the error of the two pose
+/// rates weighted by their share of the interpolation (`[int_a, int_b]`, the integrals of the
+/// interpolation weights, s), and the error of the two gravity directions.
+fn move_variance_rad2(
+    a: &Segment,
+    b: &Segment,
+    period_s: f64,
+    duration_s: f64,
+    [int_a, int_b]: [f64; 2],
+    g_m_s2: f64,
+) -> f64 {
+    let mean_sq = |v: Vec3| v.norm_squared() / 3.0;
+    let white_var =
+        (mean_sq(Vec3::from(a.std_gyro_rad_s)) + mean_sq(Vec3::from(b.std_gyro_rad_s))) / 2.0;
+    white_var * period_s * duration_s
+        + int_a * int_a * mean_sq(mean_se(a.std_gyro_rad_s, a.n))
+        + int_b * int_b * mean_sq(mean_se(b.std_gyro_rad_s, b.n))
+        + (mean_sq(mean_se(a.std_accel_m_s2, a.n)) + mean_sq(mean_se(b.std_accel_m_s2, b.n)))
+            / (g_m_s2 * g_m_s2)
 }

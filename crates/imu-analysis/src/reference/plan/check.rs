@@ -192,6 +192,13 @@ impl Plan {
             )];
         }
         let mut out = Vec::new();
+        out.extend(self.up_problem(e, s, &head));
+        out.extend(self.rate_problem(e, s, &head, rest_rad_s));
+        out
+    }
+
+    /// The problem of segment `s`'s measured up direction against entry `e`'s, if any.
+    fn up_problem(&self, e: &PlanEntry, s: &Segment, head: &str) -> Option<String> {
         let tol = self.direction_tolerance_deg;
         let planned_f = self.specific_force_dir(e);
         let measured_f = s.mean_accel();
@@ -200,7 +207,7 @@ impl Plan {
         {
             let angle = pf.angle(&measured_f).to_degrees();
             if angle > tol {
-                out.push(format!(
+                return Some(format!(
                     "{head}: measured up {} is {angle:.1} deg from the planned {} (tolerance \
                      {tol} deg)",
                     format_direction(&measured_f.normalize()),
@@ -208,40 +215,50 @@ impl Plan {
                 ));
             }
         }
-        if let Some(axis) = e.axis_sensor.map(Vec3::from) {
-            let nominal_deg_s = e.rate_rad_s.to_degrees();
-            let w = s.mean_gyro() - rest_rad_s;
-            let about_deg_s = w.dot(&axis).to_degrees();
-            let rest_deg_s = rest_rad_s.norm().to_degrees();
-            let after_rest = if rest_deg_s >= 0.05 {
-                format!(" after removing the rest reading of {rest_deg_s:.2} deg/s")
-            } else {
-                String::new()
-            };
-            let off_percent = 100.0 * (about_deg_s - nominal_deg_s).abs() / nominal_deg_s.abs();
-            if about_deg_s.signum() != nominal_deg_s.signum()
-                || off_percent > self.rate_tolerance_percent
-            {
-                out.push(format!(
-                    "{head}: measured {about_deg_s:.2} deg/s about {}{after_rest}, planned \
-                     {nominal_deg_s} deg/s ({off_percent:.0} % off, tolerance {} %)",
-                    format_direction(&axis),
-                    self.rate_tolerance_percent
-                ));
-            } else {
-                let planned_axis = axis * nominal_deg_s.signum();
-                let angle = planned_axis.angle(&w).to_degrees();
-                if angle > tol {
-                    out.push(format!(
-                        "{head}: measured rotation axis {} is {angle:.1} deg from the planned {} \
-                         (tolerance {tol} deg)",
-                        format_direction(&w.normalize()),
-                        format_direction(&planned_axis)
-                    ));
-                }
-            }
+        None
+    }
+
+    /// The problem of plateau `s`'s rate (minus `rest_rad_s`) against entry `e`'s planned rate
+    /// and axis, if any: the rate first, the axis only when the rate is on plan.
+    fn rate_problem(
+        &self,
+        e: &PlanEntry,
+        s: &Segment,
+        head: &str,
+        rest_rad_s: Vec3,
+    ) -> Option<String> {
+        let tol = self.direction_tolerance_deg;
+        let axis = e.axis_sensor.map(Vec3::from)?;
+        let nominal_deg_s = e.rate_rad_s.to_degrees();
+        let w = s.mean_gyro() - rest_rad_s;
+        let about_deg_s = w.dot(&axis).to_degrees();
+        let rest_deg_s = rest_rad_s.norm().to_degrees();
+        let after_rest = if rest_deg_s >= 0.05 {
+            format!(" after removing the rest reading of {rest_deg_s:.2} deg/s")
+        } else {
+            String::new()
+        };
+        let off_percent = 100.0 * (about_deg_s - nominal_deg_s).abs() / nominal_deg_s.abs();
+        if about_deg_s.signum() != nominal_deg_s.signum()
+            || off_percent > self.rate_tolerance_percent
+        {
+            return Some(format!(
+                "{head}: measured {about_deg_s:.2} deg/s about {}{after_rest}, planned \
+                 {nominal_deg_s} deg/s ({off_percent:.0} % off, tolerance {} %)",
+                format_direction(&axis),
+                self.rate_tolerance_percent
+            ));
         }
-        out
+        let planned_axis = axis * nominal_deg_s.signum();
+        let angle = planned_axis.angle(&w).to_degrees();
+        (angle > tol).then(|| {
+            format!(
+                "{head}: measured rotation axis {} is {angle:.1} deg from the planned {} \
+                 (tolerance {tol} deg)",
+                format_direction(&w.normalize()),
+                format_direction(&planned_axis)
+            )
+        })
     }
 
     /// Unit direction of the planned mean specific force, when gravity dominates it.
