@@ -82,6 +82,19 @@ pub enum FerrarisError {
         /// The tolerance, degrees.
         tolerance_deg: f64,
     },
+    /// A rotating segment given to [`Ferraris::segment_truth`] is not a full turn about one
+    /// axis (segments must come from [`Ferraris::segmentation`]).
+    #[error(
+        "{file}: segment at {start_s:.1}-{end_s:.1} s is not a full turn about one sensor axis"
+    )]
+    NotATurn {
+        /// The plan file.
+        file: String,
+        /// Start of the segment, s.
+        start_s: f64,
+        /// End of the segment, s.
+        end_s: f64,
+    },
 }
 
 /// The sensor axis (0-2) and sign nearest to `v`, and the angle to it, degrees.
@@ -182,7 +195,11 @@ impl Ferraris {
     }
 
     /// The true input of each of `segments` (from [`Ferraris::segmentation`]).
-    pub fn segment_truth(&self, series: &ImuSeries, segments: &[Segment]) -> Vec<SegmentTruth> {
+    pub fn segment_truth(
+        &self,
+        series: &ImuSeries,
+        segments: &[Segment],
+    ) -> Result<Vec<SegmentTruth>, FerrarisError> {
         let g = self.gravity_m_s2();
         let statics: Vec<Segment> = segments
             .iter()
@@ -210,9 +227,13 @@ impl Ferraris {
                     }
                     SegmentKind::Plateau => {
                         let up = up_before(s);
-                        let turn = self
-                            .turn_of(series, s, rest)
-                            .unwrap_or(Turn { axis: 2, sign: 1.0 });
+                        let turn = self.turn_of(series, s, rest).ok_or_else(|| {
+                            FerrarisError::NotATurn {
+                                file: self.file.clone(),
+                                start_s: s.start_s,
+                                end_s: s.end_s,
+                            }
+                        })?;
                         let mut axis = Vec3::zeros();
                         axis[turn.axis] = turn.sign;
                         // Over a full turn only Earth's rate along the turn axis stays; its
@@ -226,12 +247,12 @@ impl Ferraris {
                         )
                     }
                 };
-                SegmentTruth {
+                Ok(SegmentTruth {
                     specific_force_m_s2: force.into(),
                     angular_rate_rad_s: rate.into(),
                     temp_c,
                     time_since_power_on_s,
-                }
+                })
             })
             .collect()
     }
@@ -278,9 +299,8 @@ impl Ferraris {
                  two still rests"
             ));
         }
-        let sd = |u: f64| unknown_heading_variance_rad2_s2(self.latitude_deg, u).sqrt();
         // Each axis is up on some face and horizontal on others: the worst case is horizontal.
-        let std = sd(0.0);
+        let std = unknown_heading_variance_rad2_s2(self.latitude_deg, 0.0).sqrt();
         if self.latitude_deg.is_none() {
             notes.push(format!(
                 "no latitude: Earth's rate ({EARTH_RATE_RAD_S:.3e} rad/s) is carried as a gyro \
@@ -329,4 +349,50 @@ fn noise_std(x: &[[f64; 3]]) -> [f64; 3] {
             .sum();
         (sum_sq / (6.0 * n)).sqrt()
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan() -> Ferraris {
+        Ferraris::from_toml_str(
+            "format = \"imud-plan/1\"\nprocedure = \"ferraris\"\nlatitude-deg = 40.0\n",
+            "f.toml",
+        )
+        .unwrap()
+        .unwrap()
+    }
+
+    /// `n` samples at 100 Hz of a constant specific force and rate.
+    fn series(n: usize, accel: [f64; 3], gyro: [f64; 3]) -> ImuSeries {
+        ImuSeries {
+            t_s: (0..n).map(|k| k as f64 / 100.0).collect(),
+            accel_m_s2: vec![accel; n],
+            gyro_rad_s: vec![gyro; n],
+            origin: "synthetic".into(),
+            ..ImuSeries::default()
+        }
+    }
+
+    #[test]
+    fn a_turn_is_true_to_360_degrees_and_a_part_turn_is_refused() {
+        let g = [0.0, 0.0, 9.8];
+        // 4 s at 90 deg/s about z: one full turn, its truth 2 pi over the samples' span.
+        let mut turn = series(500, g, [0.0, 0.0, 90f64.to_radians()]);
+        turn.gyro_rad_s[..100].fill([0.0; 3]);
+        let rest = Segment::from_samples(&turn, 0..100, SegmentKind::Static);
+        let spin = Segment::from_samples(&turn, 100..500, SegmentKind::Plateau);
+        let truth = plan().segment_truth(&turn, &[rest.clone(), spin]).unwrap();
+        let w = truth[1].angular_rate_rad_s;
+        assert!((w[2] - std::f64::consts::TAU / 4.0).abs() < 1e-4, "{w:?}");
+        assert!(w[0] == 0.0 && w[1] == 0.0, "{w:?}");
+        // 1 s of it is a quarter turn: an error, never a guessed axis.
+        let part = Segment::from_samples(&turn, 100..200, SegmentKind::Plateau);
+        let e = plan()
+            .segment_truth(&turn, &[rest, part])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a full turn"), "{e}");
+    }
 }

@@ -156,7 +156,7 @@ impl Reference {
             Reference::TruthFile(path) => truth_file_for_segments(series, segments, path),
             Reference::Plan(p) => Ok(p.segment_truth(series, segments)?),
             Reference::Log(l) => Ok(l.segment_truth(series, segments)?),
-            Reference::Ferraris(f) => Ok(f.segment_truth(series, segments)),
+            Reference::Ferraris(f) => Ok(f.segment_truth(series, segments)?),
         }
     }
 
