@@ -89,6 +89,19 @@ def convert(topic, m):
             out[f] = num(getattr(m, f))
         out["reserved"] = list(bytes(m.reserved)) if isinstance(m.reserved, (bytes, bytearray)) else [int(x) for x in m.reserved]
         return out
+    if topic == "/imud/health":
+        out = {"header": stamp(m.header)}
+        for f in ["t_sample_ns", "t_wall_ns", "window_start_ns", "calibration_id", "still_windows",
+                  "plateaus_skipped", "accel_state", "gyro_state", "checks", "noise_source",
+                  "bias_tracking"]:
+            out[f] = getattr(m, f)
+        for f in ["accel_residual_m_s2", "accel_expected_std_m_s2", "accel_p", "gyro_residual_rad_s",
+                  "gyro_vertical_residual_rad_s", "gyro_expected_std_rad_s", "gyro_p", "gravity_m_s2",
+                  "temp_c"]:
+            out[f] = num(getattr(m, f))
+        for f in ["accel_offset_m_s2", "gyro_offset_rad_s"]:
+            out[f] = [num(x) for x in getattr(m, f)]
+        return out
     if topic == "/imud/calibration":
         return {"header": stamp(m.header), "id": m.id, "toml": m.toml}
     return None

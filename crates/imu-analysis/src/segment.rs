@@ -592,24 +592,18 @@ fn kept_runs(
 
 /// The gyro's reading at rest: among the runs whose mean rate is slow enough to be an offset,
 /// the one with the most samples within half the plateau threshold of it; the sample-weighted
-/// mean rate of that group. None when no run qualifies.
+/// mean rate of that group (the one rule the daemon's still detector shares). None when no run
+/// qualifies.
 fn rest_reading(segments: &[Segment], opts: &SegmentOptions) -> Option<[f64; 3]> {
-    let radius = 0.5 * opts.plateau_min_rate_rad_s;
-    let group = |centre: Vec3| {
-        segments
-            .iter()
-            .filter(move |s| (s.mean_gyro() - centre).norm() <= radius)
-    };
-    let best = segments
+    let points: Vec<([f64; 3], f64)> = segments
         .iter()
-        .filter(|s| s.mean_gyro().norm() <= opts.max_rest_rate_rad_s)
-        .map(|s| {
-            let weight: usize = group(s.mean_gyro()).map(|g| g.n).sum();
-            (weight, s.mean_gyro())
-        })
-        // Most samples; among equals, the slowest.
-        .max_by(|a, b| a.0.cmp(&b.0).then(b.1.norm().total_cmp(&a.1.norm())))?;
-    Some(weighted_mean_rate(group(best.1)).into())
+        .map(|s| (s.mean_gyro_rad_s, s.n as f64))
+        .collect();
+    imu_stats::descriptive::largest_agreeing_group(
+        &points,
+        0.5 * opts.plateau_min_rate_rad_s,
+        opts.max_rest_rate_rad_s,
+    )
 }
 
 /// The sample-weighted mean rate of `segments`, rad/s.

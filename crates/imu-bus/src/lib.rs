@@ -20,4 +20,4 @@ pub mod shm;
 pub mod truth;
 
 pub use mcap_read::{McapReadError, ReadReport, Unfinished};
-pub use sample::{CorrectedSample, DaemonStatus, RawSample};
+pub use sample::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};

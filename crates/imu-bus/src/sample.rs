@@ -16,6 +16,7 @@
 //! | [`RawSample`]       | `imud::RawSample.v1`        | 104  | 8     |
 //! | [`CorrectedSample`] | `imud::CorrectedSample.v1`  | 128  | 8     |
 //! | [`DaemonStatus`]    | `imud::DaemonStatus.v2`     | 152  | 8     |
+//! | [`CalibrationHealth`] | `imud::CalibrationHealth.v1` | 176 | 8    |
 //!
 //! The user header is iceoryx2's default `()` (type name `()`, size 0, alignment 1). All
 //! integers and floats are native-endian (little-endian on every supported host).
@@ -56,6 +57,21 @@
 //! 146 uint16_t gain_scale_gyro;    148 uint16_t gain_scale_mag;
 //! 150 uint8_t  reserved_end[2];    152 = sizeof
 //! ```
+//! C layout of `CalibrationHealth`:
+//! ```text
+//!   0 uint64_t t_sample_ns;          8 uint64_t t_wall_ns;
+//!  16 uint64_t window_start_ns;     24 uint64_t calibration_id;
+//!  32 uint64_t still_windows;       40 uint64_t plateaus_skipped;
+//!  48 double   accel_residual_m_s2; 56 double   accel_expected_std_m_s2;
+//!  64 double   accel_p;             72 double   accel_offset_m_s2[3];
+//!  96 double   gyro_residual_rad_s;104 double   gyro_vertical_residual_rad_s;
+//! 112 double   gyro_expected_std_rad_s; 120 double gyro_p;
+//! 128 double   gyro_offset_rad_s[3];152 double   gravity_m_s2;
+//! 160 double   temp_c;             168 uint8_t  accel_state;
+//! 169 uint8_t  gyro_state;         170 uint8_t  checks;
+//! 171 uint8_t  noise_source;       172 uint8_t  bias_tracking;
+//! 173 uint8_t  reserved[3];        176 = sizeof
+//! ```
 //! The sizes are checked at compile time below and every offset by a unit test, so a layout
 //! change cannot slip through without a new type-name version.
 //!
@@ -71,12 +87,16 @@ pub const RAW_SAMPLE_TYPE_NAME: &str = "imud::RawSample.v1";
 pub const CORRECTED_SAMPLE_TYPE_NAME: &str = "imud::CorrectedSample.v1";
 /// iceoryx2 type name of [`DaemonStatus`] (see the module docs for the C layout).
 pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v2";
+/// iceoryx2 type name of [`CalibrationHealth`] (see the module docs for the C layout).
+pub const CALIBRATION_HEALTH_TYPE_NAME: &str = "imud::CalibrationHealth.v1";
 
 // Layout guards: a size change must come with a new type-name version (and new mirrors in
 // examples/python/imu_subscriber.py). Offsets are checked in the tests below.
 const _: () = assert!(size_of::<RawSample>() == 104 && align_of::<RawSample>() == 8);
 const _: () = assert!(size_of::<CorrectedSample>() == 128 && align_of::<CorrectedSample>() == 8);
 const _: () = assert!(size_of::<DaemonStatus>() == 152 && align_of::<DaemonStatus>() == 8);
+const _: () =
+    assert!(size_of::<CalibrationHealth>() == 176 && align_of::<CalibrationHealth>() == 8);
 
 /// Bit flags of a [`RawSample`].
 pub mod raw_flags {
@@ -100,6 +120,9 @@ pub mod corrected_flags {
     pub const NOT_CONVERGED: u32 = 1 << 2;
     /// The temperature used by temperature terms is stale or missing.
     pub const TEMP_STALE: u32 = 1 << 3;
+    /// A bias offset estimated by the daemon's health monitor (`health.track-bias`) was
+    /// subtracted; its value is in the latest `CalibrationHealth` and the log.
+    pub const BIAS_TRACKED: u32 = 1 << 4;
 }
 
 /// One decoded data frame as the device sent it, with the daemon's timestamps.
@@ -229,6 +252,115 @@ pub struct DaemonStatus {
     pub reserved_end: [u8; 2],
 }
 
+/// The health of one triad's calibration ([`CalibrationHealth`] `accel_state` / `gyro_state`).
+pub mod health_state {
+    /// No still window has been tested yet.
+    pub const UNKNOWN: u8 = 0;
+    /// The still windows agree with gravity and Earth's rate within the noise model.
+    pub const OK: u8 = 1;
+    /// The latest still windows disagree beyond the false-alarm bound: something moved.
+    pub const DEGRADED: u8 = 2;
+    /// They disagree persistently and grossly: recalibrate.
+    pub const STALE: u8 = 3;
+    /// No calibration is loaded: there is nothing to hold against physics.
+    pub const UNCALIBRATED: u8 = 4;
+
+    /// The state's name as the daemon logs it and imu-echo prints it.
+    pub fn name(state: u8) -> &'static str {
+        match state {
+            UNKNOWN => "unknown",
+            OK => "ok",
+            DEGRADED => "degraded",
+            STALE => "stale",
+            UNCALIBRATED => "uncalibrated",
+            _ => "invalid",
+        }
+    }
+}
+
+/// Which checks a [`CalibrationHealth`] could make (bit flags of `checks`).
+pub mod health_checks {
+    /// |f| against a known gravity (configured value or normal gravity at a latitude).
+    pub const GRAVITY: u8 = 1 << 0;
+    /// |f| against the gravity learned from the first still windows: changes only.
+    pub const GRAVITY_LEARNED: u8 = 1 << 1;
+    /// The rate against Earth's rate (its magnitude; the heading is unknown).
+    pub const EARTH_RATE: u8 = 1 << 2;
+    /// The vertical component of Earth's rate (a latitude is configured).
+    pub const EARTH_RATE_VERTICAL: u8 = 1 << 3;
+    /// Still windows in several orientations: the accel bias offset is estimated in 3-D (with
+    /// one orientation only its component along gravity is seen).
+    pub const ACCEL_BIAS_3D: u8 = 1 << 4;
+}
+
+/// Where the expected scatter of a [`CalibrationHealth`] comes from (`noise_source`).
+pub mod health_noise_source {
+    /// The calibration's noise tables (white, bias instability, random walk).
+    pub const TABLES: u8 = 0;
+    /// Estimated from the scatter within the first still windows (white noise only).
+    pub const ESTIMATED: u8 = 1;
+    /// Not known yet (still estimating): no test was made.
+    pub const NONE: u8 = 2;
+}
+
+/// The daemon's verdict on its calibration from one still window: the corrected specific force
+/// against gravity and the corrected rate against Earth's rate, with the scatter the
+/// calibration's noise model allows for the window's length, the sequential test's p-values,
+/// the per-triad states and the bias offsets that would explain the residuals.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, serde::Serialize)]
+#[repr(C)]
+#[type_name("imud::CalibrationHealth.v1")]
+pub struct CalibrationHealth {
+    /// End of the still window on the samples' monotonic time base, ns.
+    pub t_sample_ns: u64,
+    /// End of the still window on the host wall clock, ns.
+    pub t_wall_ns: u64,
+    /// Start of the still window on the samples' monotonic time base, ns.
+    pub window_start_ns: u64,
+    /// Content id of the calibration held against physics (0: none).
+    pub calibration_id: u64,
+    /// Still windows tested since the calibration was put in force.
+    pub still_windows: u64,
+    /// Quiet windows that were steady rotations (rate plateaus), not still, and were skipped.
+    pub plateaus_skipped: u64,
+    /// |mean corrected specific force| - gravity over the window, m/s^2.
+    pub accel_residual_m_s2: f64,
+    /// Its expected standard deviation (noise model at this window length), m/s^2.
+    pub accel_expected_std_m_s2: f64,
+    /// p-value of the accel sequential test (NaN when untested).
+    pub accel_p: f64,
+    /// Accel bias shift that would explain the recent windows, m/s^2 (NaN where unobservable).
+    pub accel_offset_m_s2: [f64; 3],
+    /// |mean corrected rate| - |Earth rate|, rad/s.
+    pub gyro_residual_rad_s: f64,
+    /// Mean corrected rate along up minus Earth rate's vertical part, rad/s (NaN without a
+    /// configured latitude).
+    pub gyro_vertical_residual_rad_s: f64,
+    /// Expected standard deviation per axis of the window's mean rate (noise and unknown
+    /// heading), rad/s.
+    pub gyro_expected_std_rad_s: f64,
+    /// p-value of the gyro sequential test (NaN when untested).
+    pub gyro_p: f64,
+    /// Gyro bias shift that would explain the recent windows, rad/s.
+    pub gyro_offset_rad_s: [f64; 3],
+    /// The gravity the specific force is held against, m/s^2.
+    pub gravity_m_s2: f64,
+    /// Mean temperature over the window, deg C (NaN if none).
+    pub temp_c: f64,
+    /// Accel state ([`health_state`]).
+    pub accel_state: u8,
+    /// Gyro state ([`health_state`]).
+    pub gyro_state: u8,
+    /// Checks that were possible ([`health_checks`]).
+    pub checks: u8,
+    /// Where the expected scatter comes from ([`health_noise_source`]).
+    pub noise_source: u8,
+    /// 1 when the estimated bias offsets are being applied to the corrected stream.
+    pub bias_tracking: u8,
+    /// Reserved, zero.
+    pub reserved: [u8; 3],
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -297,5 +429,22 @@ mod tests {
         assert_eq!(offset_of!(DaemonStatus, gain_scale_mag), 148);
         assert_eq!(offset_of!(DaemonStatus, reserved_end), 150);
         assert_eq!(size_of::<DaemonStatus>(), 152);
+    }
+
+    #[test]
+    fn calibration_health_layout_matches_the_documented_c_layout() {
+        assert_eq!(offset_of!(CalibrationHealth, t_sample_ns), 0);
+        assert_eq!(offset_of!(CalibrationHealth, window_start_ns), 16);
+        assert_eq!(offset_of!(CalibrationHealth, still_windows), 32);
+        assert_eq!(offset_of!(CalibrationHealth, accel_residual_m_s2), 48);
+        assert_eq!(offset_of!(CalibrationHealth, accel_offset_m_s2), 72);
+        assert_eq!(offset_of!(CalibrationHealth, gyro_residual_rad_s), 96);
+        assert_eq!(offset_of!(CalibrationHealth, gyro_expected_std_rad_s), 112);
+        assert_eq!(offset_of!(CalibrationHealth, gyro_offset_rad_s), 128);
+        assert_eq!(offset_of!(CalibrationHealth, gravity_m_s2), 152);
+        assert_eq!(offset_of!(CalibrationHealth, temp_c), 160);
+        assert_eq!(offset_of!(CalibrationHealth, accel_state), 168);
+        assert_eq!(offset_of!(CalibrationHealth, reserved), 173);
+        assert_eq!(size_of::<CalibrationHealth>(), 176);
     }
 }

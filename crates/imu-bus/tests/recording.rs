@@ -88,7 +88,7 @@ fn every_record_is_read_back_in_order_with_equal_values() {
 
     // The summary is complete: every channel, every message counted.
     let summary = mcap::Summary::read(&bytes).unwrap().expect("summary");
-    assert_eq!(summary.channels.len(), 7);
+    assert_eq!(summary.channels.len(), 8);
     let stats = summary.stats.unwrap();
     assert_eq!(stats.message_count, message_count(&records));
     let imu = summary
@@ -122,6 +122,7 @@ fn streaming_reader_delivers_messages_in_file_order() {
             RecordedMessage::MagneticField(_) => 'm',
             RecordedMessage::Temperature(_) => 't',
             RecordedMessage::Status { .. } => 's',
+            RecordedMessage::Health(_) => 'h',
         })
     })
     .unwrap();
@@ -134,6 +135,7 @@ fn streaming_reader_delivers_messages_in_file_order() {
             LogRecord::Corrected(_) => "im",
             LogRecord::Temperature { .. } => "t",
             LogRecord::Status { .. } => "s",
+            LogRecord::Health(_) => "h",
         })
         .collect();
     assert_eq!(kinds.into_iter().collect::<String>(), want);

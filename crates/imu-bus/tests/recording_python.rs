@@ -74,6 +74,7 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
         ("/imu/raw_frame", "imud_msgs/msg/RawFrame"),
         ("/imud/status", "imud_msgs/msg/DaemonStatus"),
         ("/imud/calibration", "imud_msgs/msg/Calibration"),
+        ("/imud/health", "imud_msgs/msg/CalibrationHealth"),
     ] {
         assert_eq!(
             out["schemas"][topic],
@@ -226,10 +227,38 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
         assert_eq!(g["toml"], w.toml.as_str());
     }
 
+    let health = msgs["/imud/health"].as_array().unwrap();
+    assert_eq!(health.len(), want.health.len());
+    for (g, w) in health.iter().zip(&want.health) {
+        check_header(&g["header"], w.t_wall_ns, "", "/imud/health");
+        for (field, value) in [
+            ("t_sample_ns", w.t_sample_ns),
+            ("window_start_ns", w.window_start_ns),
+            ("still_windows", w.still_windows),
+            ("plateaus_skipped", w.plateaus_skipped),
+            ("accel_state", u64::from(w.accel_state)),
+            ("gyro_state", u64::from(w.gyro_state)),
+            ("checks", u64::from(w.checks)),
+        ] {
+            assert_eq!(u(&g[field]), value, "/imud/health {field}");
+        }
+        close(&g["accel_residual_m_s2"], w.accel_residual_m_s2, "residual");
+        close(&g["gyro_p"], w.gyro_p, "gyro p");
+        close(&g["temp_c"], w.temp_c, "health temp");
+        close_all(&g["gyro_offset_rad_s"], &w.gyro_offset_rad_s, "gyro offset");
+        // NaN (an unobservable component) survives the round trip.
+        assert_eq!(g["accel_offset_m_s2"][1], "nan", "{g}");
+        close(
+            &g["accel_offset_m_s2"][2],
+            w.accel_offset_m_s2[2],
+            "accel offset z",
+        );
+    }
+
     assert_eq!(
         u(&out["statistics_message_count"]),
         (imu.len() + mag.len() + temps.len() + raw.len() + frames.len()) as u64
-            + (statuses.len() + cals.len()) as u64
+            + (statuses.len() + cals.len() + health.len()) as u64
     );
     assert_eq!(out["metadata"]["imud.recording"]["frame-id"], "imu_link");
 }

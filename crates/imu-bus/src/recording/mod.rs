@@ -7,7 +7,7 @@
 //! (`sensor_msgs/msg/MagneticField`, tesla), `/imu/temperature` (`sensor_msgs/msg/Temperature`),
 //! `/imu/raw` (`imud_msgs/msg/RawSample`), `/imu/raw_frame` (`imud_msgs/msg/RawFrame`: every
 //! byte received, accepted or rejected), `/imud/status` (`imud_msgs/msg/DaemonStatus`) and
-//! `/imud/calibration` (`imud_msgs/msg/Calibration`). Message log times and header stamps are
+//! `/imud/calibration` (`imud_msgs/msg/Calibration`), `/imud/health` (`imud_msgs/msg/CalibrationHealth`). Message log times and header stamps are
 //! host wall-clock nanoseconds; `/imu/raw` is the authoritative per-sample record (it carries the
 //! sequence number and every timestamp).
 //!
@@ -33,10 +33,10 @@ use mcap::records::MessageHeader;
 
 use crate::mcap_read::{self, McapReadError, ReadReport};
 use crate::ros2::{
-    self, CalibrationMsg, DaemonStatusMsg, Header, Imu, MagneticField, MsgDefinition, Quaternion,
-    RawFrameMsg, RawSampleMsg, RosMessage, Temperature, Time,
+    self, CalibrationHealthMsg, CalibrationMsg, DaemonStatusMsg, Header, Imu, MagneticField,
+    MsgDefinition, Quaternion, RawFrameMsg, RawSampleMsg, RosMessage, Temperature, Time,
 };
-use crate::sample::{CorrectedSample, DaemonStatus, RawSample};
+use crate::sample::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
 
 mod messages;
 mod read;
@@ -60,6 +60,9 @@ pub const RAW_FRAME_TOPIC: &str = "/imu/raw_frame";
 pub const STATUS_TOPIC: &str = "/imud/status";
 /// Each calibration put in force, as `imud_msgs/msg/Calibration`.
 pub const CALIBRATION_TOPIC: &str = "/imud/calibration";
+/// The calibration held against physics after every still window, as
+/// `imud_msgs/msg/CalibrationHealth`.
+pub const HEALTH_TOPIC: &str = "/imud/health";
 
 /// Metadata record the recorder adds to every file: `file-index`, `prefix`, `started-utc`,
 /// `frame-id`, `library`.
@@ -72,7 +75,7 @@ pub const CALIBRATION_METADATA: &str = "imud.calibration";
 pub const TESLA_PER_GAUSS: f64 = 1e-4;
 
 /// Every channel of a recording: topic and message type, in channel-id order.
-pub const CHANNELS: [(&str, &MsgDefinition); 7] = [
+pub const CHANNELS: [(&str, &MsgDefinition); 8] = [
     (IMU_TOPIC, &ros2::IMU_DEF),
     (MAG_TOPIC, &ros2::MAGNETIC_FIELD_DEF),
     (TEMPERATURE_TOPIC, &ros2::TEMPERATURE_DEF),
@@ -80,6 +83,7 @@ pub const CHANNELS: [(&str, &MsgDefinition); 7] = [
     (RAW_FRAME_TOPIC, &ros2::RAW_FRAME_DEF),
     (STATUS_TOPIC, &ros2::DAEMON_STATUS_DEF),
     (CALIBRATION_TOPIC, &ros2::CALIBRATION_DEF),
+    (HEALTH_TOPIC, &ros2::CALIBRATION_HEALTH_DEF),
 ];
 const CH_IMU: usize = 0;
 const CH_MAG: usize = 1;
@@ -88,6 +92,7 @@ const CH_RAW: usize = 3;
 const CH_FRAME: usize = 4;
 const CH_STATUS: usize = 5;
 const CH_CALIBRATION: usize = 6;
+const CH_HEALTH: usize = 7;
 
 /// Noise variances of the corrected outputs, used as the diagonal covariances of `/imu/data`
 /// and `/imu/mag`.
@@ -138,6 +143,8 @@ pub enum LogRecord {
         /// The counters.
         status: DaemonStatus,
     },
+    /// The calibration held against physics over a still window.
+    Health(CalibrationHealth),
     /// A calibration put in force.
     Calibration {
         /// Host wall clock when it took effect, ns.

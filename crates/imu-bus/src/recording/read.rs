@@ -97,6 +97,8 @@ pub enum RecordedMessage {
     },
     /// `/imud/calibration`.
     Calibration(RecordedCalibration),
+    /// `/imud/health`.
+    Health(CalibrationHealth),
 }
 
 pub(super) fn decode<M: RosMessage>(
@@ -145,6 +147,9 @@ pub fn for_each_record(
                     status: m.status,
                 }
             }
+            HEALTH_TOPIC => {
+                RecordedMessage::Health(decode::<CalibrationHealthMsg>(channel, data)?.health)
+            }
             CALIBRATION_TOPIC => {
                 let m: CalibrationMsg = decode(channel, data)?;
                 RecordedMessage::Calibration(RecordedCalibration {
@@ -177,6 +182,8 @@ pub struct Recording {
     pub statuses: Vec<(u64, DaemonStatus)>,
     /// `/imud/calibration`, in order.
     pub calibrations: Vec<RecordedCalibration>,
+    /// `/imud/health`, in order.
+    pub health: Vec<CalibrationHealth>,
     /// Metadata records by name (the last of each name).
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
     /// `Some(reason)` when the file ended before its footer (killed writer, damage).
@@ -196,6 +203,7 @@ pub fn read_recording(path: &Path) -> Result<Recording, McapReadError> {
         RecordedMessage::Frame(f) => rec.frames.push(f),
         RecordedMessage::Status { t_wall_ns, status } => rec.statuses.push((t_wall_ns, status)),
         RecordedMessage::Calibration(c) => rec.calibrations.push(c),
+        RecordedMessage::Health(h) => rec.health.push(h),
     })?;
     rec.metadata = report.metadata;
     rec.stopped_early = report.stopped_early;

@@ -582,6 +582,13 @@ pub(super) fn write_record(
             };
             file.write_msg(CH_STATUS, t_wall_ns, &msg, scratch)
         }
+        LogRecord::Health(health) => {
+            let msg = CalibrationHealthMsg {
+                header: header(health.t_wall_ns, ""),
+                health,
+            };
+            file.write_msg(CH_HEALTH, health.t_wall_ns, &msg, scratch)
+        }
         LogRecord::Calibration {
             t_wall_ns,
             id,

@@ -216,3 +216,37 @@ string toml                   # the calibration file text (imu-model format)
 ",
     uses: &[&HEADER_DEF],
 };
+
+/// `imud_msgs/msg/CalibrationHealth`: every field of [`crate::sample::CalibrationHealth`].
+pub const CALIBRATION_HEALTH_DEF: MsgDefinition = MsgDefinition {
+    type_name: "imud_msgs/msg/CalibrationHealth",
+    text: "\
+# The daemon's calibration held against physics over one still window. header.stamp: host
+# wall clock at the window's end. States: 0 unknown, 1 ok, 2 degraded, 3 stale, 4 uncalibrated.
+std_msgs/Header header
+uint64 t_sample_ns            # window end, samples' monotonic time base, ns
+uint64 t_wall_ns              # window end, host wall clock, ns
+uint64 window_start_ns        # window start, samples' monotonic time base, ns
+uint64 calibration_id         # content id of the calibration held (0: none)
+uint64 still_windows          # still windows tested since it was put in force
+uint64 plateaus_skipped       # quiet windows that were steady rotations
+float64 accel_residual_m_s2   # |mean f| - gravity
+float64 accel_expected_std_m_s2
+float64 accel_p               # sequential test p-value; NaN when untested
+float64[3] accel_offset_m_s2  # bias shift that explains the recent windows; NaN: unobservable
+float64 gyro_residual_rad_s   # |mean w| - |Earth rate|
+float64 gyro_vertical_residual_rad_s  # mean w along up - Earth rate's vertical part; NaN: no latitude
+float64 gyro_expected_std_rad_s
+float64 gyro_p
+float64[3] gyro_offset_rad_s
+float64 gravity_m_s2          # the gravity held against
+float64 temp_c
+uint8 accel_state
+uint8 gyro_state
+uint8 checks                  # 1 gravity, 2 gravity learned, 4 earth rate, 8 vertical earth rate, 16 accel bias 3-D
+uint8 noise_source            # 0 noise tables, 1 estimated from still windows, 2 none yet
+uint8 bias_tracking           # 1: the offsets are applied to the corrected stream
+uint8[3] reserved
+",
+    uses: &[&HEADER_DEF],
+};

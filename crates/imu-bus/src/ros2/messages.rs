@@ -451,6 +451,84 @@ impl RosMessage for DaemonStatusMsg {
     }
 }
 
+/// `imud_msgs/msg/CalibrationHealth`: a [`CalibrationHealth`] with a header.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CalibrationHealthMsg {
+    /// `stamp` = host wall clock at the window's end.
+    pub header: Header,
+    /// The health report.
+    pub health: CalibrationHealth,
+}
+
+impl RosMessage for CalibrationHealthMsg {
+    const DEFINITION: &'static MsgDefinition = &CALIBRATION_HEALTH_DEF;
+    fn write_fields(&self, w: &mut CdrWriter<'_>) {
+        let h = &self.health;
+        self.header.write_fields(w);
+        for v in [
+            h.t_sample_ns,
+            h.t_wall_ns,
+            h.window_start_ns,
+            h.calibration_id,
+            h.still_windows,
+            h.plateaus_skipped,
+        ] {
+            w.u64(v);
+        }
+        w.f64(h.accel_residual_m_s2);
+        w.f64(h.accel_expected_std_m_s2);
+        w.f64(h.accel_p);
+        w.f64_array(&h.accel_offset_m_s2);
+        w.f64(h.gyro_residual_rad_s);
+        w.f64(h.gyro_vertical_residual_rad_s);
+        w.f64(h.gyro_expected_std_rad_s);
+        w.f64(h.gyro_p);
+        w.f64_array(&h.gyro_offset_rad_s);
+        w.f64(h.gravity_m_s2);
+        w.f64(h.temp_c);
+        for v in [
+            h.accel_state,
+            h.gyro_state,
+            h.checks,
+            h.noise_source,
+            h.bias_tracking,
+        ] {
+            w.u8(v);
+        }
+        w.u8_array(&h.reserved);
+    }
+    fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        Ok(Self {
+            header: Header::read_fields(r)?,
+            health: CalibrationHealth {
+                t_sample_ns: r.u64("t_sample_ns")?,
+                t_wall_ns: r.u64("t_wall_ns")?,
+                window_start_ns: r.u64("window_start_ns")?,
+                calibration_id: r.u64("calibration_id")?,
+                still_windows: r.u64("still_windows")?,
+                plateaus_skipped: r.u64("plateaus_skipped")?,
+                accel_residual_m_s2: r.f64("accel_residual_m_s2")?,
+                accel_expected_std_m_s2: r.f64("accel_expected_std_m_s2")?,
+                accel_p: r.f64("accel_p")?,
+                accel_offset_m_s2: r.f64_array("accel_offset_m_s2")?,
+                gyro_residual_rad_s: r.f64("gyro_residual_rad_s")?,
+                gyro_vertical_residual_rad_s: r.f64("gyro_vertical_residual_rad_s")?,
+                gyro_expected_std_rad_s: r.f64("gyro_expected_std_rad_s")?,
+                gyro_p: r.f64("gyro_p")?,
+                gyro_offset_rad_s: r.f64_array("gyro_offset_rad_s")?,
+                gravity_m_s2: r.f64("gravity_m_s2")?,
+                temp_c: r.f64("temp_c")?,
+                accel_state: r.u8("accel_state")?,
+                gyro_state: r.u8("gyro_state")?,
+                checks: r.u8("checks")?,
+                noise_source: r.u8("noise_source")?,
+                bias_tracking: r.u8("bias_tracking")?,
+                reserved: r.u8_array("reserved")?,
+            },
+        })
+    }
+}
+
 /// `imud_msgs/msg/Calibration`: a calibration put in force.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct CalibrationMsg {

@@ -13,7 +13,7 @@
 //! trailing NUL, the bytes and the NUL; sequences are a `uint32` count and the elements; fixed
 //! arrays are the elements alone.
 
-use crate::sample::{DaemonStatus, RawSample, raw_flags};
+use crate::sample::{CalibrationHealth, DaemonStatus, RawSample, raw_flags};
 
 pub mod bag;
 mod cdr;

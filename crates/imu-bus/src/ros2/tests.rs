@@ -273,6 +273,7 @@ fn schemas_are_complete_ros2msg_text() {
         &RAW_FRAME_DEF,
         &DAEMON_STATUS_DEF,
         &CALIBRATION_DEF,
+        &CALIBRATION_HEALTH_DEF,
     ] {
         check_schema(def);
     }

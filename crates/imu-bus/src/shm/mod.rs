@@ -3,7 +3,7 @@
 //!
 //! # Services
 //!
-//! An imud instance named `NAME` (the daemon's `--name`, `default` unless set) offers four
+//! An imud instance named `NAME` (the daemon's `--name`, `default` unless set) offers five
 //! iceoryx2 `ipc` services (see [`ServiceNames::for_instance`]):
 //!
 //! | service name          | pattern           | payload (type name)                              |
@@ -11,7 +11,8 @@
 //! | `imud/NAME/raw`       | publish-subscribe | [`RawSample`] (`imud::RawSample.v1`)             |
 //! | `imud/NAME/corrected` | publish-subscribe | [`CorrectedSample`] (`imud::CorrectedSample.v1`) |
 //! | `imud/NAME/status`    | publish-subscribe | [`DaemonStatus`] (`imud::DaemonStatus.v2`)       |
-//! | `imud/NAME/event`     | event             | [`ShmEvent`] ids: 1 = samples, 2 = status        |
+//! | `imud/NAME/health`    | publish-subscribe | [`CalibrationHealth`] (`imud::CalibrationHealth.v1`) |
+//! | `imud/NAME/event`     | event             | [`ShmEvent`] ids: 1 = samples, 2 = status, 3 = health |
 //!
 //! The publish-subscribe services use iceoryx2's *safe overflow*: when a subscriber's buffer is
 //! full the oldest sample in it is overwritten, so a slow, stopped or dead subscriber never
@@ -48,7 +49,7 @@ use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use serde::Deserialize;
 
-use crate::sample::{CorrectedSample, DaemonStatus, RawSample};
+use crate::sample::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
 
 mod nodes;
 mod publishers;
@@ -227,12 +228,14 @@ pub struct ServiceNames {
     pub corrected: String,
     /// `imud/<instance>/status`: [`DaemonStatus`] about once a second.
     pub status: String,
+    /// `imud/<instance>/health`: [`CalibrationHealth`] after every still window.
+    pub health: String,
     /// `imud/<instance>/event`: the event service that wakes subscribers ([`ShmEvent`]).
     pub event: String,
 }
 
 impl ServiceNames {
-    /// The names for `instance`: `imud/<instance>/{raw,corrected,status,event}`.
+    /// The names for `instance`: `imud/<instance>/{raw,corrected,status,health,event}`.
     ///
     /// The name is not checked here; [`Publishers::open`] and [`Subscription::open`] reject
     /// names that [`validate_instance_name`] rejects.
@@ -242,6 +245,7 @@ impl ServiceNames {
             raw: format!("{base}/raw"),
             corrected: format!("{base}/corrected"),
             status: format!("{base}/status"),
+            health: format!("{base}/health"),
             event: format!("{base}/event"),
         }
     }
@@ -252,6 +256,7 @@ impl ServiceNames {
             Stream::Raw => &self.raw,
             Stream::Corrected => &self.corrected,
             Stream::Status => &self.status,
+            Stream::Health => &self.health,
         }
     }
 }
@@ -272,7 +277,7 @@ pub fn validate_instance_name(instance: &str) -> Result<(), ShmError> {
     }
 }
 
-/// One of the three sample streams of an instance.
+/// One of the four publish-subscribe streams of an instance.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stream {
     /// [`RawSample`]s on `imud/<instance>/raw`.
@@ -281,6 +286,8 @@ pub enum Stream {
     Corrected,
     /// [`DaemonStatus`] on `imud/<instance>/status`.
     Status,
+    /// [`CalibrationHealth`] on `imud/<instance>/health`.
+    Health,
 }
 
 impl fmt::Display for Stream {
@@ -289,6 +296,7 @@ impl fmt::Display for Stream {
             Stream::Raw => "raw",
             Stream::Corrected => "corrected",
             Stream::Status => "status",
+            Stream::Health => "health",
         })
     }
 }
@@ -315,16 +323,18 @@ pub enum ShmEvent {
     Samples = 1,
     /// A new [`DaemonStatus`] was published.
     Status = 2,
+    /// A new [`CalibrationHealth`] was published.
+    Health = 3,
 }
 
 impl ShmEvent {
-    /// The iceoryx2 event id (1 = samples, 2 = status).
+    /// The iceoryx2 event id (1 = samples, 2 = status, 3 = health).
     pub const fn id(self) -> usize {
         self as usize
     }
 }
 
-/// A payload type that travels on one of the streams. Sealed: only the three types of
+/// A payload type that travels on one of the streams. Sealed: only the four types of
 /// [`crate::sample`] implement it.
 pub trait ShmPayload: ZeroCopySend + Copy + fmt::Debug + sealed::Sealed + 'static {
     /// The stream that carries this type.
@@ -340,6 +350,7 @@ mod sealed {
     impl Sealed for crate::sample::RawSample {}
     impl Sealed for crate::sample::CorrectedSample {}
     impl Sealed for crate::sample::DaemonStatus {}
+    impl Sealed for crate::sample::CalibrationHealth {}
 }
 
 impl ShmPayload for RawSample {
@@ -366,6 +377,14 @@ impl ShmPayload for DaemonStatus {
     }
 }
 
+impl ShmPayload for CalibrationHealth {
+    const STREAM: Stream = Stream::Health;
+    const TYPE_NAME: &'static str = crate::sample::CALIBRATION_HEALTH_TYPE_NAME;
+    fn seq(&self) -> Option<u64> {
+        None
+    }
+}
+
 /// Sizes of the daemon's services (used when the daemon creates them). Deserializes from
 /// kebab-case keys (`subscriber-buffer-size`, `history-size`, `max-subscribers`); missing keys
 /// take the defaults (256, 1, 16).
@@ -379,7 +398,7 @@ pub struct ShmOptions {
     pub subscriber_buffer_size: usize,
     /// Samples a newly connected subscriber receives from the past (1 = the latest).
     pub history_size: usize,
-    /// Subscribers per stream; the event service admits three times as many listeners.
+    /// Subscribers per stream; the event service admits four times as many listeners.
     pub max_subscribers: usize,
 }
 

@@ -14,6 +14,7 @@ pub struct Publishers {
     raw: Channel<RawSample>,
     corrected: Channel<CorrectedSample>,
     status: Channel<DaemonStatus>,
+    health: Channel<CalibrationHealth>,
     _event: EventFactory<ipc::Service>,
     notifier: Notifier<ipc::Service>,
     drops: u64,
@@ -32,7 +33,7 @@ impl fmt::Debug for Publishers {
 
 impl Publishers {
     /// Removes the stale resources of dead nodes (a previous run killed with SIGKILL), then
-    /// creates the node `imud-<instance>`, opens or creates the four services of `instance` and
+    /// creates the node `imud-<instance>`, opens or creates the five services of `instance` and
     /// a publisher on each.
     ///
     /// Fails with [`ShmError::AlreadyPublishing`] when a live process publishes on the same
@@ -48,9 +49,9 @@ impl Publishers {
         let event = node
             .service_builder(&service_name(&names.event, instance)?)
             .event()
-            // Every subscription (of any of the three streams) brings a node and a listener.
-            .max_listeners(options.max_subscribers * 3)
-            .max_nodes(options.max_subscribers * 3 + 1)
+            // Every subscription (of any of the four streams) brings a node and a listener.
+            .max_listeners(options.max_subscribers * 4)
+            .max_nodes(options.max_subscribers * 4 + 1)
             .open_or_create()
             .map_err(|e| ShmError::CreateService {
                 service: names.event.clone(),
@@ -67,6 +68,7 @@ impl Publishers {
         let raw = Channel::open(&node, instance, &names.raw, options)?;
         let corrected = Channel::open(&node, instance, &names.corrected, options)?;
         let status = Channel::open(&node, instance, &names.status, options)?;
+        let health = Channel::open(&node, instance, &names.health, options)?;
         Ok(Publishers {
             instance: instance.to_owned(),
             names,
@@ -74,6 +76,7 @@ impl Publishers {
             raw,
             corrected,
             status,
+            health,
             _event: event,
             notifier,
             drops: 0,
@@ -109,6 +112,12 @@ impl Publishers {
         self.status.publish(status, &mut self.drops)
     }
 
+    /// Publishes a calibration health report; returns how many subscribers it reached. Never
+    /// blocks; on failure it is counted in [`drops`](Self::drops).
+    pub fn publish_health(&mut self, health: &CalibrationHealth) -> Result<usize, ShmError> {
+        self.health.publish(health, &mut self.drops)
+    }
+
     /// Wakes every subscriber waiting on this instance (call once per published batch);
     /// returns how many listeners were notified. Never blocks.
     pub fn notify(&mut self, event: ShmEvent) -> Result<usize, ShmError> {
@@ -137,6 +146,7 @@ impl Publishers {
                 .dynamic_config()
                 .number_of_subscribers(),
             Stream::Status => self.status.service.dynamic_config().number_of_subscribers(),
+            Stream::Health => self.health.service.dynamic_config().number_of_subscribers(),
         }
     }
 

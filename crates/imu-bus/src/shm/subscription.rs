@@ -1,5 +1,5 @@
 //! The subscribers' side: a subscription to one stream (opened with retries while the daemon
-//! starts), and `Subscriber`, any of the three streams.
+//! starts), and `Subscriber`, any of the four streams.
 
 use super::*;
 
@@ -264,7 +264,7 @@ impl<T: ShmPayload> Subscription<T> {
     }
 
     /// Samples missed since [`open`](Self::open), from gaps in `seq` (overwritten because this
-    /// subscriber fell behind, or never published); always 0 for [`DaemonStatus`].
+    /// subscriber fell behind, or never published); always 0 for [`DaemonStatus`] and [`CalibrationHealth`].
     /// A `seq` that goes backwards (a restarted daemon) is not counted.
     pub fn missed(&self) -> u64 {
         self.missed
@@ -296,6 +296,8 @@ pub enum Subscriber {
     Corrected(Subscription<CorrectedSample>),
     /// `imud/<instance>/status`.
     Status(Subscription<DaemonStatus>),
+    /// `imud/<instance>/health`.
+    Health(Subscription<CalibrationHealth>),
 }
 
 impl Subscriber {
@@ -310,6 +312,7 @@ impl Subscriber {
             Stream::Raw => Subscriber::Raw(Subscription::open(instance, open_timeout)?),
             Stream::Corrected => Subscriber::Corrected(Subscription::open(instance, open_timeout)?),
             Stream::Status => Subscriber::Status(Subscription::open(instance, open_timeout)?),
+            Stream::Health => Subscriber::Health(Subscription::open(instance, open_timeout)?),
         })
     }
 
@@ -319,6 +322,7 @@ impl Subscriber {
             Subscriber::Raw(_) => Stream::Raw,
             Subscriber::Corrected(_) => Stream::Corrected,
             Subscriber::Status(_) => Stream::Status,
+            Subscriber::Health(_) => Stream::Health,
         }
     }
 
@@ -328,6 +332,7 @@ impl Subscriber {
             Subscriber::Raw(s) => s.service_name(),
             Subscriber::Corrected(s) => s.service_name(),
             Subscriber::Status(s) => s.service_name(),
+            Subscriber::Health(s) => s.service_name(),
         }
     }
 }

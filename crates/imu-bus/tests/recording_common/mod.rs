@@ -113,6 +113,35 @@ pub fn status(i: u64) -> LogRecord {
     }
 }
 
+/// A calibration health report with distinct values in every field.
+pub fn health(i: u64) -> LogRecord {
+    LogRecord::Health(imu_bus::CalibrationHealth {
+        t_sample_ns: 9_000_000_000 + i * DT_NS,
+        t_wall_ns: T0_WALL_NS + i * DT_NS + 700,
+        window_start_ns: 8_000_000_000 + i * DT_NS,
+        calibration_id: 0xABCD,
+        still_windows: i,
+        plateaus_skipped: 2,
+        accel_residual_m_s2: -1.25e-3,
+        accel_expected_std_m_s2: 4.5e-4,
+        accel_p: 3.5e-3,
+        accel_offset_m_s2: [1e-4, f64::NAN, 2.5e-3],
+        gyro_residual_rad_s: 2.5e-4,
+        gyro_vertical_residual_rad_s: -1e-5,
+        gyro_expected_std_rad_s: 3e-4,
+        gyro_p: 0.75,
+        gyro_offset_rad_s: [1e-5, 2e-5, -3e-5],
+        gravity_m_s2: 9.80665,
+        temp_c: 31.5,
+        accel_state: 2,
+        gyro_state: 1,
+        checks: 0b1101,
+        noise_source: 0,
+        bias_tracking: 0,
+        reserved: [0; 3],
+    })
+}
+
 pub fn calibration(i: u64, noise: Option<ImuNoiseVariances>) -> LogRecord {
     LogRecord::Calibration {
         t_wall_ns: T0_WALL_NS + i * DT_NS + 1,
@@ -131,7 +160,7 @@ pub fn noise() -> ImuNoiseVariances {
 }
 
 /// Samples `first..first + n` as the daemon logs them: frame, raw, corrected; a temperature
-/// every 10, a status every 50, a calibration with noise at the first sample and one without
+/// every 10, a status every 50, a health report every 60, a calibration with noise at the first sample and one without
 /// at the middle.
 pub fn mixed(first: u64, n: u64) -> Vec<LogRecord> {
     let mut out = Vec::new();
@@ -153,6 +182,9 @@ pub fn mixed(first: u64, n: u64) -> Vec<LogRecord> {
         }
         if seq.is_multiple_of(50) {
             out.push(status(seq));
+        }
+        if seq.is_multiple_of(60) {
+            out.push(health(seq));
         }
     }
     out
@@ -189,6 +221,7 @@ pub fn expected(records: &[LogRecord], frame_id: &str) -> Recording {
                 rec.temperatures.push((t_wall_ns, temp_c))
             }
             LogRecord::Status { t_wall_ns, status } => rec.statuses.push((t_wall_ns, status)),
+            LogRecord::Health(h) => rec.health.push(h),
             LogRecord::Calibration {
                 t_wall_ns,
                 id,

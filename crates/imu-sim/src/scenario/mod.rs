@@ -206,26 +206,83 @@ impl Default for GainScaleSpec {
     }
 }
 
-/// A sinusoidal disturbance on one triad's output: `amplitude sin(2 pi f t + phase)` per axis.
+/// An error outside the truth model on one triad's output, per axis: a sinusoid
+/// `amplitude sin(2 pi f t + phase)` (`frequency-hz`, optional `phase-deg`), or a step of
+/// `amplitude` from `step-at-s` on (a knock that shifts a bias, for the daemon's health tests).
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+#[serde(try_from = "DisturbanceSpec")]
 pub struct Disturbance {
     /// `accel` (m/s^2), `gyro` (rad/s) or `mag` (gauss).
     pub triad: imu_model::Triad,
     /// Amplitude per axis, in the triad's unit.
     pub amplitude: [f64; 3],
-    /// Frequency, Hz.
-    pub frequency_hz: f64,
-    /// Phase at scenario time 0, degrees.
-    #[serde(default)]
-    pub phase_deg: f64,
+    /// Its shape in time.
+    pub shape: DisturbanceShape,
+}
+
+/// The time course of a [`Disturbance`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DisturbanceShape {
+    /// `sin(2 pi f t + phase)`.
+    Sine {
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// Phase at scenario time 0, degrees.
+        phase_deg: f64,
+    },
+    /// 0 before `at_s`, 1 from then on.
+    Step {
+        /// Scenario time of the step, s.
+        at_s: f64,
+    },
+}
+
+/// A `[[disturbance]]` table as written.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+struct DisturbanceSpec {
+    triad: imu_model::Triad,
+    amplitude: [f64; 3],
+    frequency_hz: Option<f64>,
+    phase_deg: Option<f64>,
+    step_at_s: Option<f64>,
+}
+
+impl TryFrom<DisturbanceSpec> for Disturbance {
+    type Error = String;
+    fn try_from(d: DisturbanceSpec) -> Result<Self, String> {
+        let shape = match (d.frequency_hz, d.step_at_s, d.phase_deg) {
+            (Some(frequency_hz), None, phase) => DisturbanceShape::Sine {
+                frequency_hz,
+                phase_deg: phase.unwrap_or(0.0),
+            },
+            (None, Some(at_s), None) => DisturbanceShape::Step { at_s },
+            _ => {
+                return Err(
+                    "a disturbance is a sinusoid (`frequency-hz`, optional `phase-deg`) \
+                            or a step (`step-at-s`): give one of them"
+                        .into(),
+                );
+            }
+        };
+        Ok(Disturbance {
+            triad: d.triad,
+            amplitude: d.amplitude,
+            shape,
+        })
+    }
 }
 
 impl Disturbance {
     /// The disturbance at scenario time `t_s`.
     pub fn at(&self, t_s: f64) -> imu_model::Vec3 {
-        let s =
-            (std::f64::consts::TAU * self.frequency_hz * t_s + self.phase_deg.to_radians()).sin();
+        let s = match self.shape {
+            DisturbanceShape::Sine {
+                frequency_hz,
+                phase_deg,
+            } => (std::f64::consts::TAU * frequency_hz * t_s + phase_deg.to_radians()).sin(),
+            DisturbanceShape::Step { at_s } => f64::from(u8::from(t_s >= at_s)),
+        };
         imu_model::Vec3::from(self.amplitude) * s
     }
 }

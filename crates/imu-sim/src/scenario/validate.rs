@@ -26,10 +26,18 @@ impl Scenario {
     /// Disturbances, data rate, latitude, gravity and transitions.
     fn validate_environment(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
         for (i, d) in self.disturbances.iter().enumerate() {
-            if !positive(d.frequency_hz) || d.amplitude.iter().any(|a| !a.is_finite()) {
+            let time_ok = match d.shape {
+                super::DisturbanceShape::Sine {
+                    frequency_hz,
+                    phase_deg,
+                } => positive(frequency_hz) && phase_deg.is_finite(),
+                super::DisturbanceShape::Step { at_s } => at_s.is_finite() && at_s >= 0.0,
+            };
+            if !time_ok || d.amplitude.iter().any(|a| !a.is_finite()) {
                 return Err(invalid(
                     format!("disturbance[{i}]"),
-                    "frequency-hz must be positive and the amplitudes finite".into(),
+                    "frequency-hz must be positive, step-at-s >= 0 and the amplitudes finite"
+                        .into(),
                 ));
             }
         }
