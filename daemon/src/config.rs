@@ -62,6 +62,8 @@ pub struct Config {
     pub log: LogConfig,
     /// Shared-memory publishing.
     pub publish: PublishConfig,
+    /// Live calibration health.
+    pub health: HealthConfig,
 }
 
 impl Default for Config {
@@ -72,6 +74,7 @@ impl Default for Config {
             calibration: CalibrationConfig::default(),
             log: LogConfig::default(),
             publish: PublishConfig::default(),
+            health: HealthConfig::default(),
         }
     }
 }
@@ -197,6 +200,71 @@ impl Default for CalibrationConfig {
     }
 }
 
+/// Live calibration health: the calibration held against gravity and Earth's rate whenever the
+/// unit is still (see `health/mod.rs`). The still detector's settings are the offline
+/// segmentation's defaults (`imu_analysis::segment::SegmentOptions`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct HealthConfig {
+    /// Watch the calibration's health.
+    pub enabled: bool,
+    /// Latitude, deg: normal gravity and the vertical part of Earth's rate. Without it (and
+    /// without `gravity-m-s2`) gravity is learned from the first still windows, so only changes
+    /// are seen.
+    pub latitude_deg: Option<f64>,
+    /// Height above the ellipsoid, m (normal gravity's free-air term).
+    pub height_m: f64,
+    /// Local gravity, m/s^2, when known better than normal gravity (a survey, a gravimeter).
+    pub gravity_m_s2: Option<f64>,
+    /// Block over which stillness is judged, s.
+    pub block_s: f64,
+    /// A block is quiet below this many times the noise floor.
+    pub threshold_factor: f64,
+    /// Quantile of the recent blocks' deviations taken as the noise floor.
+    pub floor_quantile: f64,
+    /// Shortest still window, s (after one block is trimmed at each end next to motion).
+    pub min_still_s: f64,
+    /// Longest still window, s: a long rest is tested every this many seconds.
+    pub max_window_s: f64,
+    /// A quiet window whose mean rate is this far from the reading at rest is a steady
+    /// rotation, not a rest, rad/s.
+    pub plateau_min_rate_rad_s: f64,
+    /// Largest mean rate that can be the gyro's reading at rest, rad/s.
+    pub max_rest_rate_rad_s: f64,
+    /// p-value below which a still window rejects the calibration: the false-alarm rate per
+    /// still window.
+    pub false_alarm_p: f64,
+    /// Apply a stale triad's estimated bias offset to the corrected stream (logged and
+    /// recorded; off by default).
+    pub track_bias: bool,
+    /// Largest accel bias offset bias tracking applies, m/s^2.
+    pub track_bias_max_m_s2: f64,
+    /// Largest gyro bias offset bias tracking applies, rad/s.
+    pub track_bias_max_rad_s: f64,
+}
+
+impl Default for HealthConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            latitude_deg: None,
+            height_m: 0.0,
+            gravity_m_s2: None,
+            block_s: 1.0,
+            threshold_factor: 2.0,
+            floor_quantile: 0.1,
+            min_still_s: 1.0,
+            max_window_s: 30.0,
+            plateau_min_rate_rad_s: 0.05,
+            max_rest_rate_rad_s: 20f64.to_radians(),
+            false_alarm_p: 1e-4,
+            track_bias: false,
+            track_bias_max_m_s2: 0.5,
+            track_bias_max_rad_s: 0.05,
+        }
+    }
+}
+
 /// MCAP logging.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
@@ -318,7 +386,8 @@ impl Config {
         let problem = self
             .name_problem()
             .or_else(|| self.device_problem())
-            .or_else(|| self.log_publish_problem());
+            .or_else(|| self.log_publish_problem())
+            .or_else(|| self.health_problem());
         match problem {
             None => Ok(()),
             Some((key, message)) => Err(ConfigError::Invalid {
@@ -413,6 +482,52 @@ impl Config {
                 "publish.subscriber-buffer",
                 "buffers and subscriber counts must be at least 1".into(),
             ));
+        }
+        None
+    }
+
+    /// The first problem of the `[health]` settings, as (key, message).
+    fn health_problem(&self) -> Option<(&'static str, String)> {
+        let h = &self.health;
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if let Some(lat) = h.latitude_deg
+            && !(lat.is_finite() && (-90.0..=90.0).contains(&lat))
+        {
+            return Some(("health.latitude-deg", format!("{lat} must be in [-90, 90]")));
+        }
+        if let Some(g) = h.gravity_m_s2
+            && !(g.is_finite() && (9.7..=9.9).contains(&g))
+        {
+            return Some((
+                "health.gravity-m-s2",
+                format!("{g} m/s^2 is not Earth's gravity (9.78 to 9.83)"),
+            ));
+        }
+        for (key, v) in [
+            ("health.block-s", h.block_s),
+            ("health.threshold-factor", h.threshold_factor),
+            ("health.min-still-s", h.min_still_s),
+            ("health.max-window-s", h.max_window_s),
+            ("health.plateau-min-rate-rad-s", h.plateau_min_rate_rad_s),
+            ("health.max-rest-rate-rad-s", h.max_rest_rate_rad_s),
+            ("health.track-bias-max-m-s2", h.track_bias_max_m_s2),
+            ("health.track-bias-max-rad-s", h.track_bias_max_rad_s),
+        ] {
+            if !positive(v) {
+                return Some((key, format!("{v} must be a positive number")));
+            }
+        }
+        if !(h.floor_quantile > 0.0 && h.floor_quantile < 1.0) {
+            return Some(("health.floor-quantile", "must be in (0, 1)".into()));
+        }
+        if !(h.false_alarm_p > 0.0 && h.false_alarm_p < 0.5) {
+            return Some((
+                "health.false-alarm-p",
+                "must be in (0, 0.5): the p-value of one still window".into(),
+            ));
+        }
+        if h.max_window_s < h.min_still_s {
+            return Some(("health.max-window-s", "must be at least min-still-s".into()));
         }
         None
     }

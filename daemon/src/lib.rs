@@ -5,6 +5,7 @@
 pub mod clock;
 pub mod config;
 pub mod gaps;
+pub mod health;
 pub mod offline;
 pub mod pipeline;
 pub mod session;

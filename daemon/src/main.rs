@@ -328,7 +328,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
         recorder,
     };
     let fallback = config.device.fallback_gains;
-    let pipeline = Pipeline::new(
+    let mut pipeline = Pipeline::new(
         Gains {
             accel: fallback.accel,
             gyro: fallback.gyro,
@@ -338,6 +338,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
         config.device.tick_period_s,
         None,
     );
+    pipeline.set_health(Some(config.health.clone()));
     let device_path = config.device.path.clone();
     let mut daemon = Daemon {
         calibration: CalibrationSource::new(

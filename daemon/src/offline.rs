@@ -113,47 +113,74 @@ const MONO_ORIGIN_NS: u64 = 1_000_000_000_000;
 pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport> {
     std::fs::create_dir_all(&config.log.dir)
         .with_context(|| format!("creating {}", config.log.dir.display()))?;
-    let mut device = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
-    let truth = open_truth(&sim, &device)?;
-    let mut sinks = Sinks {
+    let sinks = Sinks {
         publishers: None,
         recorder: Some(start_recorder(&sim, config)?),
     };
-    let period_s = device.sample_period_s();
-    let duration_s = device.timeline().duration_s();
-    anyhow::ensure!(
-        duration_s.is_finite(),
-        "offline recording needs a scenario that ends (the last segment has no duration-s)"
-    );
-    let gains = read_gains(&mut device, config);
-    let pipeline = start_pipeline(&sim, config, gains, period_s, &mut sinks)?;
-    let mut run = Run {
-        device,
-        decoder: ReplyDecoder::new(),
-        pipeline,
-        sinks,
-        truth,
-        cmd: config.device.command.command(),
-        temp_every: temperature_every(config, period_s),
-        queue_capacity: config.log.queue_capacity,
-        report: OfflineReport {
-            samples: 0,
-            temperatures: 0,
-            files: Vec::new(),
-            truth: sim.truth_out.clone(),
-        },
-    };
-    let mut bytes = Vec::with_capacity(64);
-    let mut k: u64 = 0;
-    loop {
-        let t_s = k as f64 * period_s;
-        if t_s >= duration_s {
-            break;
-        }
-        run.step(k, t_s, &mut bytes)?;
-        k += 1;
-    }
+    let mut run = Run::start(sim, config, sinks)?;
+    run.for_each_sample(|_| {})?;
     run.finish(config)
+}
+
+/// Runs `sim` through the daemon's pipeline with nothing recorded or published and returns
+/// the live calibration health reports it made (one per still window): how the health
+/// monitor's false-alarm rate is measured over many simulated days.
+pub fn health_reports(
+    sim: SimOptions,
+    config: &Config,
+) -> anyhow::Result<Vec<imu_bus::CalibrationHealth>> {
+    let mut run = Run::start(sim, config, Sinks::default())?;
+    let mut reports = Vec::new();
+    run.for_each_sample(|pipeline| reports.extend(pipeline.take_health()))?;
+    Ok(reports)
+}
+
+impl Run {
+    /// A run of `sim` into `sinks`: the device started, its gains read, the pipeline made.
+    fn start(sim: SimOptions, config: &Config, mut sinks: Sinks) -> anyhow::Result<Run> {
+        let mut device = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
+        let truth = open_truth(&sim, &device)?;
+        let period_s = device.sample_period_s();
+        anyhow::ensure!(
+            device.timeline().duration_s().is_finite(),
+            "offline recording needs a scenario that ends (the last segment has no duration-s)"
+        );
+        let gains = read_gains(&mut device, config);
+        let pipeline = start_pipeline(&sim, config, gains, period_s, &mut sinks)?;
+        Ok(Run {
+            device,
+            decoder: ReplyDecoder::new(),
+            pipeline,
+            sinks,
+            truth,
+            cmd: config.device.command.command(),
+            temp_every: temperature_every(config, period_s),
+            queue_capacity: config.log.queue_capacity,
+            report: OfflineReport {
+                samples: 0,
+                temperatures: 0,
+                files: Vec::new(),
+                truth: sim.truth_out.clone(),
+            },
+        })
+    }
+
+    /// Every sample of the scenario through the pipeline, `after` called after each.
+    fn for_each_sample(&mut self, mut after: impl FnMut(&mut Pipeline)) -> anyhow::Result<()> {
+        let period_s = self.device.sample_period_s();
+        let duration_s = self.device.timeline().duration_s();
+        let mut bytes = Vec::with_capacity(64);
+        let mut k: u64 = 0;
+        loop {
+            let t_s = k as f64 * period_s;
+            if t_s >= duration_s {
+                return Ok(());
+            }
+            self.step(k, t_s, &mut bytes)?;
+            after(&mut self.pipeline);
+            k += 1;
+        }
+    }
 }
 
 /// Opens the truth file `sim.truth_out` (if asked for) and writes the timeline's segments to it.
@@ -255,6 +282,7 @@ fn start_pipeline(
     // The synthetic host time is the scenario's exact sample time: stamp with it (the clock fit
     // would place samples on whole 6.5536 ms ticks, coarser than a 100 Hz sample interval).
     pipeline.set_sample_clock(SampleClock::Host);
+    pipeline.set_health(Some(config.health.clone()));
     if let Some(cal) = calibration {
         pipeline.set_calibration(Some(cal.clone()));
         sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));

@@ -18,10 +18,13 @@ use imu_proto::reply::Reply;
 use imu_proto::scale;
 use imu_proto::ticks::TickUnwrapper;
 
-use tracing::warn;
+use imu_bus::CalibrationHealth;
+use tracing::{info, warn};
 
 use crate::clock::{ClockFit, WallStamps};
+use crate::config::HealthConfig;
 use crate::gaps::{GapStep, GapTracker};
+use crate::health::HealthMonitor;
 
 const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
 
@@ -350,12 +353,19 @@ pub struct Pipeline {
     wall: WallStamps,
     calibration: Option<Arc<ActiveCalibration>>,
     temp_c: f64,
-    last_gyro: Option<(u64, Vector3<f64>)>,
+    /// The last two corrected rates with their times (older first), for the angular
+    /// acceleration of the lever-arm term.
+    last_gyro: [Option<(u64, Vector3<f64>)>; 2],
     /// First sample time of the session and samples since (for the sample-rate estimate).
     rate_origin: Option<(u64, u64)>,
     last_sample_ns: Option<u64>,
     seq: u64,
     counters: PipelineCounters,
+    /// The health settings (none: health is off) and the monitor of the calibration in force.
+    health_config: Option<HealthConfig>,
+    health: Option<HealthMonitor>,
+    /// The newest health report not yet taken.
+    health_report: Option<CalibrationHealth>,
 }
 
 impl Pipeline {
@@ -375,12 +385,39 @@ impl Pipeline {
             wall: WallStamps::default(),
             calibration,
             temp_c: f64::NAN,
-            last_gyro: None,
+            last_gyro: [None; 2],
             rate_origin: None,
             last_sample_ns: None,
             seq: 0,
             counters: PipelineCounters::default(),
+            health_config: None,
+            health: None,
+            health_report: None,
         }
+    }
+
+    /// Turns the live calibration health on (with these settings) or off.
+    pub fn set_health(&mut self, config: Option<HealthConfig>) {
+        self.health_config = config.filter(|c| c.enabled);
+        self.restart_health();
+    }
+
+    /// A fresh monitor for the calibration in force.
+    fn restart_health(&mut self) {
+        self.health = self
+            .health_config
+            .as_ref()
+            .map(|c| HealthMonitor::new(c, self.calibration.as_deref()));
+    }
+
+    /// The newest health report since the last call (one per still window).
+    pub fn take_health(&mut self) -> Option<CalibrationHealth> {
+        self.health_report.take()
+    }
+
+    /// The health states (accel, gyro) of the calibration in force, when health is on.
+    pub fn health_states(&self) -> Option<(u8, u8)> {
+        self.health.as_ref().map(HealthMonitor::states)
     }
 
     /// Chooses where sample stamps come from (default: the device clock fit).
@@ -398,7 +435,10 @@ impl Pipeline {
             ..GapAccounting::default()
         };
         self.clock.reset();
-        self.last_gyro = None;
+        if let Some(h) = &mut self.health {
+            h.interrupt();
+        }
+        self.last_gyro = [None; 2];
         self.rate_origin = None;
         self.last_sample_ns = None;
     }
@@ -433,6 +473,7 @@ impl Pipeline {
     /// Puts a calibration in force from the next sample on (returns that sample's seq).
     pub fn set_calibration(&mut self, calibration: Option<Arc<ActiveCalibration>>) -> u64 {
         self.calibration = calibration;
+        self.restart_health();
         self.seq
     }
 
@@ -562,6 +603,7 @@ impl Pipeline {
         let measured = counts.to_units(self.gains);
         let mut corrected = self.correct(&measured, t_sample_ns, t_device_ns);
         corrected.t_wall_ns = self.wall.stamp(t_sample_ns, t_mono_ns, t_wall_ns);
+        self.watch_health(&mut corrected, sinks);
         self.publish(raw, corrected, sinks);
     }
 
@@ -577,11 +619,13 @@ impl Pipeline {
         }
         let (accel, gyro, mag, calibration_id) = match &self.calibration {
             Some(cal) => {
-                // Angular acceleration for the lever-arm term: finite difference of the corrected
-                // rate (one sample late, which the lever-arm magnitude makes negligible).
+                // Angular acceleration for the lever-arm term: finite difference of the last
+                // two corrected rates (one sample late, which the lever-arm magnitude makes
+                // negligible). Never the measured rate against a corrected one: their
+                // difference is the gyro's bias and scale error, not an acceleration.
                 let angular_accel = match self.last_gyro {
-                    Some((t_prev, w_prev)) if t_sample_ns > t_prev => {
-                        (m.gyro_rad_s - w_prev) / ((t_sample_ns - t_prev) as f64 * 1e-9)
+                    [Some((t0, w0)), Some((t1, w1))] if t1 > t0 => {
+                        (w1 - w0) / ((t1 - t0) as f64 * 1e-9)
                     }
                     _ => Vector3::zeros(),
                 };
@@ -597,7 +641,7 @@ impl Pipeline {
                     flags |= corrected_flags::NOT_CONVERGED;
                     self.counters.not_converged += 1;
                 }
-                self.last_gyro = Some((t_sample_ns, c.gyro_rad_s));
+                self.last_gyro = [self.last_gyro[1], Some((t_sample_ns, c.gyro_rad_s))];
                 (c.accel_m_s2, c.gyro_rad_s, c.mag_gauss, cal.id)
             }
             None => {
@@ -618,6 +662,46 @@ impl Pipeline {
             flags,
             reserved: 0,
         }
+    }
+
+    /// Bias tracking's offsets applied, the sample handed to the health monitor, and a report
+    /// published, recorded and its state changes logged.
+    fn watch_health(&mut self, corrected: &mut CorrectedSample, sinks: &mut Sinks) {
+        let Some(monitor) = &mut self.health else {
+            return;
+        };
+        let (accel_offset, gyro_offset) = monitor.applied_offsets();
+        if accel_offset != Vector3::zeros() || gyro_offset != Vector3::zeros() {
+            for i in 0..3 {
+                corrected.accel_m_s2[i] -= accel_offset[i];
+                corrected.gyro_rad_s[i] -= gyro_offset[i];
+            }
+            corrected.flags |= corrected_flags::BIAS_TRACKED;
+        }
+        let Some(event) = monitor.push(
+            corrected.t_sample_ns,
+            corrected.t_wall_ns,
+            &corrected.accel_m_s2,
+            &corrected.gyro_rad_s,
+            corrected.temp_c,
+        ) else {
+            return;
+        };
+        for line in &event.changes {
+            if line.contains("-> ok") {
+                info!("{line}");
+            } else {
+                warn!("{line}");
+            }
+        }
+        if let Some(p) = &mut sinks.publishers {
+            let sent = p.publish_health(&event.report).is_ok() & p.notify(ShmEvent::Health).is_ok();
+            if !sent {
+                self.counters.publish_errors += 1;
+            }
+        }
+        sinks.log(LogRecord::Health(event.report));
+        self.health_report = Some(event.report);
     }
 
     /// Counts the sample and hands it to shared memory and the log.

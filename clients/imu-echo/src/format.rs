@@ -3,8 +3,9 @@
 use std::io::{self, Write};
 use std::marker::PhantomData;
 
+use imu_bus::sample::health_state;
 use imu_bus::shm::ShmPayload;
-use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
+use imu_bus::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
 
 use crate::Format;
 
@@ -21,6 +22,8 @@ pub enum Cell {
     Ns(u64),
     /// Bits or ids: hexadecimal in the table, decimal in csv.
     Hex(u64),
+    /// A word (a state's name).
+    Text(&'static str),
 }
 
 /// One column: its csv name (the field name, with its unit), its table header and width.
@@ -168,6 +171,56 @@ impl Echo for DaemonStatus {
     }
 }
 
+impl Echo for CalibrationHealth {
+    const HAS_SEQ: bool = false;
+    const COLUMNS: &'static [Column] = &[
+        col("t_sample_ns", "t_end[s]", 16),
+        col("window_s", "window[s]", 9),
+        col("accel_state", "accel", 12),
+        col("gyro_state", "gyro", 12),
+        col("accel_residual_m_s2", "|f|-g[m/s2]", 11),
+        col("accel_expected_std_m_s2", "+-[m/s2]", 9),
+        col("accel_p", "p_accel", 9),
+        col("gyro_residual_rad_s", "|w|-W[rad/s]", 12),
+        col("gyro_expected_std_rad_s", "+-[rad/s]", 9),
+        col("gyro_p", "p_gyro", 9),
+        col("accel_offset_x_m_s2", "dax[m/s2]", 10),
+        col("accel_offset_y_m_s2", "day[m/s2]", 10),
+        col("accel_offset_z_m_s2", "daz[m/s2]", 10),
+        col("gyro_offset_x_rad_s", "dgx[rad/s]", 10),
+        col("gyro_offset_y_rad_s", "dgy[rad/s]", 10),
+        col("gyro_offset_z_rad_s", "dgz[rad/s]", 10),
+        col("temp_c", "temp[C]", 8),
+        col("still_windows", "windows", 8),
+        col("checks", "checks", 6),
+    ];
+
+    fn cells(&self, out: &mut Vec<Cell>) {
+        out.push(Cell::Ns(self.t_sample_ns));
+        let window_s = self.t_sample_ns.saturating_sub(self.window_start_ns) as f64 * 1e-9;
+        floats(out, &[window_s], 1);
+        out.push(Cell::Text(health_state::name(self.accel_state)));
+        out.push(Cell::Text(health_state::name(self.gyro_state)));
+        floats(
+            out,
+            &[self.accel_residual_m_s2, self.accel_expected_std_m_s2],
+            5,
+        );
+        floats(out, &[self.accel_p], 4);
+        floats(
+            out,
+            &[self.gyro_residual_rad_s, self.gyro_expected_std_rad_s],
+            6,
+        );
+        floats(out, &[self.gyro_p], 4);
+        floats(out, &self.accel_offset_m_s2, 5);
+        floats(out, &self.gyro_offset_rad_s, 6);
+        floats(out, &[self.temp_c], 2);
+        out.push(Cell::U(self.still_windows));
+        out.push(Cell::Hex(self.checks.into()));
+    }
+}
+
 /// Writes the header and rows of one format; reuses its cell buffer across rows.
 pub struct Printer<T: Echo> {
     format: Format,
@@ -247,6 +300,7 @@ fn write_table_cell(w: &mut impl Write, cell: Cell, width: usize) -> io::Result<
         Cell::F { value, prec } => write!(w, "{value:>width$.prec$}"),
         Cell::Ns(ns) => write!(w, "{:>width$.6}", ns as f64 * 1e-9),
         Cell::Hex(v) => write!(w, "{:>width$}", format!("{v:#x}")),
+        Cell::Text(s) => write!(w, "{s:>width$}"),
     }
 }
 
@@ -263,6 +317,7 @@ fn write_csv_cell(w: &mut impl Write, cell: Cell) -> io::Result<()> {
         // `{}` never uses an exponent, which would spell out 1e-300 in 300 digits.
         Cell::F { value, .. } if needs_exponent(value, 1e16, 1e-6) => write!(w, "{value:e}"),
         Cell::F { value, .. } => write!(w, "{value}"),
+        Cell::Text(s) => w.write_all(s.as_bytes()),
     }
 }
 
@@ -305,6 +360,9 @@ mod tests {
         cells.clear();
         DaemonStatus::default().cells(&mut cells);
         assert_eq!(cells.len(), DaemonStatus::COLUMNS.len());
+        cells.clear();
+        CalibrationHealth::default().cells(&mut cells);
+        assert_eq!(cells.len(), CalibrationHealth::COLUMNS.len());
     }
 
     #[test]

@@ -1,10 +1,10 @@
 //! imu-echo: print the samples a running imud publishes over iceoryx2 shared memory.
 //!
 //! ```text
-//! imu-echo [--name NAME] [--corrected|--raw|--status] [--format table|csv|jsonl] [--count N]
+//! imu-echo [--name NAME] [--corrected|--raw|--status|--health] [--format table|csv|jsonl] [--count N]
 //! ```
 //!
-//! It subscribes to `imud/NAME/{corrected,raw,status}` (corrected by default), sleeps on the
+//! It subscribes to `imud/NAME/{corrected,raw,status,health}` (corrected by default), sleeps on the
 //! instance's event service until the daemon announces new samples, and prints them to stdout:
 //! `table` as aligned columns with units in the header, `csv` with a header row (full
 //! precision, times in ns), `jsonl` as one JSON object per line with the field names of the
@@ -31,7 +31,7 @@ use crate::format::Echo;
 
 /// Print the samples a running imud publishes over shared memory.
 #[derive(Debug, Parser)]
-#[command(version, about, group(ArgGroup::new("stream").args(["corrected", "raw", "status"])))]
+#[command(version, about, group(ArgGroup::new("stream").args(["corrected", "raw", "status", "health"])))]
 struct Args {
     /// Instance name of the daemon (its `--name`).
     #[arg(long, default_value = imu_bus::shm::DEFAULT_INSTANCE)]
@@ -45,6 +45,11 @@ struct Args {
     /// The daemon's health counters (about once a second).
     #[arg(long)]
     status: bool,
+    /// The live calibration health: one report per still window (states ok, degraded, stale,
+    /// uncalibrated; the residuals against gravity and Earth's rate; the bias offsets that
+    /// would explain them).
+    #[arg(long)]
+    health: bool,
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Table)]
     format: Format,
@@ -102,6 +107,8 @@ fn run(args: &Args) -> Result<Outcome> {
         Stream::Raw
     } else if args.status {
         Stream::Status
+    } else if args.health {
+        Stream::Health
     } else {
         Stream::Corrected
     };
@@ -117,6 +124,7 @@ fn run(args: &Args) -> Result<Outcome> {
         Subscriber::Raw(sub) => echo(sub, args, &stop),
         Subscriber::Corrected(sub) => echo(sub, args, &stop),
         Subscriber::Status(sub) => echo(sub, args, &stop),
+        Subscriber::Health(sub) => echo(sub, args, &stop),
     }
 }
 

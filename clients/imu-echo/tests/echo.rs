@@ -141,3 +141,52 @@ fn an_instance_that_does_not_run_is_an_error_naming_it() {
         "{stderr}"
     );
 }
+
+#[test]
+fn health_reports_print_their_states_by_name() {
+    use imu_bus::CalibrationHealth;
+    use imu_bus::sample::health_state;
+    let instance = unique_instance("health");
+    let mut publishers = Publishers::open(&instance, &ShmOptions::default()).unwrap();
+    let mut child = imu_echo()
+        .args([
+            "--name", &instance, "--health", "--format", "csv", "--count", "2",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + PATIENCE;
+    let report = |k: u64| CalibrationHealth {
+        t_sample_ns: 20_000_000_000 + k,
+        window_start_ns: 2_000_000_000 + k,
+        accel_state: health_state::DEGRADED,
+        gyro_state: health_state::OK,
+        accel_residual_m_s2: 0.05,
+        accel_offset_m_s2: [0.0, 0.0, 0.05],
+        ..Default::default()
+    };
+    let mut k = 0;
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "imu-echo did not exit");
+        publishers.publish_health(&report(k)).unwrap();
+        publishers.notify(ShmEvent::Health).unwrap();
+        k += 1;
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let out = child.wait_with_output().unwrap();
+    assert!(status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let mut lines = stdout.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2, "{stdout}");
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    assert_eq!(rows[0][at("accel_state")], "degraded");
+    assert_eq!(rows[0][at("gyro_state")], "ok");
+    assert_eq!(rows[0][at("accel_offset_z_m_s2")], "0.05");
+    assert_eq!(rows[0][at("window_s")].parse::<f64>().unwrap(), 18.0);
+}
