@@ -30,7 +30,7 @@ fn frames() -> Vec<u8> {
     bytes
 }
 
-fn run(label: &str, sinks: &mut Sinks, calibrated: bool) {
+fn run(label: &str, sinks: &mut Sinks, calibrated: bool, health: bool) {
     let model = Calibration::load(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../config/models/example-3dm-gx1.toml"
@@ -44,6 +44,8 @@ fn run(label: &str, sinks: &mut Sinks, calibrated: bool) {
         fallback: GainFallback::NONE,
     };
     let mut pipeline = Pipeline::new(gains, 6.5536e-3, cal);
+    // The daemon watches its calibration's health by default (imud::health).
+    pipeline.set_health(health.then(imud::config::HealthConfig::default));
     let mut decoder = ReplyDecoder::new();
     let stream = frames();
     let mut per_frame_ns = Vec::with_capacity(BATCHES);
@@ -97,14 +99,31 @@ fn main() {
         "decode only (uncalibrated, no sinks)",
         &mut Sinks::default(),
         false,
+        false,
     );
-    run("decode + calibrate (no sinks)", &mut Sinks::default(), true);
+    run(
+        "decode + calibrate (no sinks)",
+        &mut Sinks::default(),
+        true,
+        false,
+    );
+    run(
+        "decode + calibrate + health (no sinks)",
+        &mut Sinks::default(),
+        true,
+        true,
+    );
     let publishers = Publishers::open(&name, &ShmOptions::default()).expect("shared memory");
     let mut with_pub = Sinks {
         publishers: Some(publishers),
         recorder: None,
     };
-    run("decode + calibrate + publish", &mut with_pub, true);
+    run(
+        "decode + calibrate + health + publish",
+        &mut with_pub,
+        true,
+        true,
+    );
     let recorder = Recorder::start(
         RecordingConfig {
             dir: dir.path().to_path_buf(),
@@ -119,7 +138,12 @@ fn main() {
         publishers: with_pub.publishers,
         recorder: Some(recorder),
     };
-    run("decode + calibrate + publish + log enqueue", &mut all, true);
+    run(
+        "decode + calibrate + health + publish + log enqueue",
+        &mut all,
+        true,
+        true,
+    );
     if let Some(r) = all.recorder {
         let _ = r.finish();
     }

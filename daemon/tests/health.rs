@@ -162,3 +162,37 @@ fn an_uncalibrated_stream_is_reported_as_uncalibrated_not_stale() {
         assert!(r.accel_p.is_nan());
     }
 }
+
+#[test]
+fn bias_tracking_takes_up_a_stale_shift_and_the_stream_agrees_with_physics_again() {
+    let mut cfg = config(Some("config/models/example-3dm-gx1.toml"));
+    cfg.health.track_bias = true;
+    let reports = run("config/scenarios/health-knock.toml", 21, &cfg);
+    let tested: Vec<_> = tested(&reports).collect();
+    let first_tracked = tested
+        .iter()
+        .position(|r| r.bias_tracking == 1)
+        .expect("a stale triad was never tracked");
+    let last = &tested[first_tracked..];
+    assert!(last.len() >= 5, "tracking began too late: {}", last.len());
+    assert!(last.iter().all(|r| r.bias_tracking == 1));
+    // With the offsets applied, the windows agree with gravity and Earth's rate again.
+    let tail = &last[last.len() - 4..];
+    assert!(
+        tail.iter()
+            .all(|r| r.accel_state == health_state::OK && r.gyro_state == health_state::OK),
+        "{tail:#?}"
+    );
+    let typical = tail
+        .iter()
+        .filter(|r| r.accel_residual_m_s2.abs() < 3.0 * r.accel_expected_std_m_s2)
+        .count();
+    assert!(typical >= 3, "{tail:#?}");
+    // Off by default: the same run without it never tracks.
+    let off = run(
+        "config/scenarios/health-knock.toml",
+        21,
+        &config(Some("config/models/example-3dm-gx1.toml")),
+    );
+    assert!(off.iter().all(|r| r.bias_tracking == 0));
+}
