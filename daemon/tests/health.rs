@@ -196,3 +196,70 @@ fn bias_tracking_takes_up_a_stale_shift_and_the_stream_agrees_with_physics_again
     );
     assert!(off.iter().all(|r| r.bias_tracking == 0));
 }
+
+#[test]
+fn a_hidden_temperature_coefficient_is_flagged_as_the_sensor_leaves_the_calibrated_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = std::fs::read_to_string(repo("config/models/example-3dm-gx1.toml")).unwrap();
+    // The truth: the example unit plus 6e-4 m/s^2/K about 24.5 C on accel z: under two times a
+    // window's scatter (0.7e-3 to 1.4e-3 m/s^2) at the calibrated range's ends, six times at 38 C (a
+    // random orientation sees |u_z| of it).
+    let truth = dir.path().join("truth.toml");
+    std::fs::write(
+        &truth,
+        format!("{example}\n[accel.temp-bias]\nt0-c = 24.5\ncoefficients = [[0.0, 0.0, 6.0e-4]]\n"),
+    )
+    .unwrap();
+    // The calibration: the unit without it, fitted on data between 22 and 27 C.
+    let calibration = dir.path().join("calibration.toml");
+    std::fs::write(
+        &calibration,
+        example.replacen(
+            "[provenance]\n",
+            "[provenance]\ntemperature-range-c = [22.0, 27.0]\n",
+            1,
+        ),
+    )
+    .unwrap();
+    let mut cfg = config(None);
+    cfg.calibration.path = Some(calibration);
+    let mut sim =
+        SimOptions::from_files(&repo("config/scenarios/health-thermal.toml"), Some(&truth))
+            .unwrap();
+    sim.seed = 4;
+    let reports = health_reports(sim, &cfg).unwrap();
+    let tested: Vec<_> = tested(&reports).collect();
+    let (inside, outside): (Vec<&CalibrationHealth>, Vec<&CalibrationHealth>) =
+        tested.iter().partition(|r| r.temp_c <= 27.0);
+    assert!(
+        inside.len() >= 5 && outside.len() >= 20,
+        "{} {}",
+        inside.len(),
+        outside.len()
+    );
+    let out_of_range = |r: &CalibrationHealth| r.checks & health_checks::TEMP_OUT_OF_RANGE != 0;
+    assert!(
+        inside
+            .iter()
+            .all(|r| !out_of_range(r) && r.accel_state == health_state::OK)
+    );
+    assert!(outside.iter().all(|r| out_of_range(r)));
+    let flagged = outside
+        .iter()
+        .find(|r| r.accel_state != health_state::OK)
+        .expect("the thermal bias was never flagged");
+    assert!(flagged.temp_c > 28.0, "flagged at {} C", flagged.temp_c);
+    // Once warm, most windows are flagged (a window whose orientation puts z near horizontal
+    // sees little of a z bias, and three consistent windows in a row turn it `ok` again).
+    let warm: Vec<_> = outside.iter().filter(|r| r.temp_c > 38.0).collect();
+    let flagged_warm = warm
+        .iter()
+        .filter(|r| r.accel_state != health_state::OK)
+        .count();
+    assert!(
+        flagged_warm * 10 >= warm.len() * 8,
+        "{flagged_warm}/{}",
+        warm.len()
+    );
+    assert!(outside.iter().all(|r| r.gyro_state == health_state::OK));
+}

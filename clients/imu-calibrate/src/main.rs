@@ -404,14 +404,21 @@ fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
     Ok(opts)
 }
 
-/// Provenance shared by both procedures: when, which tool, which inputs, and the notes with
-/// the parameters that were held.
+/// Provenance shared by both procedures: when, which tool, which inputs, the temperatures the
+/// data covered, and the notes with the parameters that were held.
 fn stamp(
     cal: &mut Calibration,
-    inputs: Hashing,
+    (inputs, series): (Hashing, &[&imu_analysis::ImuSeries]),
     notes: &[String],
     held: Vec<String>,
 ) -> Result<()> {
+    cal.provenance.temperature_range_c = series
+        .iter()
+        .flat_map(|s| s.temp.iter().map(|&(_, c)| c))
+        .filter(|c| c.is_finite())
+        .fold(None, |r: Option<[f64; 2]>, c| {
+            Some(r.map_or([c, c], |[lo, hi]| [lo.min(c), hi.max(c)]))
+        });
     cal.provenance.created = Some(imu_analysis::provenance::now_rfc3339());
     cal.provenance.tool = Some(format!("imu-calibrate {}", env!("CARGO_PKG_VERSION")));
     cal.provenance.inputs = inputs

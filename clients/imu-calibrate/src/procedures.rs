@@ -32,7 +32,7 @@ pub(super) fn run_reference_free(
                 .map(|u| format!("{} {}", f.triad, u.name))
         })
         .collect();
-    stamp(&mut fit.calibration, hashing, &fit.notes, held)?;
+    stamp(&mut fit.calibration, (hashing, &[series]), &fit.notes, held)?;
     if let Some(path) = &cli.output {
         fit.calibration
             .save(path)
@@ -137,7 +137,8 @@ pub(super) fn run_reference(
         )
         .collect();
     let cal = &mut fit.calibration;
-    stamp(cal, hashing, &fit.notes, held)?;
+    let series: Vec<_> = loaded.iter().map(|(s, _)| s).collect();
+    stamp(cal, (hashing, &series), &fit.notes, held)?;
     if let Some(path) = &cli.output {
         cal.save(path)
             .with_context(|| format!("writing {}", path.display()))?;

@@ -291,6 +291,10 @@ pub mod health_checks {
     /// Still windows in several orientations: the accel bias offset is estimated in 3-D (with
     /// one orientation only its component along gravity is seen).
     pub const ACCEL_BIAS_3D: u8 = 1 << 4;
+    /// The window's temperature lies outside the range the calibration's data covered
+    /// (`provenance.temperature-range-c`): a thermal effect the calibration never saw may be
+    /// why it disagrees.
+    pub const TEMP_OUT_OF_RANGE: u8 = 1 << 5;
 }
 
 /// Where the expected scatter of a [`CalibrationHealth`] comes from (`noise_source`).

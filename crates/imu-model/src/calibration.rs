@@ -24,9 +24,10 @@ pub const COUPLING_TOLERANCE: f64 = 1e-13;
 
 /// Where a calibration came from. Every field is optional so hand-written truth files stay short.
 ///
-/// TOML `[provenance]` with `created`, `tool`, `procedure`, `notes` (strings) and
-/// `[[provenance.inputs]]` tables with `path` and optional `sha256`.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// TOML `[provenance]` with `created`, `tool`, `procedure`, `notes` (strings),
+/// `temperature-range-c = [low, high]` and `[[provenance.inputs]]` tables with `path` and
+/// optional `sha256`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 pub struct Provenance {
     /// When the file was made, RFC 3339 text (a string, e.g. "2025-03-01T12:00:00Z").
@@ -44,6 +45,10 @@ pub struct Provenance {
     /// Free text.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notes: Option<String>,
+    /// The lowest and highest temperature in the data the fit used, deg C: where the
+    /// calibration has been seen to hold (imud's live health says when the sensor leaves it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_range_c: Option<[f64; 2]>,
 }
 
 impl Provenance {
@@ -226,6 +231,14 @@ impl Calibration {
         }
         for t in Triad::ALL {
             self.triad(t).validate(t).map_err(|e| e.within(t.name()))?;
+        }
+        if let Some([lo, hi]) = self.provenance.temperature_range_c
+            && !(lo.is_finite() && hi.is_finite() && lo <= hi)
+        {
+            return Err(InvalidParam::new(
+                "provenance.temperature-range-c",
+                format!("[{lo}, {hi}] is not a range of temperatures (finite, low first)"),
+            ));
         }
         Ok(())
     }

@@ -186,6 +186,8 @@ pub struct HealthMonitor {
     detector: StillDetector,
     calibration_id: u64,
     calibrated: bool,
+    /// The temperatures the calibration's data covered, deg C.
+    temperature_range_c: Option<[f64; 2]>,
     noise: NoiseBasis,
     gravity: GravityReference,
     accel: Track,
@@ -241,6 +243,7 @@ impl HealthMonitor {
             detector: StillDetector::new(opts, expected_floor),
             calibration_id: calibration.map_or(0, |c| c.id),
             calibrated,
+            temperature_range_c: calibration.and_then(|c| c.model.provenance.temperature_range_c),
             noise: match tables {
                 Some((accel, gyro)) => NoiseBasis::Tables { accel, gyro },
                 None => NoiseBasis::Estimated {
@@ -320,6 +323,11 @@ impl HealthMonitor {
         let elapsed_s = now_ns.saturating_sub(self.since_ns.unwrap_or(now_ns)) as f64 * 1e-9;
         let r = reference::residuals(w, g, self.config.latitude_deg, (&accel, &gyro), elapsed_s);
         self.fill_residuals(&mut report, &r, g.0);
+        if let Some([lo, hi]) = self.temperature_range_c
+            && (w.temp_c < lo || w.temp_c > hi)
+        {
+            report.checks |= health_checks::TEMP_OUT_OF_RANGE;
+        }
         if !self.calibrated {
             return HealthEvent { report, changes };
         }
@@ -418,13 +426,8 @@ impl HealthMonitor {
             report.checks |= health_checks::ACCEL_BIAS_3D;
         }
         if self.accel.state != before {
-            log.push(change_line(
-                "accel",
-                before,
-                self.accel.state,
-                p_accel,
-                report,
-            ));
+            let line = change_line("accel", before, self.accel.state, p_accel, report);
+            log.push(self.with_temperature(line, report));
         }
         let before = self.gyro.update(p_gyro, alpha);
         let left_ok = before != health_state::DEGRADED
@@ -438,7 +441,20 @@ impl HealthMonitor {
         report.gyro_p = p_gyro;
         report.gyro_offset_rad_s = gyro_offset(&self.gyro.gyro_obs).into();
         if self.gyro.state != before {
-            log.push(change_line("gyro", before, self.gyro.state, p_gyro, report));
+            let line = change_line("gyro", before, self.gyro.state, p_gyro, report);
+            log.push(self.with_temperature(line, report));
+        }
+    }
+
+    /// A state-change line, with the temperature when it lies outside the calibration's range.
+    fn with_temperature(&self, line: String, report: &CalibrationHealth) -> String {
+        match self.temperature_range_c {
+            Some([lo, hi]) if report.checks & health_checks::TEMP_OUT_OF_RANGE != 0 => format!(
+                "{line}; the temperature {:.1} C is outside the calibration's range \
+                 {lo:.1} to {hi:.1} C (a thermal effect it never saw?)",
+                report.temp_c
+            ),
+            _ => line,
         }
     }
 

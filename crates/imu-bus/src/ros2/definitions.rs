@@ -243,7 +243,7 @@ float64 gravity_m_s2          # the gravity held against
 float64 temp_c
 uint8 accel_state
 uint8 gyro_state
-uint8 checks                  # 1 gravity, 2 gravity learned, 4 earth rate, 8 vertical earth rate, 16 accel bias 3-D
+uint8 checks                  # 1 gravity, 2 gravity learned, 4 earth rate, 8 vertical earth rate, 16 accel bias 3-D, 32 temperature outside the calibration's range
 uint8 noise_source            # 0 noise tables, 1 estimated from still windows, 2 none yet
 uint8 bias_tracking           # 1: the offsets are applied to the corrected stream
 uint8[3] reserved
