@@ -92,6 +92,16 @@ fn calibrates_a_simulated_recording_within_its_standard_errors() {
         assert_eq!(input.sha256.as_deref(), Some(want), "{}", input.path);
     }
     assert!(cal.provenance.created.as_ref().unwrap().ends_with('Z'));
+    // The temperatures the data covered (the simulator's constant 25 C, read back through the
+    // device's temperature word).
+    let [lo, hi] = cal
+        .provenance
+        .temperature_range_c
+        .expect("temperature range");
+    assert!(
+        lo <= hi && (lo - 25.0).abs() < 0.5 && (hi - 25.0).abs() < 0.5,
+        "{lo} {hi}"
+    );
 }
 
 /// What to fit from an index table alone: the accel model with its nonlinearity, and only the

@@ -26,6 +26,7 @@ fn full_calibration(seed: u64) -> Calibration {
             },
         ],
         notes: Some("multi\nline \"quoted\" notes".into()),
+        temperature_range_c: Some([21.5, 38.25]),
     };
     for t in Triad::ALL {
         let mut m = random_model(&applicable(t), t, &mut rng);
