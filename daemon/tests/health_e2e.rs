@@ -170,10 +170,23 @@ fn a_knock_on_a_still_unit_turns_the_live_health_degraded() {
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
         .collect();
-    let recorded: Vec<CalibrationHealth> = files
+    let recordings: Vec<_> = files.iter().map(|f| read_recording(f).unwrap()).collect();
+    let recorded: Vec<CalibrationHealth> =
+        recordings.iter().flat_map(|r| r.health.clone()).collect();
+    // The status carries the states too: the last one (at shutdown) says accel is not ok.
+    let (_, status) = recordings
         .iter()
-        .flat_map(|f| read_recording(f).unwrap().health)
-        .collect();
+        .flat_map(|r| r.statuses.clone())
+        .last()
+        .expect("a status");
+    assert!(
+        matches!(
+            status.health_accel,
+            health_state::DEGRADED | health_state::STALE
+        ),
+        "{status:?}"
+    );
+    assert_eq!(status.health_gyro, health_state::OK);
     assert_eq!(
         recorded.len(),
         got.len(),

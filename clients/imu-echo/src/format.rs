@@ -143,6 +143,8 @@ impl Echo for DaemonStatus {
         col("temp_c", "temp[C]", 8),
         col("device_connected", "device", 6),
         col("logging", "logging", 7),
+        col("health_accel", "accel", 12),
+        col("health_gyro", "gyro", 12),
     ];
 
     fn cells(&self, out: &mut Vec<Cell>) {
@@ -168,6 +170,8 @@ impl Echo for DaemonStatus {
         floats(out, &[self.temp_c], 2);
         out.push(Cell::U(self.device_connected.into()));
         out.push(Cell::U(self.logging.into()));
+        out.push(Cell::Text(health_state::name(self.health_accel)));
+        out.push(Cell::Text(health_state::name(self.health_gyro)));
     }
 }
 

@@ -52,7 +52,8 @@
 //!  96 double   tick_period_est_s;  104 double   clock_drift_ppm;
 //! 112 double   temp_c;             120 uint8_t  device_connected;
 //! 121 uint8_t  logging;            122 uint8_t  gains_fallback;
-//! 123 uint8_t  reserved[5];        128 double   clock_offset_s;
+//! 123 uint8_t  health_accel;       124 uint8_t  health_gyro;
+//! 125 uint8_t  reserved[3];        128 double   clock_offset_s;
 //! 136 double   clock_residual_s;   144 uint16_t gain_scale_accel;
 //! 146 uint16_t gain_scale_gyro;    148 uint16_t gain_scale_mag;
 //! 150 uint8_t  reserved_end[2];    152 = sizeof
@@ -233,8 +234,13 @@ pub struct DaemonStatus {
     /// Which GainScales in force are the configured fallbacks (the device's EEPROM read
     /// failed): bit 0 accel, bit 1 gyro, bit 2 mag.
     pub gains_fallback: u8,
+    /// The live calibration health of the accelerometers ([`health_state`]; `unknown` when the
+    /// health monitor is off). Bytes that were reserved (zero) before: the layout is unchanged.
+    pub health_accel: u8,
+    /// The live calibration health of the gyros ([`health_state`]).
+    pub health_gyro: u8,
     /// Reserved, zero.
-    pub reserved: [u8; 5],
+    pub reserved: [u8; 3],
     /// Host monotonic time, s, at which the device's unwrapped tick count was 0, from the clock
     /// fit (a sample's time is `clock_offset_s + ticks * tick_period_est_s` plus the link's least
     /// latency; NaN until known).
@@ -425,7 +431,9 @@ mod tests {
         assert_eq!(offset_of!(DaemonStatus, device_connected), 120);
         assert_eq!(offset_of!(DaemonStatus, logging), 121);
         assert_eq!(offset_of!(DaemonStatus, gains_fallback), 122);
-        assert_eq!(offset_of!(DaemonStatus, reserved), 123);
+        assert_eq!(offset_of!(DaemonStatus, health_accel), 123);
+        assert_eq!(offset_of!(DaemonStatus, health_gyro), 124);
+        assert_eq!(offset_of!(DaemonStatus, reserved), 125);
         assert_eq!(offset_of!(DaemonStatus, clock_offset_s), 128);
         assert_eq!(offset_of!(DaemonStatus, clock_residual_s), 136);
         assert_eq!(offset_of!(DaemonStatus, gain_scale_accel), 144);

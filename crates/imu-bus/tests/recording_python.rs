@@ -205,6 +205,8 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
             ("device_connected", u64::from(w.device_connected)),
             ("logging", u64::from(w.logging)),
             ("gains_fallback", u64::from(w.gains_fallback)),
+            ("health_accel", u64::from(w.health_accel)),
+            ("health_gyro", u64::from(w.health_gyro)),
             ("gain_scale_accel", u64::from(w.gain_scale_accel)),
             ("gain_scale_gyro", u64::from(w.gain_scale_gyro)),
             ("gain_scale_mag", u64::from(w.gain_scale_mag)),

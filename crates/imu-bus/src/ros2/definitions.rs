@@ -194,7 +194,9 @@ float64 temp_c                # NaN if none
 uint8 device_connected
 uint8 logging
 uint8 gains_fallback          # GainScales that are configured fallbacks: 1 accel, 2 gyro, 4 mag
-uint8[5] reserved
+uint8 health_accel            # live calibration health: 0 unknown, 1 ok, 2 degraded, 3 stale, 4 uncalibrated
+uint8 health_gyro
+uint8[3] reserved
 float64 clock_offset_s        # host monotonic s at device tick 0, from the clock fit; NaN until known
 float64 clock_residual_s      # RMS residual of the clock fit, s; NaN until known
 uint16 gain_scale_accel       # GainScales in force

@@ -409,6 +409,8 @@ impl RosMessage for DaemonStatusMsg {
         w.u8(s.device_connected);
         w.u8(s.logging);
         w.u8(s.gains_fallback);
+        w.u8(s.health_accel);
+        w.u8(s.health_gyro);
         w.u8_array(&s.reserved);
         w.f64(s.clock_offset_s);
         w.f64(s.clock_residual_s);
@@ -439,6 +441,8 @@ impl RosMessage for DaemonStatusMsg {
                 device_connected: r.u8("device_connected")?,
                 logging: r.u8("logging")?,
                 gains_fallback: r.u8("gains_fallback")?,
+                health_accel: r.u8("health_accel")?,
+                health_gyro: r.u8("health_gyro")?,
                 reserved: r.u8_array("reserved")?,
                 clock_offset_s: r.f64("clock_offset_s")?,
                 clock_residual_s: r.f64("clock_residual_s")?,
