@@ -33,9 +33,10 @@ struct Output {
     /// Write SVG charts into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
-    /// Write a self-contained HTML page with the report section (inline SVG).
-    #[arg(long, value_name = "FILE")]
-    html: Option<PathBuf>,
+    /// Write a self-contained HTML report here (inline SVG).
+    // `--html`: its old name, kept as a hidden alias.
+    #[arg(long, value_name = "REPORT.html", alias = "html")]
+    report: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -220,7 +221,7 @@ fn emit(
             write_svg(c, &path).with_context(|| format!("writing {}", path.display()))?;
         }
     }
-    if let Some(path) = &output.html {
+    if let Some(path) = &output.report {
         let page = html::page(&section.title, std::slice::from_ref(&section));
         std::fs::write(path, page).with_context(|| format!("writing {}", path.display()))?;
     }

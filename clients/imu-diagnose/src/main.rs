@@ -11,7 +11,7 @@ use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
 use imu_analysis::reference::Reference;
 use imu_analysis::render::html::{
-    Section, diagnose_section, ladder_section, page, verdict_section,
+    Section, diagnose_section, inline_svgs, ladder_section, page, verdict_section,
 };
 use imu_analysis::workbench::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::{ImuSeries, segment::SegmentKind};
@@ -70,6 +70,10 @@ struct DiagnoseArgs {
     /// Write a self-contained HTML report here.
     #[arg(long, value_name = "REPORT.html")]
     report: Option<PathBuf>,
+    /// Write the report's SVG charts into this directory (created if missing), numbered in
+    /// the report's order.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
     /// Print one JSON document instead of tables.
     #[arg(long)]
     json: bool,
@@ -188,6 +192,10 @@ struct LadderArgs {
     /// Write a self-contained HTML report here.
     #[arg(long, value_name = "REPORT.html")]
     report: Option<PathBuf>,
+    /// Write the report's SVG charts into this directory (created if missing), numbered in
+    /// the report's order.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
     /// Print one JSON document instead of tables.
     #[arg(long)]
     json: bool,
@@ -482,9 +490,29 @@ fn print_ladder(out: &mut impl Write, steps: &[LadderStep]) -> std::io::Result<(
     Ok(())
 }
 
-fn write_report(path: &Path, title: &str, sections: &[Section]) -> Result<()> {
-    std::fs::write(path, page(title, sections))
-        .with_context(|| format!("writing {}", path.display()))
+/// The HTML report (`--report`) and its charts as SVG files `STEM-NN.svg` (`--plot`), if asked.
+fn write_outputs(
+    report: Option<&Path>,
+    plot: Option<&Path>,
+    (stem, title): (&str, &str),
+    sections: impl FnOnce() -> Vec<Section>,
+) -> Result<()> {
+    if report.is_none() && plot.is_none() {
+        return Ok(());
+    }
+    let html = page(title, &sections());
+    if let Some(dir) = plot {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (i, svg) in inline_svgs(&html).into_iter().enumerate() {
+            let path = dir.join(format!("{stem}-{:02}.svg", i + 1));
+            std::fs::write(&path, format!("{svg}\n"))
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+    }
+    if let Some(path) = report {
+        std::fs::write(path, html).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 fn candidate_rows(d: &TriadDiagnosis) -> impl Iterator<Item = CandidateRow> + '_ {
@@ -516,18 +544,21 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
     let accel = wb.diagnose(Triad::Accel, &model.accel)?;
     let gyro = wb.diagnose(Triad::Gyro, &model.gyro)?;
 
-    if let Some(path) = &a.report {
-        let sections = vec![
-            verdict_section(&[&accel, &gyro]),
-            diagnose_section(&accel, &wb.signal_values(Triad::Accel)),
-            diagnose_section(&gyro, &wb.signal_values(Triad::Gyro)),
-        ];
-        write_report(
-            path,
+    write_outputs(
+        a.report.as_deref(),
+        a.plot.as_deref(),
+        (
+            "diagnose",
             &format!("imu-diagnose: {}", recording.display()),
-            &sections,
-        )?;
-    }
+        ),
+        || {
+            vec![
+                verdict_section(&[&accel, &gyro]),
+                diagnose_section(&accel, &wb.signal_values(Triad::Accel)),
+                diagnose_section(&gyro, &wb.signal_values(Triad::Gyro)),
+            ]
+        },
+    )?;
 
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
@@ -634,20 +665,23 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
             .save(path)
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    if let Some(path) = &a.report {
-        let [accel, gyro] = &final_diagnoses;
-        let sections = vec![
-            verdict_section(&[accel, gyro]),
-            ladder_section(&steps),
-            diagnose_section(accel, &wb.signal_values(Triad::Accel)),
-            diagnose_section(gyro, &wb.signal_values(Triad::Gyro)),
-        ];
-        write_report(
-            path,
+    write_outputs(
+        a.report.as_deref(),
+        a.plot.as_deref(),
+        (
+            "ladder",
             &format!("imu-diagnose ladder: {}", a.recording.display()),
-            &sections,
-        )?;
-    }
+        ),
+        || {
+            let [accel, gyro] = &final_diagnoses;
+            vec![
+                verdict_section(&[accel, gyro]),
+                ladder_section(&steps),
+                diagnose_section(accel, &wb.signal_values(Triad::Accel)),
+                diagnose_section(gyro, &wb.signal_values(Triad::Gyro)),
+            ]
+        },
+    )?;
 
     let stdout = std::io::stdout();
     let mut out = stdout.lock();

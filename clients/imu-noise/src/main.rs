@@ -1,8 +1,10 @@
 //! `imu-noise`: Allan-family deviations (ADEV, OADEV, MDEV, HDEV, OHDEV, TDEV, TOTDEV, with
 //! confidence intervals) and IEEE Std 952/1293 noise terms of a static recording, per sensor and
-//! axis, as a table (or `--json`), SVG plots and a Kalibr-compatible imu.yaml.
+//! axis, as a table (or `--json`), SVG figures, a self-contained HTML report and a
+//! Kalibr-compatible imu.yaml.
 //!
-//! Files: `taus.rs` (the `--taus` argument), `table.rs` (the text output), `plots.rs` (SVG).
+//! Files: `taus.rs` (the `--taus` argument), `table.rs` (the text output), `plots.rs` (the
+//! figures, as SVG files and as the HTML report; drawn by `imu_analysis::render::allan`).
 
 mod plots;
 mod table;
@@ -14,17 +16,16 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use imu_analysis::input::{AccelUnit, GyroUnit};
+use imu_analysis::render::allan::DisplayTerms;
 use imu_analysis::{ImuSeries, Source};
 use imu_cli::progress::read_input;
+use imu_model::Triad;
 use imu_stats::allan::{self, DevPoint, EdfMethod, Kind, NoiseType, Options, TauSet};
 use imu_stats::noise_terms::{
     FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_with, slope_readoffs,
 };
 use serde::Serialize;
 use taus::TauArg;
-
-const G_M_S2: f64 = 9.80665;
-const RAD_TO_DEG: f64 = 180.0 / std::f64::consts::PI;
 
 /// Command line.
 #[derive(Debug, Parser)]
@@ -41,10 +42,13 @@ struct Cli {
     /// Write a Kalibr-compatible imu.yaml here.
     #[arg(long, value_name = "IMU.yaml")]
     kalibr: Option<PathBuf>,
-    /// Write SVG plots into this directory: the OADEV with the fitted terms
-    /// (adev-SENSOR-AXIS.svg) and each other --kind (dev-KIND-SENSOR-AXIS.svg).
+    /// Write SVG figures into this directory, one per sensor with a panel per axis: the OADEV
+    /// with the fitted terms (allan-SENSOR.svg) and each other --kind (dev-KIND-SENSOR.svg).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
+    /// Write a self-contained HTML report here: the input, the fitted terms and every figure.
+    #[arg(long, value_name = "REPORT.html")]
+    report: Option<PathBuf>,
     /// Deviations to compute, comma-separated: adev, oadev, mdev, hdev, ohdev, tdev, totdev.
     #[arg(long, value_delimiter = ',', default_value = "oadev")]
     kind: Vec<Kind>,
@@ -130,7 +134,7 @@ struct PointReport {
 /// Result for one sensor axis.
 #[derive(Debug, Serialize)]
 struct AxisReport {
-    sensor: &'static str,
+    sensor: Triad,
     axis: &'static str,
     /// Unit of the rate data (U) that the `*_u*` fields are expressed in.
     unit: &'static str,
@@ -143,7 +147,7 @@ struct AxisReport {
     random_walk_step_per_sample_u: f64,
     /// Display units: N, B, K in deg/sqrt(h), deg/h, deg/h/sqrt(h) (gyro) or
     /// micro-g/sqrt(Hz), micro-g, micro-g*sqrt(Hz) (accel).
-    display: Display,
+    display: DisplayTerms,
     /// The OADEV curve the terms were fitted to.
     curve: allan::DevCurve,
     /// Every `--kind` asked for.
@@ -154,41 +158,6 @@ struct AxisReport {
     input_unfinished: Option<serde_json::Value>,
     /// The files read (in time order), the IMU topic, the gaps between files.
     input: imu_analysis::input::InputInfo,
-}
-
-#[derive(Debug, Serialize)]
-struct Display {
-    n: f64,
-    n_unit: &'static str,
-    b: f64,
-    b_unit: &'static str,
-    k: f64,
-    k_unit: &'static str,
-}
-
-fn display(sensor: &str, t: &NoiseTerms) -> Display {
-    let (n, b, k) = (t.n_u_per_sqrt_hz.value, t.b_u.value, t.k_u_sqrt_hz.value);
-    if sensor == "gyro" {
-        // rad/s/sqrt(Hz) = rad/sqrt(s) -> deg/sqrt(h): x 180/pi x 60.
-        Display {
-            n: n * RAD_TO_DEG * 60.0,
-            n_unit: "deg/sqrt(h)",
-            b: b * RAD_TO_DEG * 3600.0,
-            b_unit: "deg/h",
-            k: k * RAD_TO_DEG * 3600.0 * 60.0,
-            k_unit: "deg/h/sqrt(h)",
-        }
-    } else {
-        let ug = 1e6 / G_M_S2;
-        Display {
-            n: n * ug,
-            n_unit: "micro-g/sqrt(Hz)",
-            b: b * ug,
-            b_unit: "micro-g",
-            k: k * ug,
-            k_unit: "micro-g*sqrt(Hz)",
-        }
-    }
 }
 
 /// What to compute, from the command line.
@@ -222,10 +191,11 @@ fn analyse(series: &ImuSeries, req: &Request) -> Result<Vec<AxisReport>> {
     };
     let progress = std::io::stderr().is_terminal();
     let mut out = Vec::new();
-    for (sensor, unit, data) in [
-        ("accel", "m/s^2", &series.accel_m_s2),
-        ("gyro", "rad/s", &series.gyro_rad_s),
+    for (sensor, data) in [
+        (Triad::Accel, &series.accel_m_s2),
+        (Triad::Gyro, &series.gyro_rad_s),
     ] {
+        let unit = sensor.unit();
         for (i, axis) in ["x", "y", "z"].into_iter().enumerate() {
             if progress {
                 eprint!("\ranalysing {sensor} {axis} ({} samples)...", data.len());
@@ -250,7 +220,7 @@ fn analyse(series: &ImuSeries, req: &Request) -> Result<Vec<AxisReport>> {
                 slope_readoffs: slope_readoffs(&curve),
                 white_per_sample_u: fit.white_per_sample_u(rate_hz),
                 random_walk_step_per_sample_u: fit.random_walk_step_per_sample_u(rate_hz),
-                display: display(sensor, &fit),
+                display: DisplayTerms::of(sensor, &fit),
                 fit,
                 curve,
                 deviations,
@@ -298,7 +268,7 @@ fn kind_report(
 
 fn kalibr_yaml(reports: &[AxisReport], rostopic: &str) -> String {
     // Kalibr wants one value per sensor: take the worst (largest) axis.
-    let worst = |sensor: &str, f: &dyn Fn(&NoiseTerms) -> f64| {
+    let worst = |sensor: Triad, f: &dyn Fn(&NoiseTerms) -> f64| {
         reports
             .iter()
             .filter(|r| r.sensor == sensor)
@@ -318,10 +288,10 @@ fn kalibr_yaml(reports: &[AxisReport], rostopic: &str) -> String {
          gyroscope_random_walk: {:.6e}         # [ rad / s^2 / sqrt(Hz) ]\n\
          rostopic: {rostopic}\n\
          update_rate: {rate:.3}                  # [ Hz ]\n",
-        worst("accel", &|t| t.n_u_per_sqrt_hz.value),
-        worst("accel", &|t| t.k_u_sqrt_hz.value),
-        worst("gyro", &|t| t.n_u_per_sqrt_hz.value),
-        worst("gyro", &|t| t.k_u_sqrt_hz.value),
+        worst(Triad::Accel, &|t| t.n_u_per_sqrt_hz.value),
+        worst(Triad::Accel, &|t| t.k_u_sqrt_hz.value),
+        worst(Triad::Gyro, &|t| t.n_u_per_sqrt_hz.value),
+        worst(Triad::Gyro, &|t| t.k_u_sqrt_hz.value),
     )
 }
 
@@ -365,10 +335,10 @@ fn run(cli: &Cli) -> Result<()> {
         r.input_unfinished.clone_from(&unfinished);
     }
     if let Some(dir) = &cli.plot {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for r in &reports {
-            plots::write_axis(dir, r)?;
-        }
+        plots::write_figures(dir, &reports)?;
+    }
+    if let Some(path) = &cli.report {
+        plots::write_report(path, &shown, &series, &reports)?;
     }
     if let Some(path) = &cli.kalibr {
         std::fs::write(path, kalibr_yaml(&reports, &cli.rostopic))

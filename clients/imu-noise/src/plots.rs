@@ -1,104 +1,94 @@
-//! SVG plots: the OADEV with its confidence band, the fitted model and each fitted term
-//! (`adev-SENSOR-AXIS.svg`), and every other requested deviation kind with its band
-//! (`dev-KIND-SENSOR-AXIS.svg`).
+//! The figures (`imu_analysis::render::allan`: per sensor, a panel per axis): as SVG files
+//! (`--plot DIR`: `allan-SENSOR.svg`, the OADEV with the fitted terms, and `dev-KIND-SENSOR.svg`
+//! for each other kind) and in the HTML report (`--report FILE`).
 
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use imu_analysis::render::svg::{Chart, Series, Style, write_svg};
-use imu_stats::allan::{self, Kind};
+use imu_analysis::ImuSeries;
+use imu_analysis::render::allan::{NoiseAxis, noise_figures};
+use imu_analysis::render::figure::render_figure;
+use imu_analysis::render::html::{noise_sections, page};
+use imu_stats::allan::DevCurve;
 
-use crate::{AxisReport, KindReport};
+use crate::AxisReport;
 
-/// Every plot of one axis.
-pub fn write_axis(dir: &Path, r: &AxisReport) -> Result<()> {
-    plot_fit(dir, r)?;
-    for k in r.deviations.iter().filter(|k| k.kind != Kind::Oadev) {
-        plot_kind(dir, r, k)?;
+/// The deviations of each axis as curves, in the order of `reports`.
+fn curves(reports: &[AxisReport]) -> Vec<Vec<DevCurve>> {
+    reports
+        .iter()
+        .map(|r| {
+            r.deviations
+                .iter()
+                .map(|k| DevCurve {
+                    kind: k.kind,
+                    tau0_s: r.curve.tau0_s,
+                    confidence: k.confidence,
+                    points: k.points.iter().map(|p| p.point).collect(),
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn noise_axes<'a>(reports: &'a [AxisReport], curves: &'a [Vec<DevCurve>]) -> Vec<NoiseAxis<'a>> {
+    reports
+        .iter()
+        .zip(curves)
+        .map(|(r, c)| NoiseAxis {
+            triad: r.sensor,
+            axis: r.axis,
+            fit: &r.fit,
+            fit_curve: &r.curve,
+            curves: c,
+        })
+        .collect()
+}
+
+/// Every figure into `dir` (created if missing).
+pub fn write_figures(dir: &Path, reports: &[AxisReport]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let curves = curves(reports);
+    for (stem, fig) in noise_figures(&noise_axes(reports, &curves)) {
+        let path = dir.join(format!("{stem}.svg"));
+        std::fs::write(&path, render_figure(&fig))
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
 }
 
-/// One non-OADEV kind: points and the confidence band.
-fn plot_kind(dir: &Path, r: &AxisReport, k: &KindReport) -> Result<()> {
-    let pts = |f: &dyn Fn(&allan::DevPoint) -> f64| -> Vec<(f64, f64)> {
-        k.points
-            .iter()
-            .map(|p| (p.point.tau_s, f(&p.point)))
-            .collect()
-    };
-    let name = k.kind.name().to_uppercase();
-    let chart = Chart {
-        title: format!("{} {}: {name}", r.sensor, r.axis),
-        x_label: "tau [s]".into(),
-        y_label: format!("{name}(tau) [{}]", k.unit),
-        log_x: true,
-        log_y: true,
-        series: vec![
-            Series {
-                name: format!("{:.0}% confidence", k.confidence * 100.0),
-                points: pts(&|p| p.dev_lo),
-                style: Style::Band {
-                    upper: pts(&|p| p.dev_hi),
-                },
-            },
-            Series {
-                name: name.clone(),
-                points: pts(&|p| p.dev),
-                style: Style::Points,
-            },
-        ],
-    };
-    let path = dir.join(format!("dev-{}-{}-{}.svg", k.kind.name(), r.sensor, r.axis));
-    write_svg(&chart, &path).with_context(|| format!("writing {}", path.display()))
-}
-
-fn plot_fit(dir: &Path, r: &AxisReport) -> Result<()> {
-    let c = &r.curve;
-    let pts = |f: &dyn Fn(&allan::DevPoint) -> f64| -> Vec<(f64, f64)> {
-        c.points.iter().map(|p| (p.tau_s, f(p))).collect()
-    };
-    let mut series = vec![
-        Series {
-            name: format!("{:.0}% confidence", c.confidence * 100.0),
-            points: pts(&|p| p.dev_lo),
-            style: Style::Band {
-                upper: pts(&|p| p.dev_hi),
-            },
-        },
-        Series {
-            name: "OADEV".into(),
-            points: pts(&|p| p.dev),
-            style: Style::Points,
-        },
-        Series {
-            name: "fit".into(),
-            points: pts(&|p| r.fit.adev(p.tau_s)),
-            style: Style::Line,
-        },
+/// The HTML report of `series` (read from `shown`) to `path`.
+pub fn write_report(
+    path: &Path,
+    shown: &str,
+    series: &ImuSeries,
+    reports: &[AxisReport],
+) -> Result<()> {
+    let rate_hz = reports.first().map_or(f64::NAN, |r| r.sample_rate_hz);
+    let mut facts = vec![
+        ("recording".to_string(), shown.to_string()),
+        ("samples".to_string(), series.len().to_string()),
+        ("sample rate".to_string(), format!("{rate_hz:.3} Hz")),
+        (
+            "duration".to_string(),
+            format!("{:.1} s", series.len() as f64 / rate_hz),
+        ),
     ];
-    for (k, name) in ["Q", "N", "B", "K", "R"].iter().enumerate() {
-        let line: Vec<(f64, f64)> = c
-            .points
-            .iter()
-            .map(|p| (p.tau_s, r.fit.term_adevs(p.tau_s)[k]))
-            .collect();
-        if line.iter().any(|p| p.1 > 0.0) {
-            series.push(Series {
-                name: format!("{name} term"),
-                points: line,
-                style: Style::Line,
-            });
-        }
+    if let Some(first) = reports.first().and_then(|r| r.deviations.first()) {
+        facts.push((
+            "confidence bounds".to_string(),
+            format!(
+                "{:.1} %, {:?} EDF",
+                first.confidence * 100.0,
+                first.edf_method
+            ),
+        ));
     }
-    let chart = Chart {
-        title: format!("{} {}: overlapping Allan deviation", r.sensor, r.axis),
-        x_label: "tau [s]".into(),
-        y_label: format!("sigma(tau) [{}]", r.unit),
-        log_x: true,
-        log_y: true,
-        series,
-    };
-    let path = dir.join(format!("adev-{}-{}.svg", r.sensor, r.axis));
-    write_svg(&chart, &path).with_context(|| format!("writing {}", path.display()))
+    if let Some(w) = series.motion_warning() {
+        facts.push(("warning".to_string(), w));
+    }
+    let curves = curves(reports);
+    let sections = noise_sections(&facts, &noise_axes(reports, &curves));
+    std::fs::write(path, page(&format!("imu-noise: {shown}"), &sections))
+        .with_context(|| format!("writing {}", path.display()))
 }

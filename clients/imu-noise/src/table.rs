@@ -3,6 +3,8 @@
 
 use std::io::Write;
 
+use imu_model::Triad;
+
 use crate::AxisReport;
 
 fn opt(v: Option<f64>) -> String {
@@ -25,7 +27,7 @@ fn print_terms(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()
         writeln!(
             w,
             "{:<7}{:<3}{:>24}{:>24}{:>24}{:>12.2e}{:>12.2e}  N {:.4} {}, B {:.4} {}, K {:.4} {}",
-            r.sensor,
+            r.sensor.name(),
             r.axis,
             pm(&t.n_u_per_sqrt_hz),
             pm(&t.b_u),
@@ -60,7 +62,7 @@ fn print_terms(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()
         writeln!(
             w,
             "{:<7}{:<3}{:>10.2}{:>20.3e}{:>22.3e}{:>16}{:>16}{:>16}",
-            r.sensor,
+            r.sensor.name(),
             r.axis,
             r.sample_rate_hz,
             r.white_per_sample_u,
@@ -78,7 +80,7 @@ pub fn print(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()> 
     print_terms(reports, w)?;
     let n_kinds = reports.first().map_or(0, |r| r.deviations.len());
     for k in 0..n_kinds {
-        for sensor in ["accel", "gyro"] {
+        for sensor in [Triad::Accel, Triad::Gyro] {
             let axes: Vec<&AxisReport> = reports.iter().filter(|r| r.sensor == sensor).collect();
             print_deviation_block(&axes, k, w)?;
         }

@@ -70,7 +70,7 @@ fn json_kalibr_and_plots() {
     ] {
         assert!(y.contains(key), "{key} missing in\n{y}");
     }
-    let svg = std::fs::read_to_string(plots.join("adev-gyro-z.svg")).unwrap();
+    let svg = std::fs::read_to_string(plots.join("allan-gyro.svg")).unwrap();
     assert!(svg.contains("data-name=\"OADEV\"") && svg.contains("data-name=\"N term\""));
 
     let table = Command::new(env!("CARGO_BIN_EXE_imu-noise"))
@@ -140,7 +140,7 @@ fn every_kind_with_bounds_at_explicit_taus() {
         );
     }
     for kind in ["adev", "mdev", "hdev", "ohdev", "tdev", "totdev"] {
-        let svg = std::fs::read_to_string(plots.join(format!("dev-{kind}-gyro-x.svg"))).unwrap();
+        let svg = std::fs::read_to_string(plots.join(format!("dev-{kind}-gyro.svg"))).unwrap();
         assert!(svg.contains(&format!("data-name=\"{}\"", kind.to_uppercase())));
     }
 }

@@ -81,7 +81,7 @@ const PALETTE: [&str; 8] = [
 ];
 
 /// One axis: maps data values to pixels.
-struct Axis {
+pub(crate) struct Axis {
     log: bool,
     lo: f64,
     hi: f64,
@@ -90,7 +90,12 @@ struct Axis {
 }
 
 impl Axis {
-    fn new(values: impl Iterator<Item = f64>, log: bool, px_lo: f64, px_hi: f64) -> Self {
+    pub(crate) fn new(
+        values: impl Iterator<Item = f64>,
+        log: bool,
+        px_lo: f64,
+        px_hi: f64,
+    ) -> Self {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for v in values {
             if let Some(t) = transform(v, log) {
@@ -107,9 +112,10 @@ impl Axis {
             hi += pad;
         }
         if log {
-            // Whole decades so the ticks land on the edges.
-            lo = lo.floor();
-            hi = hi.ceil();
+            // The data's range plus a small margin: no empty decade beyond the data.
+            let pad = (LOG_MARGIN * (hi - lo)).max(MIN_LOG_MARGIN);
+            lo -= pad;
+            hi += pad;
         } else {
             let pad = 0.05 * (hi - lo);
             lo -= pad;
@@ -124,21 +130,25 @@ impl Axis {
         }
     }
 
+    /// The axis' range in data units (what the edges of the plot area stand for).
+    pub(crate) fn range(&self) -> (f64, f64) {
+        if self.log {
+            (10f64.powf(self.lo), 10f64.powf(self.hi))
+        } else {
+            (self.lo, self.hi)
+        }
+    }
+
     /// Pixel coordinate of a data value, or `None` if it cannot be drawn (e.g. <= 0 on a log axis).
-    fn px(&self, v: f64) -> Option<f64> {
+    pub(crate) fn px(&self, v: f64) -> Option<f64> {
         let t = transform(v, self.log)?;
         Some(self.px_lo + (t - self.lo) / (self.hi - self.lo) * (self.px_hi - self.px_lo))
     }
 
     /// Tick positions (data units) and their labels.
-    fn ticks(&self) -> Vec<(f64, String)> {
+    pub(crate) fn ticks(&self) -> Vec<(f64, String)> {
         if self.log {
-            let (a, b) = (self.lo as i32, self.hi as i32);
-            let step = ((b - a) as f64 / 10.0).ceil().max(1.0) as i32;
-            (a..=b)
-                .step_by(step as usize)
-                .map(|e| (10f64.powi(e), format!("1e{e}")))
-                .collect()
+            log_ticks(self.lo, self.hi)
         } else {
             let step = nice_step((self.hi - self.lo) / 6.0);
             let first = (self.lo / step).ceil() as i64;
@@ -151,6 +161,45 @@ impl Axis {
                 .collect()
         }
     }
+}
+
+/// Margin of a logarithmic axis beyond the data, as a share of the data's range in decades...
+const LOG_MARGIN: f64 = 0.03;
+/// ... and at least this many decades.
+const MIN_LOG_MARGIN: f64 = 0.02;
+
+/// Ticks of a log axis spanning `lo..=hi` decades (log10 of the data units), labelled `1e-3`,
+/// `2e-3`: the decades inside the range (at most about ten, thinned evenly), and when fewer than
+/// three decades fall inside, the 2 and 5 multiples too, or every multiple for a range under
+/// about half a decade, so a narrow axis still has at least two labelled ticks.
+pub(crate) fn log_ticks(lo: f64, hi: f64) -> Vec<(f64, String)> {
+    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        return Vec::new();
+    }
+    let (first, last) = (lo.ceil() as i32, hi.floor() as i32);
+    let decades = (last - first + 1).max(0);
+    if decades >= 3 {
+        let step = ((decades as f64 - 1.0) / 10.0).ceil().max(1.0) as usize;
+        return (first..=last)
+            .step_by(step)
+            .map(|e| (10f64.powi(e), format!("1e{e}")))
+            .collect();
+    }
+    for mantissas in [&[1u32, 2, 5][..], &[1, 2, 3, 4, 5, 6, 7, 8, 9]] {
+        let ticks: Vec<(f64, String)> = (lo.floor() as i32..=hi.ceil() as i32)
+            .flat_map(|e| mantissas.iter().map(move |&m| (m, e)))
+            .filter_map(|(m, e)| {
+                let v = f64::from(m) * 10f64.powi(e);
+                (lo..=hi)
+                    .contains(&v.log10())
+                    .then(|| (v, format!("{m}e{e}")))
+            })
+            .collect();
+        if ticks.len() >= 3 || mantissas.len() == 9 {
+            return ticks;
+        }
+    }
+    Vec::new()
 }
 
 fn transform(v: f64, log: bool) -> Option<f64> {
@@ -193,7 +242,7 @@ fn format_number(v: f64) -> String {
 }
 
 /// Escapes text for use in SVG element content and attribute values.
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -570,6 +619,28 @@ mod tests {
         let svg = render_svg(&single);
         check_well_formed(&svg);
         assert!(!svg.contains("NaN"));
+    }
+
+    #[test]
+    fn log_ticks_label_every_range() {
+        let labels = |lo: f64, hi: f64| -> Vec<String> {
+            log_ticks(lo, hi).into_iter().map(|t| t.1).collect()
+        };
+        assert_eq!(labels(-2.1, 2.1), ["1e-2", "1e-1", "1e0", "1e1", "1e2"]);
+        assert_eq!(labels(-3.35, -2.2), ["5e-4", "1e-3", "2e-3", "5e-3"]);
+        assert_eq!(
+            labels(-3.25, -2.95),
+            ["6e-4", "7e-4", "8e-4", "9e-4", "1e-3"]
+        );
+        assert!(labels(-30.0, 30.0).len() <= 11);
+        assert!(labels(1.0, 1.0).is_empty());
+        // The axis ends where the data do, plus the margin: no empty decade.
+        let a = Axis::new([2e-3, 5e-1].into_iter(), true, 0.0, 100.0);
+        let (lo, hi) = a.range();
+        assert!(
+            lo < 2e-3 && lo > 1.5e-3 && hi > 0.5 && hi < 0.65,
+            "{lo} {hi}"
+        );
     }
 
     #[test]
