@@ -103,6 +103,7 @@ fn main() {
     let mut with_pub = Sinks {
         publishers: Some(publishers),
         recorder: None,
+        ros2: None,
     };
     run("decode + calibrate + publish", &mut with_pub, true);
     let recorder = Recorder::start(
@@ -118,6 +119,7 @@ fn main() {
     let mut all = Sinks {
         publishers: with_pub.publishers,
         recorder: Some(recorder),
+        ros2: None,
     };
     run("decode + calibrate + publish + log enqueue", &mut all, true);
     if let Some(r) = all.recorder {

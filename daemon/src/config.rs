@@ -62,6 +62,8 @@ pub struct Config {
     pub log: LogConfig,
     /// Shared-memory publishing.
     pub publish: PublishConfig,
+    /// ROS 2 topics over DDS (off by default).
+    pub ros2: Ros2Config,
 }
 
 impl Default for Config {
@@ -72,6 +74,7 @@ impl Default for Config {
             calibration: CalibrationConfig::default(),
             log: LogConfig::default(),
             publish: PublishConfig::default(),
+            ros2: Ros2Config::default(),
         }
     }
 }
@@ -256,6 +259,8 @@ impl Default for PublishConfig {
     }
 }
 
+pub use crate::ros2::config::{Ros2Config, Ros2Qos, Ros2Topics};
+
 /// Where a configuration came from (for messages).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Source {
@@ -318,7 +323,8 @@ impl Config {
         let problem = self
             .name_problem()
             .or_else(|| self.device_problem())
-            .or_else(|| self.log_publish_problem());
+            .or_else(|| self.log_publish_problem())
+            .or_else(|| self.ros2.problem());
         match problem {
             None => Ok(()),
             Some((key, message)) => Err(ConfigError::Invalid {

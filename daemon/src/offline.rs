@@ -118,6 +118,7 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
     let mut sinks = Sinks {
         publishers: None,
         recorder: Some(start_recorder(&sim, config)?),
+        ros2: None,
     };
     let period_s = device.sample_period_s();
     let duration_s = device.timeline().duration_s();
