@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Ros2Qos {
-    /// ROS 2's sensor-data profile (`rmw_qos_profile_sensor_data`): best effort, keep last
-    /// `depth`, volatile. A reliable reader does not match it (and receives nothing).
+    /// ROS 2's sensor-data profile (`rmw_qos_profile_sensor_data`): best effort, keep last,
+    /// volatile. A reliable reader does not match it (and receives nothing).
     SensorData,
     /// Reliable, keep last `depth`, volatile: lost packets are resent to readers that keep up;
     /// matches reliable and best-effort readers. Never blocks the daemon (keep last).
@@ -62,7 +62,10 @@ pub struct Ros2Config {
     pub frame_id: Option<String>,
     /// QoS profile of every writer.
     pub qos: Ros2Qos,
-    /// History depth of every writer (keep last).
+    /// History depth of every writer (keep last): the samples a writer holds for sending. Its
+    /// thread sends them a little later; when the host delays that thread by more than `depth`
+    /// samples the oldest are lost, so this is deeper than ROS 2's sensor-data 5 (which is what
+    /// a reader asks for and does not have to match).
     pub depth: u16,
     /// Messages queued for the DDS thread before new ones are dropped (and counted).
     pub queue_capacity: usize,
@@ -82,7 +85,7 @@ impl Default for Ros2Config {
             node: "imud".into(),
             frame_id: None,
             qos: Ros2Qos::SensorData,
-            depth: 5,
+            depth: 100,
             queue_capacity: 4096,
             interfaces: Vec::new(),
             topics: Ros2Topics::default(),
