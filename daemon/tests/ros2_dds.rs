@@ -77,6 +77,7 @@ fn confined_run(qos: &str) -> Option<Run> {
         ros2_config: format!("qos = \"{qos}\"\nframe-id = \"imu_front\""),
         ros2: true,
         peer: true,
+        imu_only: false,
         late_after_s: 1.5,
         end: End::PeerIdle,
         baud: 115_200,

@@ -13,19 +13,28 @@ Readers:
 
 Writes the ready file once the readers exist, ends when the early reader got samples and then
 none for --idle-s (or at --timeout-s), and prints one JSON object. Every sample carries its
-receipt wall-clock time (`rx_ns`, taken in the listener callback) for the latency benchmark.
+receipt wall-clock time (`rx_ns`: when this loop's wait on the readers woke and took it) for the
+latency benchmark.
 Exit 77 when cyclonedds is not installed.
 """
 
 import argparse
 import json
 import sys
-import threading
 import time
 from dataclasses import dataclass
 
 try:
-    from cyclonedds.core import Listener, Policy, Qos
+    from cyclonedds.core import (
+        InstanceState,
+        Listener,
+        Policy,
+        Qos,
+        ReadCondition,
+        SampleState,
+        ViewState,
+        WaitSet,
+    )
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.idl import IdlStruct
     from cyclonedds.internal import InvalidSample
@@ -160,34 +169,25 @@ def diagnostics_json(m):
 
 
 class Collector:
-    """Takes every sample in the listener callback and stamps its receipt."""
+    """One reader's samples, each stamped with its receipt time: when the peer's wait on the
+    reader's data woke up and took it (wall clock, ns)."""
 
-    def __init__(self, to_json, lock):
+    def __init__(self, reader, to_json):
+        self.reader = reader
         self.to_json = to_json
-        self.lock = lock
-        self.samples = []
+        self.taken = []  # (rx_ns, sample)
         self.incompatible_qos = 0
-        self.last_rx = None
 
-    def listener(self):
-        def on_data(reader):
-            rx_ns = time.time_ns()
-            for m in reader.take(N=256):
-                if isinstance(m, InvalidSample):  # a writer leaving: no data
-                    continue
-                with self.lock:
-                    self.samples.append({**self.to_json(m), "rx_ns": rx_ns})
-                    self.last_rx = time.monotonic()
-
-        def on_incompatible(_reader, _status):
-            with self.lock:
-                self.incompatible_qos += 1
-
-        return Listener(on_data_available=on_data, on_requested_incompatible_qos=on_incompatible)
+    def take(self, rx_ns):
+        for m in self.reader.take(N=1024):
+            if not isinstance(m, InvalidSample):  # a writer leaving: no data
+                self.taken.append((rx_ns, m))
 
     def result(self):
-        with self.lock:
-            return {"samples": list(self.samples), "incompatible_qos": self.incompatible_qos}
+        return {
+            "samples": [{**self.to_json(m), "rx_ns": rx} for rx, m in self.taken],
+            "incompatible_qos": self.incompatible_qos,
+        }
 
 
 def main():
@@ -198,27 +198,34 @@ def main():
     ap.add_argument("--idle-s", type=float, default=2.0)
     ap.add_argument("--timeout-s", type=float, default=60.0)
     ap.add_argument("--late-after-s", type=float, default=1.0)
+    ap.add_argument("--imu-only", action="store_true", help="only the early imu/data reader (benchmarks)")
     args = ap.parse_args()
 
     ns = args.namespace.strip("/")
     rel = (lambda t: f"rt/{ns}/{t}") if ns else (lambda t: f"rt/{t}")
     dp = DomainParticipant(args.domain)
-    best_effort = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1000))
-    reliable = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepLast(1000))
-    lock = threading.Lock()
+    # Deep histories: the readers keep every sample until this loop takes it.
+    best_effort = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(100_000))
+    reliable = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepLast(100_000))
+    waitset = WaitSet(dp)
     topics = {}
-
-    def topic(name, ty):
-        if name not in topics:
-            topics[name] = Topic(dp, name, ty)
-        return topics[name]
+    collectors = []
 
     def reader(name, ty, to_json, qos):
-        c = Collector(to_json, lock)
-        r = DataReader(dp, topic(name, ty), qos=qos, listener=c.listener())
-        return c, r
+        if name not in topics:
+            topics[name] = Topic(dp, name, ty)
+        c = Collector(None, to_json)
 
-    keep = []  # the readers must outlive the run
+        def on_incompatible(_reader, _status):
+            c.incompatible_qos += 1
+
+        c.reader = DataReader(
+            dp, topics[name], qos=qos, listener=Listener(on_requested_incompatible_qos=on_incompatible)
+        )
+        waitset.attach(ReadCondition(c.reader, ViewState.Any | InstanceState.Any | SampleState.Any))
+        collectors.append(c)
+        return c
+
     early = {}
     for key, name, ty, conv, qos in [
         ("imu", rel("imu/data"), Imu, imu_json, best_effort),
@@ -226,33 +233,34 @@ def main():
         ("mag", rel("imu/mag"), MagneticField, mag_json, best_effort),
         ("temperature", rel("imu/temperature"), Temperature, temperature_json, best_effort),
         ("diagnostics", "rt/diagnostics", DiagnosticArray, diagnostics_json, reliable),
-    ]:
-        c, r = reader(name, ty, conv, qos)
-        early[key] = c
-        keep.append(r)
-    rel_c, rel_r = reader(rel("imu/data"), Imu, imu_json, reliable)
-    keep.append(rel_r)
+    ][: 1 if args.imu_only else None]:
+        early[key] = reader(name, ty, conv, qos)
+    rel_c = None if args.imu_only else reader(rel("imu/data"), Imu, imu_json, reliable)
     with open(args.ready, "w") as f:
         f.write("ready\n")
 
     start = time.monotonic()
     late_c = None
     first_rx = None
+    last_rx = None
     while time.monotonic() - start < args.timeout_s:
-        time.sleep(0.05)
-        with lock:
-            last = early["imu"].last_rx
-            if first_rx is None and early["imu"].samples:
-                first_rx = time.monotonic()
-        if late_c is None and first_rx is not None and time.monotonic() - first_rx >= args.late_after_s:
-            late_c, late_r = reader(rel("imu/data"), Imu, imu_json, best_effort)
-            keep.append(late_r)
-        if last is not None and time.monotonic() - last > args.idle_s:
+        waitset.wait(duration(milliseconds=50))
+        rx_ns = time.time_ns()
+        now = time.monotonic()
+        before = len(early["imu"].taken)
+        for c in collectors:
+            c.take(rx_ns)
+        if len(early["imu"].taken) > before:
+            last_rx = now
+            first_rx = first_rx or now
+        if late_c is None and first_rx is not None and now - first_rx >= args.late_after_s:
+            late_c = reader(rel("imu/data"), Imu, imu_json, best_effort)
+        if last_rx is not None and now - last_rx > args.idle_s:
             break
 
     out = {
         "early": {k: c.result() for k, c in early.items()},
-        "reliable": rel_c.result(),
+        "reliable": rel_c.result() if rel_c else None,
         "late": late_c.result() if late_c else None,
     }
     json.dump(out, sys.stdout)

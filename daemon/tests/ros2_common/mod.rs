@@ -34,6 +34,8 @@ pub struct Options {
     pub ros2: bool,
     /// Run the peer.
     pub peer: bool,
+    /// The peer reads only `imu/data` (benchmarks).
+    pub imu_only: bool,
     /// The peer's late reader starts this long after its first sample.
     pub late_after_s: f64,
     /// How the run ends.
@@ -77,7 +79,7 @@ fn script(d: &Path, o: &Options) -> String {
     let d = d.display();
     let start_peer = if o.peer {
         format!(
-            r#"python3 {peer} --ready {d}/ready --idle-s 2 --timeout-s 120 --late-after-s {late} > {d}/peer.json 2> {d}/peer.stderr &
+            r#"python3 {peer} --ready {d}/ready --idle-s 2 --timeout-s 120 --late-after-s {late}{only} > {d}/peer.json 2> {d}/peer.stderr &
 P=$!
 i=0
 while [ ! -f {d}/ready ]; do
@@ -88,6 +90,7 @@ done
 "#,
             peer = peer.display(),
             late = o.late_after_s,
+            only = if o.imu_only { " --imu-only" } else { "" },
         )
     } else {
         String::new()
