@@ -85,7 +85,7 @@ impl Default for Ros2Config {
             node: "imud".into(),
             frame_id: None,
             qos: Ros2Qos::SensorData,
-            depth: 100,
+            depth: 1000,
             queue_capacity: 4096,
             interfaces: Vec::new(),
             topics: Ros2Topics::default(),
