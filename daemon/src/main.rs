@@ -95,7 +95,9 @@ fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("IMUD_LOG")
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                // rustdds (the ROS 2 output) logs protocol details at WARN (e.g. a peer that
+                // advertises no usable locator); they are for debugging it, with IMUD_LOG.
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,rustdds=error")),
         )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))

@@ -105,7 +105,7 @@ done
     };
     format!(
         r#"ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || exit 70
-{start_peer}IMUD_LOG=info {imud} --config {d}/imud.toml --name ros2-{pid} --sim {d}/scenario.toml --seed 3 {ros2} 2> {d}/imud.stderr &
+{start_peer}IMUD_LOG=info,rustdds=error {imud} --config {d}/imud.toml --name ros2-{pid} --sim {d}/scenario.toml --seed 3 {ros2} 2> {d}/imud.stderr &
 I=$!
 echo $I > {d}/imud.pid
 {wait_end}[ $rc -eq 0 ] || exit $rc
