@@ -117,6 +117,7 @@ fn main() {
     let mut with_pub = Sinks {
         publishers: Some(publishers),
         recorder: None,
+        ros2: None,
     };
     run(
         "decode + calibrate + health + publish",
@@ -137,6 +138,7 @@ fn main() {
     let mut all = Sinks {
         publishers: with_pub.publishers,
         recorder: Some(recorder),
+        ros2: None,
     };
     run(
         "decode + calibrate + health + publish + log enqueue",

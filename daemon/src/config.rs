@@ -64,6 +64,8 @@ pub struct Config {
     pub publish: PublishConfig,
     /// Live calibration health.
     pub health: HealthConfig,
+    /// ROS 2 topics over DDS (off by default).
+    pub ros2: Ros2Config,
 }
 
 impl Default for Config {
@@ -75,6 +77,7 @@ impl Default for Config {
             log: LogConfig::default(),
             publish: PublishConfig::default(),
             health: HealthConfig::default(),
+            ros2: Ros2Config::default(),
         }
     }
 }
@@ -324,6 +327,8 @@ impl Default for PublishConfig {
     }
 }
 
+pub use crate::ros2::config::{Ros2Config, Ros2Qos, Ros2Topics};
+
 /// Where a configuration came from (for messages).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Source {
@@ -387,7 +392,8 @@ impl Config {
             .name_problem()
             .or_else(|| self.device_problem())
             .or_else(|| self.log_publish_problem())
-            .or_else(|| self.health_problem());
+            .or_else(|| self.health_problem())
+            .or_else(|| self.ros2.problem());
         match problem {
             None => Ok(()),
             Some((key, message)) => Err(ConfigError::Invalid {

@@ -23,7 +23,8 @@ const DEMO_TRUTH: &str = include_str!("../../config/models/example-3dm-gx1.toml"
 ///
 /// Reads the device over a serial port, applies the loaded calibration to every sample, publishes
 /// raw and corrected samples over iceoryx2 shared memory (services imud/<name>/...; see imu-echo)
-/// and logs every frame to MCAP (ros2 profile: /imu/data is sensor_msgs/msg/Imu). Configuration:
+/// and logs every frame to MCAP (ros2 profile: /imu/data is sensor_msgs/msg/Imu); with --ros2 it
+/// also publishes the ROS 2 topics over DDS (`ros2 topic echo /imu/data` on the same domain). Configuration:
 /// --config FILE, else $IMUD_CONFIG, else /etc/imud/imud.toml, else built-in defaults (documented
 /// in config/imud.toml); the flags below override the file. SIGHUP reloads the calibration;
 /// SIGTERM finishes the MCAP file and exits. At start-up, recordings of this instance that a
@@ -65,6 +66,9 @@ struct Args {
     /// Seed for --sim (default: the scenario's).
     #[arg(long, value_name = "N", requires = "sim")]
     seed: Option<u64>,
+    /// Publish the ROS 2 topics over DDS (sets ros2.enabled; see the [ros2] section).
+    #[arg(long)]
+    ros2: bool,
     /// Print the effective configuration and exit.
     #[arg(long)]
     print_config: bool,
@@ -91,7 +95,9 @@ fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("IMUD_LOG")
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                // rustdds (the ROS 2 output) logs protocol details at WARN (e.g. a peer that
+                // advertises no usable locator); they are for debugging it, with IMUD_LOG.
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,rustdds=error")),
         )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
@@ -199,6 +205,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     }
     if let Some(n) = &args.name {
         config.name = n.clone();
+    }
+    if args.ros2 {
+        config.ros2.enabled = true;
     }
     config.validate(&config::Source {
         file: format!("{} with command-line flags", source.file),
@@ -323,9 +332,18 @@ async fn run(args: Args) -> anyhow::Result<()> {
     } else {
         None
     };
+    let ros2 = if config.ros2.enabled {
+        Some(
+            imud::ros2::Ros2Sink::start(&config.ros2, &config.log.frame_id, &config.name)
+                .context("starting the ROS 2 (DDS) output")?,
+        )
+    } else {
+        None
+    };
     let sinks = Sinks {
         publishers,
         recorder,
+        ros2,
     };
     let fallback = config.device.fallback_gains;
     let mut pipeline = Pipeline::new(
@@ -352,6 +370,9 @@ async fn run(args: Args) -> anyhow::Result<()> {
         reconnects: 0,
         notified_ready: false,
         on_identity: Box::new(move |id: &DeviceIdentity, sinks: &Sinks| {
+            if let Some(d) = &sinks.ros2 {
+                d.set_gains(id.gains);
+            }
             if let Some(r) = &sinks.recorder {
                 let mut metadata = BTreeMap::from([
                     ("path".to_string(), device_path.display().to_string()),
@@ -379,6 +400,13 @@ async fn run(args: Args) -> anyhow::Result<()> {
             ),
             Err(e) => warn!("finishing the MCAP log failed: {e:#}"),
         }
+    }
+    if let Some(d) = daemon.sinks.ros2.take() {
+        let s = d.finish();
+        info!(
+            "ROS 2 output finished: {} DDS messages written, {} dropped (queue full), {} refused",
+            s.written, s.dropped_queue_full, s.write_failures
+        );
     }
     result
 }

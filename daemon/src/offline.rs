@@ -116,6 +116,7 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
     let sinks = Sinks {
         publishers: None,
         recorder: Some(start_recorder(&sim, config)?),
+        ros2: None,
     };
     let mut run = Run::start(sim, config, sinks)?;
     run.for_each_sample(|_| {})?;

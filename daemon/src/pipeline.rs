@@ -126,6 +126,8 @@ pub struct Sinks {
     pub publishers: Option<Publishers>,
     /// The MCAP recorder.
     pub recorder: Option<Recorder>,
+    /// The ROS 2 topics over DDS (gets what is logged, through its own bounded queue).
+    pub ros2: Option<crate::ros2::Ros2Sink>,
 }
 
 impl Sinks {
@@ -165,6 +167,9 @@ impl Sinks {
     }
 
     fn log(&self, record: LogRecord) {
+        if let Some(d) = &self.ros2 {
+            d.offer(&record);
+        }
         if let Some(r) = &self.recorder {
             // A full queue drops the record; the recorder counts it.
             let _ = r.log(record);

@@ -193,13 +193,18 @@ impl Daemon {
 
     fn publish_status(&mut self, connected: bool) {
         let (mono, wall) = now_ns();
-        let status = self.pipeline.status(
+        let mut status = self.pipeline.status(
             &self.decoder.stats(),
             &self.sinks,
             self.reconnects,
             connected,
             mono,
         );
+        if let Some(d) = &self.sinks.ros2 {
+            // DDS messages lost are publishing drops too; /diagnostics carries the status.
+            status.publish_drops += d.drops();
+            d.status(wall, &status);
+        }
         if let Some(p) = &mut self.sinks.publishers {
             let _ = p.publish_status(&status);
             let _ = p.notify(imu_bus::shm::ShmEvent::Status);

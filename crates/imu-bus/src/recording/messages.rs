@@ -1,9 +1,11 @@
-//! The standard messages built from samples (`sensor_msgs/msg/Imu`, `MagneticField`) and their
-//! headers, shared by the writer and the readers' tests.
+//! The standard messages built from samples (`sensor_msgs/msg/Imu`, `MagneticField`,
+//! `Temperature`) and their headers, shared by the writer, the readers' tests and the daemon's
+//! DDS publisher (so a DDS subscriber gets the very messages the MCAP `/imu/data` stores).
 
 use super::*;
 
-pub(super) fn header(t_ns: u64, frame_id: &str) -> Header {
+/// A header stamped `t_ns` (host wall clock, ns) in `frame_id`.
+pub fn header(t_ns: u64, frame_id: &str) -> Header {
     Header {
         stamp: Time::from_ns(t_ns),
         frame_id: frame_id.to_string(),
@@ -42,5 +44,14 @@ pub fn magnetic_field_message(
         magnetic_field_covariance: noise
             .map(|n| ros2::diagonal_covariance(n.mag_var_t2))
             .unwrap_or([0.0; 9]),
+    }
+}
+
+/// The `/imu/temperature` message of a temperature reading (variance unknown: 0).
+pub fn temperature_message(t_wall_ns: u64, temp_c: f64, frame_id: &str) -> Temperature {
+    Temperature {
+        header: header(t_wall_ns, frame_id),
+        temperature: temp_c,
+        variance: 0.0,
     }
 }

@@ -568,11 +568,7 @@ pub(super) fn write_record(
             file.write_msg(CH_MAG, sample.t_wall_ns, &mag, scratch)
         }
         LogRecord::Temperature { t_wall_ns, temp_c } => {
-            let msg = Temperature {
-                header: header(t_wall_ns, frame_id),
-                temperature: temp_c,
-                variance: 0.0,
-            };
+            let msg = temperature_message(t_wall_ns, temp_c, frame_id);
             file.write_msg(CH_TEMPERATURE, t_wall_ns, &msg, scratch)
         }
         LogRecord::Status { t_wall_ns, status } => {

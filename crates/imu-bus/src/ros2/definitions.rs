@@ -15,6 +15,22 @@ pub struct MsgDefinition {
 }
 
 impl MsgDefinition {
+    /// The type's name on the DDS wire as ROS 2's middlewares register it:
+    /// `sensor_msgs/msg/Imu` is `sensor_msgs::msg::dds_::Imu_`.
+    pub fn dds_type_name(&self) -> String {
+        let mut parts: Vec<&str> = self.type_name.split('/').collect();
+        let name = parts.pop().unwrap_or_default();
+        let mut out = String::with_capacity(self.type_name.len() + 12);
+        for p in parts {
+            out.push_str(p);
+            out.push_str("::");
+        }
+        out.push_str("dds_::");
+        out.push_str(name);
+        out.push('_');
+        out
+    }
+
     /// The complete `ros2msg` schema text as rosbag2 writes it: this definition, then each
     /// dependent definition (depth first, each once) after a line of 80 `=` and a
     /// `MSG: pkg/msg/Type` line.

@@ -1,4 +1,4 @@
-//! ROS 2 messages for the MCAP log: a CDR (XCDR1, little-endian) encoder and decoder, the message
+//! ROS 2 messages for the MCAP log and the daemon's DDS output: a CDR (XCDR1, little-endian) encoder and decoder, the message
 //! types imud records, and their `ros2msg` schema text exactly as rosbag2 writes it; `bag`: the
 //! files of a rosbag2 directory.
 //!
@@ -18,10 +18,12 @@ use crate::sample::{CalibrationHealth, DaemonStatus, RawSample, raw_flags};
 pub mod bag;
 mod cdr;
 mod definitions;
+mod diagnostics;
 mod messages;
 
 pub use cdr::*;
 pub use definitions::*;
+pub use diagnostics::*;
 pub use messages::*;
 
 /// Encapsulation header of little-endian plain CDR (`CDR_LE`), the first four bytes of every

@@ -276,6 +276,7 @@ fn schemas_are_complete_ros2msg_text() {
         &DAEMON_STATUS_DEF,
         &CALIBRATION_DEF,
         &CALIBRATION_HEALTH_DEF,
+        &DIAGNOSTIC_ARRAY_DEF,
     ] {
         check_schema(def);
     }
@@ -289,4 +290,52 @@ fn schemas_are_complete_ros2msg_text() {
     )));
     assert_eq!(imu.matches("MSG: ").count(), 4);
     assert_eq!(DEFINITION_SEPARATOR.len(), 80);
+}
+
+#[test]
+fn diagnostics_round_trip_with_their_sequences() {
+    let array = DiagnosticArray {
+        header: header(""),
+        status: vec![
+            DiagnosticStatus {
+                level: DiagnosticLevel::Warn,
+                name: "imud: imu0".into(),
+                message: "device disconnected".into(),
+                hardware_id: "3DM-GX1 serial 1234".into(),
+                values: vec![
+                    KeyValue {
+                        key: "samples".into(),
+                        value: "1000".into(),
+                    },
+                    KeyValue {
+                        key: "temp_c".into(),
+                        value: "24.5".into(),
+                    },
+                ],
+            },
+            DiagnosticStatus::default(),
+        ],
+    };
+    round_trip(&array);
+    let bytes = array.to_cdr();
+    // 8 stamp, 4 + 1 empty frame id, 3 padding, then the sequence count 2 and the first level.
+    assert_eq!(&bytes[4 + 16..4 + 21], &[2, 0, 0, 0, 1]);
+    // An unknown level byte reads as STALE, never an error.
+    let mut unknown = bytes.clone();
+    unknown[4 + 20] = 9;
+    let back = DiagnosticArray::from_cdr(&unknown).unwrap();
+    assert_eq!(back.status[0].level, DiagnosticLevel::Stale);
+}
+
+#[test]
+fn dds_type_names_follow_the_ros2_middleware_mangling() {
+    assert_eq!(IMU_DEF.dds_type_name(), "sensor_msgs::msg::dds_::Imu_");
+    assert_eq!(
+        DIAGNOSTIC_ARRAY_DEF.dds_type_name(),
+        "diagnostic_msgs::msg::dds_::DiagnosticArray_"
+    );
+    assert_eq!(
+        TIME_DEF.dds_type_name(),
+        "builtin_interfaces::msg::dds_::Time_"
+    );
 }

@@ -1,0 +1,186 @@
+//! The DDS output's cost, measured against the Cyclone DDS peer inside a network namespace of
+//! its own (see `daemon/tests/ros2_common`):
+//!
+//! 1. Latency from imud reading a frame's last byte (`RawSample::t_host_wall_ns`) to the Cyclone
+//!    reader's listener receiving the `sensor_msgs/Imu` of that sample (wall clock, same host),
+//!    at 500 Hz: p50, p99, p99.9 and the maximum.
+//! 2. The CPU imud adds at 1 kHz: the process's user+system time over the same 15 s window with
+//!    `--ros2` and a matched subscriber, and without `--ros2` (the simulator runs in imud's
+//!    process in both, so the difference is the DDS output).
+//!
+//! Run: `cargo bench -p imud --bench ros2`. Numbers go to BENCHMARKS.md. `ROS2_BENCH_CONFIG`
+//! adds `[ros2]` lines (`;`-separated, e.g. `depth = 5`); `ROS2_BENCH_LATENCY_ONLY=1` skips the
+//! CPU part.
+
+#[path = "../tests/ros2_common/mod.rs"]
+mod ros2_common;
+
+use std::time::{Duration, Instant};
+
+use ros2_common::{End, Options, Started, samples, stamp_ns};
+
+/// A still device for `duration_s` at `rate_hz`; the truth is the identity.
+fn scenario(rate_hz: f64, duration_s: f64, baud: u32) -> String {
+    format!(
+        "name = \"bench\"\nrate-hz = {rate_hz}\ntruth = \"truth.toml\"\n[device]\nbaud = {baud}\n\
+         [[segment]]\nkind = \"static\"\nduration-s = {duration_s}\n"
+    )
+}
+
+const MODEL: &str = "format = \"imud-calibration/1\"\n";
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i]
+}
+
+fn latency(rate_hz: f64, duration_s: f64) {
+    let baud = 460_800;
+    let run = Started::start(&Options {
+        scenario: scenario(rate_hz, duration_s, baud),
+        model: MODEL.into(),
+        ros2_config: std::env::var("ROS2_BENCH_CONFIG")
+            .unwrap_or_default()
+            .replace(";", "\n"),
+        ros2: true,
+        peer: true,
+        imu_only: true,
+        late_after_s: 1e9,
+        end: End::PeerIdle,
+        baud,
+    })
+    .finish()
+    .expect("cyclonedds and unshare are needed");
+    let got = samples(&run.peer["early"]["imu"], "imu");
+    // The n-th /imu/data message is the n-th raw sample's (one each); find each received one by
+    // its stamp.
+    let index: std::collections::HashMap<u64, usize> = run
+        .rec
+        .imu
+        .iter()
+        .enumerate()
+        .map(|(k, m)| (m.header.stamp.to_ns(), k))
+        .collect();
+    let mut lat_us: Vec<f64> = got
+        .iter()
+        .map(|s| {
+            let k = index[&stamp_ns(s)];
+            let read_ns = run.rec.raw[k].t_host_wall_ns;
+            (s["rx_ns"].as_u64().unwrap() as f64 - read_ns as f64) * 1e-3
+        })
+        .collect();
+    lat_us.sort_by(f64::total_cmp);
+    report_drops(&run);
+    println!(
+        "latency at {rate_hz} Hz, frame read -> Cyclone receipt: {} of {} samples received; \
+         p50 {:.0} us, p99 {:.0} us, p99.9 {:.0} us, max {:.0} us",
+        got.len(),
+        run.rec.imu.len(),
+        percentile(&lat_us, 0.5),
+        percentile(&lat_us, 0.99),
+        percentile(&lat_us, 0.999),
+        lat_us.last().unwrap(),
+    );
+}
+
+/// imud's own count of what it could not publish (the DDS queue and writer, and shared memory,
+/// which is off here), from the recording's last status.
+fn report_drops(run: &ros2_common::Run) {
+    let last = run.rec.statuses.last().map(|s| s.1);
+    println!(
+        "  (imud publish_drops at the end: {:?}, log_drops {:?}, samples_lost {:?})",
+        last.map(|s| s.publish_drops),
+        last.map(|s| s.log_drops),
+        last.map(|s| s.samples_lost)
+    );
+}
+
+fn cpu_ticks(pid: u32) -> u64 {
+    cpu_ticks_of(&format!("/proc/{pid}/stat"))
+}
+
+/// utime + stime of a `stat` file, clock ticks.
+fn cpu_ticks_of(path: &str) -> u64 {
+    let stat = std::fs::read_to_string(path).unwrap_or_default();
+    // Fields after the command name (which may hold spaces): utime is the 12th, stime the 13th.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<u64> = rest
+        .split_whitespace()
+        .map(|x| x.parse().unwrap_or(0))
+        .collect();
+    f.get(11).copied().unwrap_or(0) + f.get(12).copied().unwrap_or(0)
+}
+
+/// CPU ticks of imud's DDS threads (the `imud-ros2` thread and rustdds's own).
+fn dds_thread_ticks(pid: u32) -> u64 {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return 0;
+    };
+    tasks
+        .filter_map(Result::ok)
+        .filter(|t| {
+            let comm = std::fs::read_to_string(t.path().join("comm")).unwrap_or_default();
+            comm.starts_with("imud-ros2") || comm.starts_with("RustDDS")
+        })
+        .map(|t| {
+            let tid: u32 = t.file_name().to_string_lossy().parse().unwrap_or(0);
+            cpu_ticks_of(&format!("/proc/{pid}/task/{tid}/stat"))
+        })
+        .sum()
+}
+
+/// imud's CPU over 15 s of a 1 kHz stream (after 5 s of start-up), % of one core: the whole
+/// process and its DDS threads.
+fn cpu(rate_hz: f64, ros2: bool) -> (f64, f64) {
+    let baud = 460_800;
+    let started = Started::start(&Options {
+        scenario: scenario(rate_hz, 30.0, baud),
+        model: MODEL.into(),
+        ros2_config: std::env::var("ROS2_BENCH_CONFIG")
+            .unwrap_or_default()
+            .replace(";", "\n"),
+        ros2,
+        peer: ros2,
+        imu_only: true,
+        late_after_s: 1e9,
+        end: End::AfterS(22.0),
+        baud,
+    });
+    let pid = started
+        .imud_pid(Duration::from_secs(30))
+        .expect("imud started");
+    std::thread::sleep(Duration::from_secs(5));
+    let (t0, c0, d0) = (Instant::now(), cpu_ticks(pid), dds_thread_ticks(pid));
+    std::thread::sleep(Duration::from_secs(15));
+    let (t1, c1, d1) = (Instant::now(), cpu_ticks(pid), dds_thread_ticks(pid));
+    let run = started.finish().expect("cyclonedds and unshare are needed");
+    if ros2 {
+        let got = samples(&run.peer["early"]["imu"], "imu").len();
+        println!(
+            "  (subscriber received {got} of {} samples)",
+            run.rec.imu.len()
+        );
+        report_drops(&run);
+    }
+    // Clock ticks are 1/100 s on Linux.
+    let pct = |ticks: u64| ticks as f64 / 100.0 / (t1 - t0).as_secs_f64() * 100.0;
+    (pct(c1 - c0), pct(d1 - d0))
+}
+
+fn main() {
+    if let Err(why) = ros2_common::confinement_available() {
+        eprintln!("skipping: {why}");
+        return;
+    }
+    latency(500.0, 20.0);
+    if std::env::var_os("ROS2_BENCH_LATENCY_ONLY").is_some() {
+        return;
+    }
+    let (with, dds) = cpu(1000.0, true);
+    let (without, _) = cpu(1000.0, false);
+    println!(
+        "cpu at 1 kHz, % of one core: imud --sim (simulator included) with --ros2 {with:.1}, \
+         without {without:.1} (difference {:.1}); imud's DDS threads alone {dds:.1}",
+        with - without
+    );
+}

@@ -1,0 +1,217 @@
+//! ROS 2 without a bridge: the daemon's samples as `sensor_msgs` topics on DDS (RTPS), which a
+//! ROS 2 system on the same domain sees like any node's (`ros2 topic echo /imu/data`).
+//!
+//! The per-frame path hands each record it logs to [`Ros2Sink::offer`], which copies the few
+//! plain values a topic needs into a bounded queue and returns: it never blocks and never
+//! allocates; a full queue drops the message and counts it ([`Ros2Sink::drops`], added to the
+//! status's `publish_drops`). A thread (`imud-ros2`) owns the DDS participant (`rustdds`, pure
+//! Rust) and its writers, encodes each message with imu-bus's CDR encoder — the very messages
+//! the MCAP log stores, with the same stamps, frame id and covariances — and writes it.
+//!
+//! Wire names are ROS 2's: topic `rt/<namespace>/imu/data`, type
+//! `sensor_msgs::msg::dds_::Imu_`, payload plain little-endian CDR. `config.rs`: the `[ros2]`
+//! section; `publisher.rs`: the thread; `messages.rs`: the messages that are not the MCAP's.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{SyncSender, TrySendError};
+use std::thread::JoinHandle;
+
+use imu_bus::recording::{ImuNoiseVariances, LogRecord};
+use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
+
+use crate::pipeline::Gains;
+
+pub mod config;
+mod messages;
+mod publisher;
+
+pub use config::{Ros2Config, Ros2Qos, Ros2Topics};
+pub use messages::raw_imu_values;
+
+/// Why the DDS output could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum Ros2Error {
+    /// The participant, a topic or a writer could not be created (sockets, ports).
+    #[error("DDS {what}: {reason}")]
+    Dds {
+        /// What was being created.
+        what: String,
+        /// The DDS library's reason.
+        reason: String,
+    },
+    /// The thread could not be started.
+    #[error("cannot start the DDS thread")]
+    Spawn(#[source] std::io::Error),
+    /// The thread ended before it reported its start-up (a bug).
+    #[error("the DDS thread ended during start-up")]
+    ThreadGone,
+}
+
+/// One message for the DDS thread: plain copies, no heap.
+#[derive(Debug, Clone, Copy)]
+enum Item {
+    Raw(RawSample),
+    Corrected(CorrectedSample),
+    Temperature {
+        t_wall_ns: u64,
+        temp_c: f64,
+    },
+    Noise(Option<ImuNoiseVariances>),
+    Gains(Gains),
+    Status {
+        t_wall_ns: u64,
+        status: DaemonStatus,
+    },
+}
+
+/// Counters shared by the sink and its thread.
+#[derive(Debug, Default)]
+struct Shared {
+    dropped_queue_full: AtomicU64,
+    written: AtomicU64,
+    write_failures: AtomicU64,
+}
+
+/// Counters of the DDS output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Ros2Stats {
+    /// DDS samples written (one per topic message).
+    pub written: u64,
+    /// Items dropped because the queue to the DDS thread was full.
+    pub dropped_queue_full: u64,
+    /// Messages the DDS writer refused (a reliable send window full past its blocking time).
+    pub write_failures: u64,
+}
+
+/// The daemon's DDS output: a bounded queue to the thread that publishes.
+///
+/// Dropping it lets the thread write what is queued, then ends the participant.
+pub struct Ros2Sink {
+    tx: Option<SyncSender<Item>>,
+    shared: Arc<Shared>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Ros2Sink {
+    /// Creates the participant, the topics and their writers (on the DDS thread, whose start-up
+    /// result this waits for). `instance` is the daemon's name (in the diagnostics).
+    pub fn start(config: &Ros2Config, frame_id: &str, instance: &str) -> Result<Self, Ros2Error> {
+        let (tx, rx) = std::sync::mpsc::sync_channel(config.queue_capacity);
+        let shared = Arc::new(Shared::default());
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let setup = publisher::Setup {
+            config: config.clone(),
+            frame_id: config.frame_id.clone().unwrap_or_else(|| frame_id.into()),
+            instance: instance.into(),
+        };
+        let thread_shared = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("imud-ros2".into())
+            .spawn(
+                move || match publisher::Publisher::new(setup, thread_shared) {
+                    Ok(mut p) => {
+                        let _ = ready_tx.send(Ok(()));
+                        p.run(&rx);
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e));
+                    }
+                },
+            )
+            .map_err(Ros2Error::Spawn)?;
+        ready_rx.recv().map_err(|_| Ros2Error::ThreadGone)??;
+        Ok(Self {
+            tx: Some(tx),
+            shared,
+            thread: Some(thread),
+        })
+    }
+
+    /// Queues what a topic needs from one logged record; never blocks.
+    pub fn offer(&self, record: &LogRecord) {
+        let item = match record {
+            LogRecord::Raw(raw) => Item::Raw(*raw),
+            LogRecord::Corrected(c) => Item::Corrected(*c),
+            LogRecord::Temperature { t_wall_ns, temp_c } => Item::Temperature {
+                t_wall_ns: *t_wall_ns,
+                temp_c: *temp_c,
+            },
+            LogRecord::Calibration { noise, .. } => Item::Noise(*noise),
+            LogRecord::Status { t_wall_ns, status } => Item::Status {
+                t_wall_ns: *t_wall_ns,
+                status: *status,
+            },
+            // The health states reach /diagnostics with the status (`health_accel`,
+            // `health_gyro`); the per-window reports are on shared memory and in the MCAP.
+            LogRecord::RawFrame { .. } | LogRecord::Health(_) => return,
+        };
+        self.send(item);
+    }
+
+    /// Queues the GainScales in force (the uncalibrated topic's scaling).
+    pub fn set_gains(&self, gains: Gains) {
+        self.send(Item::Gains(gains));
+    }
+
+    /// Queues a status for `/diagnostics`.
+    pub fn status(&self, t_wall_ns: u64, status: &DaemonStatus) {
+        self.send(Item::Status {
+            t_wall_ns,
+            status: *status,
+        });
+    }
+
+    fn send(&self, item: Item) {
+        let Some(tx) = &self.tx else { return };
+        match tx.try_send(item) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
+                self.shared
+                    .dropped_queue_full
+                    .fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// Messages lost so far: dropped at the queue or refused by the writer.
+    pub fn drops(&self) -> u64 {
+        let s = self.stats();
+        s.dropped_queue_full + s.write_failures
+    }
+
+    /// The counters now.
+    pub fn stats(&self) -> Ros2Stats {
+        stats_of(&self.shared)
+    }
+
+    /// Writes what is queued, ends the participant (its readers see it leave) and returns the
+    /// final counters.
+    pub fn finish(mut self) -> Ros2Stats {
+        self.shutdown();
+        self.stats()
+    }
+
+    fn shutdown(&mut self) {
+        drop(self.tx.take());
+        if let Some(t) = self.thread.take()
+            && t.join().is_err()
+        {
+            tracing::error!("the DDS thread panicked");
+        }
+    }
+}
+
+fn stats_of(shared: &Shared) -> Ros2Stats {
+    Ros2Stats {
+        written: shared.written.load(Ordering::Relaxed),
+        dropped_queue_full: shared.dropped_queue_full.load(Ordering::Relaxed),
+        write_failures: shared.write_failures.load(Ordering::Relaxed),
+    }
+}
+
+impl Drop for Ros2Sink {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}

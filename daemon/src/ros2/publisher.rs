@@ -1,0 +1,260 @@
+//! The DDS thread: one `rustdds` participant, a writer per topic, and the loop that turns queued
+//! items into CDR messages (imu-bus's encoder) and writes them.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::Receiver;
+
+use imu_bus::recording::{
+    ImuNoiseVariances, imu_message, magnetic_field_message, temperature_message,
+};
+use imu_bus::ros2::{self, MsgDefinition, RosMessage};
+use imu_bus::{CorrectedSample, RawSample};
+use rustdds::bytes::Bytes;
+use rustdds::no_key::{DataWriter, SerializerAdapter};
+use rustdds::policy::{Durability, History, Reliability};
+use rustdds::{
+    DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
+    RepresentationIdentifier, TopicKind,
+};
+
+use super::config::{Ros2Config, Ros2Qos};
+use super::messages::{diagnostics, raw_imu_message};
+use super::{Item, Ros2Error, Shared, stats_of};
+use crate::pipeline::{GainFallback, Gains};
+
+/// One message already encoded as CDR fields (the bytes after the encapsulation header).
+pub(super) struct CdrPayload(Bytes);
+
+/// Hands [`CdrPayload`]s to rustdds as little-endian plain CDR.
+pub(super) struct CdrPayloadAdapter;
+
+impl SerializerAdapter<CdrPayload> for CdrPayloadAdapter {
+    type Error = std::convert::Infallible;
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+    fn to_bytes(value: &CdrPayload) -> Result<Bytes, Self::Error> {
+        Ok(value.0.clone())
+    }
+}
+
+type Writer = DataWriter<CdrPayload, CdrPayloadAdapter>;
+
+/// What the thread needs to start.
+pub(super) struct Setup {
+    pub config: Ros2Config,
+    pub frame_id: String,
+    pub instance: String,
+}
+
+/// The writers of the configured topics (`None`: the topic is off).
+struct Writers {
+    imu: Option<Writer>,
+    imu_raw: Option<Writer>,
+    mag: Option<Writer>,
+    temperature: Option<Writer>,
+    diagnostics: Option<Writer>,
+}
+
+/// The thread's state.
+pub(super) struct Publisher {
+    // Field order is drop order: writers before the participant they belong to.
+    writers: Writers,
+    _participant: DomainParticipant,
+    setup: Setup,
+    shared: Arc<Shared>,
+    noise: Option<ImuNoiseVariances>,
+    gains: Option<Gains>,
+    /// The raw sample waiting for its corrected sample (same `seq`), for the stamp they share.
+    pending_raw: Option<RawSample>,
+    scratch: Vec<u8>,
+    warned_write_failure: bool,
+}
+
+fn dds_error(what: impl Into<String>) -> impl FnOnce(rustdds::dds::CreateError) -> Ros2Error {
+    let what = what.into();
+    move |e| Ros2Error::Dds {
+        what,
+        reason: e.to_string(),
+    }
+}
+
+/// The writers' QoS: the configured profile, or reliable for `/diagnostics` (a status a
+/// second is what ROS 2's diagnostic tools expect reliably; best-effort readers match it too).
+fn qos(profile: Ros2Qos, depth: u16) -> QosPolicies {
+    let reliability = match profile {
+        Ros2Qos::SensorData => Reliability::BestEffort,
+        Ros2Qos::Reliable => Reliability::Reliable {
+            max_blocking_time: rustdds::Duration::from_millis(10),
+        },
+    };
+    QosPolicyBuilder::new()
+        .reliability(reliability)
+        .history(History::KeepLast {
+            depth: i32::from(depth),
+        })
+        .durability(Durability::Volatile)
+        .build()
+}
+
+impl Publisher {
+    /// Creates the participant and the writers of every configured topic.
+    pub(super) fn new(setup: Setup, shared: Arc<Shared>) -> Result<Self, Ros2Error> {
+        let c = &setup.config;
+        let mut builder = DomainParticipantBuilder::new(c.domain_id);
+        if !c.interfaces.is_empty() {
+            builder = builder.with_only_networks(c.interfaces.iter().copied());
+        }
+        let participant = builder
+            .build()
+            .map_err(dds_error(format!("participant on domain {}", c.domain_id)))?;
+        let data_qos = qos(c.qos, c.depth);
+        let diagnostics_qos = qos(Ros2Qos::Reliable, c.depth);
+        let publisher = participant
+            .create_publisher(&data_qos)
+            .map_err(dds_error("publisher"))?;
+        let writer = |name: &str, def: &MsgDefinition, q: &QosPolicies| {
+            let Some(topic_name) = c.dds_topic(name) else {
+                return Ok(None);
+            };
+            let topic = participant
+                .create_topic(topic_name.clone(), def.dds_type_name(), q, TopicKind::NoKey)
+                .map_err(dds_error(format!("topic {topic_name}")))?;
+            publisher
+                .create_datawriter_no_key::<CdrPayload, CdrPayloadAdapter>(&topic, Some(q.clone()))
+                .map(Some)
+                .map_err(dds_error(format!("writer of {topic_name}")))
+        };
+        let t = &c.topics;
+        let writers = Writers {
+            imu: writer(&t.imu, &ros2::IMU_DEF, &data_qos)?,
+            imu_raw: writer(&t.imu_raw, &ros2::IMU_DEF, &data_qos)?,
+            mag: writer(&t.mag, &ros2::MAGNETIC_FIELD_DEF, &data_qos)?,
+            temperature: writer(&t.temperature, &ros2::TEMPERATURE_DEF, &data_qos)?,
+            diagnostics: writer(
+                &t.diagnostics,
+                &ros2::DIAGNOSTIC_ARRAY_DEF,
+                &diagnostics_qos,
+            )?,
+        };
+        tracing::info!(
+            "ROS 2 output on DDS domain {}: {}",
+            c.domain_id,
+            [&t.imu, &t.imu_raw, &t.mag, &t.temperature, &t.diagnostics]
+                .iter()
+                .filter_map(|n| c.dds_topic(n))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        Ok(Self {
+            writers,
+            _participant: participant,
+            setup,
+            shared,
+            noise: None,
+            gains: None,
+            pending_raw: None,
+            scratch: Vec::with_capacity(512),
+            warned_write_failure: false,
+        })
+    }
+
+    /// Publishes items until the sink is dropped and the queue is empty.
+    pub(super) fn run(&mut self, rx: &Receiver<Item>) {
+        while let Ok(item) = rx.recv() {
+            self.handle(item);
+        }
+    }
+
+    fn handle(&mut self, item: Item) {
+        match item {
+            Item::Raw(raw) => self.pending_raw = Some(raw),
+            Item::Corrected(c) => self.on_corrected(&c),
+            Item::Temperature { t_wall_ns, temp_c } => {
+                let msg = temperature_message(t_wall_ns, temp_c, &self.setup.frame_id);
+                self.write(Topic::Temperature, &msg);
+            }
+            Item::Noise(noise) => self.noise = noise,
+            Item::Gains(g) => self.gains = Some(g),
+            Item::Status { t_wall_ns, status } => {
+                // The status states the GainScales in force, should a gains item have been
+                // dropped (which fallbacks they are does not change the scaling).
+                self.gains.get_or_insert(Gains {
+                    accel: status.gain_scale_accel,
+                    gyro: status.gain_scale_gyro,
+                    mag: status.gain_scale_mag,
+                    fallback: GainFallback::NONE,
+                });
+                let c = &self.setup.config;
+                let msg = diagnostics(
+                    t_wall_ns,
+                    &status,
+                    stats_of(&self.shared),
+                    &c.node,
+                    &self.setup.instance,
+                );
+                self.write(Topic::Diagnostics, &msg);
+            }
+        }
+    }
+
+    /// A corrected sample: `imu/data`, `imu/mag` and, with its raw sample, `imu/data_raw`.
+    fn on_corrected(&mut self, c: &CorrectedSample) {
+        let frame_id = &self.setup.frame_id;
+        let imu = imu_message(c, frame_id, self.noise.as_ref());
+        let mag = magnetic_field_message(c, frame_id, self.noise.as_ref());
+        let raw = match (self.pending_raw.take(), self.gains) {
+            (Some(raw), Some(gains)) if raw.seq == c.seq => {
+                Some(raw_imu_message(&raw, c, gains, frame_id))
+            }
+            _ => None,
+        };
+        self.write(Topic::Imu, &imu);
+        self.write(Topic::Mag, &mag);
+        if let Some(raw) = raw {
+            self.write(Topic::ImuRaw, &raw);
+        }
+    }
+
+    fn write<M: RosMessage>(&mut self, topic: Topic, msg: &M) {
+        let writer = match topic {
+            Topic::Imu => &self.writers.imu,
+            Topic::ImuRaw => &self.writers.imu_raw,
+            Topic::Mag => &self.writers.mag,
+            Topic::Temperature => &self.writers.temperature,
+            Topic::Diagnostics => &self.writers.diagnostics,
+        };
+        let Some(writer) = writer else { return };
+        self.scratch.clear();
+        msg.encode_into(&mut self.scratch);
+        let payload = CdrPayload(Bytes::copy_from_slice(
+            &self.scratch[ros2::CDR_LE_HEADER.len()..],
+        ));
+        match writer.write(payload, None) {
+            Ok(()) => {
+                self.shared.written.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) => {
+                self.shared.write_failures.fetch_add(1, Ordering::Relaxed);
+                if !self.warned_write_failure {
+                    self.warned_write_failure = true;
+                    tracing::warn!(
+                        "DDS write failed ({e}); further failures are only counted \
+                         (status publish_drops, /diagnostics dds_write_failures)"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The topics, for picking a writer.
+#[derive(Debug, Clone, Copy)]
+enum Topic {
+    Imu,
+    ImuRaw,
+    Mag,
+    Temperature,
+    Diagnostics,
+}
