@@ -1,7 +1,8 @@
 //! Distribution functions for the significance tests and confidence intervals: survival
-//! functions of the chi-square, F and Student t distributions and the normal and chi-square
-//! quantiles and the two-sided Student t critical value, all from `statrs` (regularized incomplete gamma and beta functions, exact
-//! inverses) rather than hand-written special functions.
+//! functions of the chi-square, F and Student t distributions, the normal and chi-square
+//! quantiles and the two-sided Student t critical value, all from `statrs` (regularized
+//! incomplete gamma and beta functions, exact inverses) rather than hand-written special
+//! functions.
 
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor, Normal, StudentsT};
 
