@@ -15,9 +15,11 @@ use crate::input::ImuSeries;
 
 mod charts;
 mod fit;
+mod verdict;
 
 pub use charts::charts;
 use fit::{fit_warmup, make_bins, poly_fit};
+pub use verdict::ThermalVerdict;
 
 const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
 
@@ -53,7 +55,8 @@ pub enum ThermalError {
 pub struct ThermalOptions {
     /// Width of a time bin, s.
     pub bin_s: f64,
-    /// Two-sided p-value below which a coefficient is called significant.
+    /// Two-sided p-value below which the linear coefficient is called significant (the
+    /// quadratic term is tested at half of it).
     pub significance_p: f64,
     /// A coefficient is practically relevant when the change it predicts over the observed
     /// temperature range exceeds this many times the scatter of a bin mean.
@@ -149,12 +152,17 @@ pub struct AxisThermal {
     pub predicted_change: f64,
     /// Scatter of a bin mean (the linear fit's residual standard deviation).
     pub bin_noise: f64,
-    /// The coefficient is statistically significant.
+    /// The coefficient (linear, or the quadratic term) is significant by the test that accounts
+    /// for coloured noise.
     pub significant: bool,
     /// The predicted change exceeds `relevance_factor` x `bin_noise`.
     pub relevant: bool,
-    /// Significant and relevant: a thermal model is warranted for this axis.
+    /// Significant and relevant: a thermal model is warranted for this axis (the verdict is
+    /// [`ThermalVerdict::Warranted`]).
     pub model_warranted: bool,
+    /// What this recording says about the axis: warranted, negligible, or not resolvable with an
+    /// upper bound.
+    pub verdict: ThermalVerdict,
 }
 
 /// How far a warm-up transient and a temperature coefficient can be told apart.
@@ -239,13 +247,8 @@ pub fn analyze(
     };
     let axes = thermal_axes(&bins, &x, bin_range, options);
     let confounding = confounding(&temps, &times, warmup.as_ref());
-    let warranted: Vec<String> = axes
-        .iter()
-        .filter(|a| a.model_warranted)
-        .map(|a| format!("{} {}", a.sensor, a.axis))
-        .collect();
-    let model_recommended = !warranted.is_empty();
-    let recommendation = recommendation(&warranted, bin_range, [tmin, tmax], options);
+    let model_recommended = axes.iter().any(|a| a.model_warranted);
+    let recommendation = verdict::recommendation(&axes, bin_range, [tmin, tmax], options);
     Ok(ThermalReport {
         origin: series.origin.clone(),
         n_samples: series.len(),
@@ -315,38 +318,6 @@ fn confounding(temps: &[f64], times: &[f64], warmup: Option<&WarmupFit>) -> Conf
     }
 }
 
-/// The plain-language recommendation: the axes for which a thermal model is `warranted`, over
-/// the temperature range `[tmin, tmax]` deg C (`bin_range` K between the bins).
-fn recommendation(
-    warranted: &[String],
-    bin_range: f64,
-    [tmin, tmax]: [f64; 2],
-    options: &ThermalOptions,
-) -> String {
-    if bin_range < 1.0 {
-        format!(
-            "The temperature varied by only {bin_range:.2} K; the data cannot support or rule \
-             out a thermal model."
-        )
-    } else if !warranted.is_empty() {
-        format!(
-            "A thermal error model IS warranted between {tmin:.1} and {tmax:.1} deg C for: {}. \
-             The coefficients are significant and the change they predict over the range \
-             exceeds {} x the scatter of a {} s mean.",
-            warranted.join(", "),
-            options.relevance_factor,
-            options.bin_s
-        )
-    } else {
-        format!(
-            "No thermal error model is recommended between {tmin:.1} and {tmax:.1} deg C: no \
-             axis shows a temperature dependence that is both significant and larger than {} x \
-             the scatter of a {} s mean. There may still be a dependence outside this range.",
-            options.relevance_factor, options.bin_s
-        )
-    }
-}
-
 #[allow(clippy::too_many_arguments)]
 fn axis_thermal(
     sensor: &str,
@@ -361,7 +332,10 @@ fn axis_thermal(
     let linear = poly_fit(x, y, 1);
     let quadratic = poly_fit(x, y, 2);
     let m = mean(y);
-    let quadratic_significant = quadratic.p_values[2] < options.significance_p;
+    // The quadratic term is a second look at the same axis: tested at half the level, so an
+    // axis without any dependence is called significant with probability at most 1.5 x
+    // `significance_p` (at the full level, curvature of the drift alone passed too often).
+    let quadratic_significant = quadratic.p_values[2] < 0.5 * options.significance_p;
     let slope = linear.coefficients[1];
     let (xmin, xmax) = x
         .iter()
@@ -388,7 +362,7 @@ fn axis_thermal(
     let significant = linear.p_values[1] < options.significance_p || quadratic_significant;
     let bin_noise = linear.residual_std;
     let relevant = predicted_change > options.relevance_factor * bin_noise;
-    AxisThermal {
+    let mut a = AxisThermal {
         sensor: sensor.into(),
         axis: axis.into(),
         unit: unit.into(),
@@ -403,6 +377,10 @@ fn axis_thermal(
         bin_noise,
         significant,
         relevant,
-        model_warranted: significant && relevant && range_k >= 1.0,
-    }
+        model_warranted: false,
+        verdict: ThermalVerdict::NoTemperatureRange,
+    };
+    a.verdict = ThermalVerdict::decide(&a, range_k, options);
+    a.model_warranted = a.verdict == ThermalVerdict::Warranted;
+    a
 }
