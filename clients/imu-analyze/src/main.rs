@@ -316,8 +316,9 @@ fn thermal_text(r: &thermal::ThermalReport) -> String {
     );
     if let Some(w) = &r.warmup {
         text.push_str(&format!(
-            ", warm-up tau {:.0} +/- {:.0} s",
-            w.tau_s, w.tau_std_s
+            ", warm-up tau {} +/- {} s",
+            number(w.tau_s),
+            number(w.tau_std_s)
         ));
     }
     text.push('\n');
