@@ -41,6 +41,7 @@ pub fn diagnose_section_with_base(
                 (figures(&others))
             }
         }
+        (constant_signals(d, signals))
         (spectral_lines(d))
         (candidates(d))
         (ambiguities(&d.ambiguities))
@@ -277,6 +278,31 @@ fn correlate_charts(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Vec<F
                 .then(|| residual_vs_signal_chart(d, name, values, &axes))
         })
         .collect()
+}
+
+/// The candidate signals that did not vary in this recording, named instead of charted: a
+/// constant cannot explain a residual that varies.
+fn constant_signals(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Markup {
+    let constant: Vec<String> = signals
+        .iter()
+        .filter(|(_, v)| v.len() == d.segments.len() && !varies(v))
+        .map(|(name, v)| {
+            let value = v
+                .iter()
+                .find(|x| x.is_finite())
+                .copied()
+                .unwrap_or(f64::NAN);
+            format!("residual vs {name} ({} throughout)", g(value))
+        })
+        .collect();
+    html! {
+        @if !constant.is_empty() {
+            p {
+                "Not charted, as the signal is constant in this recording (it cannot explain \
+                 the residual here): " (constant.join("; ")) "."
+            }
+        }
+    }
 }
 
 /// A signal worth a chart: its finite values are not all the same (a constant signal, e.g.
