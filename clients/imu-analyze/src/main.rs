@@ -7,10 +7,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 
+use imu_analysis::characterize::units::DisplayUnit;
 use imu_analysis::characterize::{dynamic, impact, thermal};
 use imu_analysis::input::{ImuSeries, Source};
 use imu_analysis::render::html::{self, Section};
-use imu_analysis::render::svg::{Chart, write_svg};
+use imu_analysis::render::number::{number, p_value};
+use imu_analysis::render::svg::Figure;
 use imu_cli::finite_f64;
 use imu_cli::progress::read_input;
 
@@ -206,7 +208,7 @@ fn emit(
     json: &impl serde::Serialize,
     text: &str,
     section: Section,
-    charts: &[Chart],
+    charts: &[Figure],
     stem: &str,
     notes: ReadNotes,
 ) -> Result<()> {
@@ -218,7 +220,8 @@ fn emit(
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for (i, c) in charts.iter().enumerate() {
             let path = dir.join(format!("{stem}-{:02}.svg", i + 1));
-            write_svg(c, &path).with_context(|| format!("writing {}", path.display()))?;
+            std::fs::write(&path, c.to_svg())
+                .with_context(|| format!("writing {}", path.display()))?;
         }
     }
     if let Some(path) = &output.report {
@@ -305,34 +308,37 @@ fn run_thermal(recording: &[PathBuf], source: Source, bin_s: f64, output: &Outpu
     emit(output, &r, &text, section, &charts, "thermal", unfinished)
 }
 
-/// The text summary of a thermal analysis.
+/// The text summary of a thermal analysis: the recommendation, then per axis the coefficient
+/// in mg/K or deg/h/K with the coloured-noise test and the verdict.
 fn thermal_text(r: &thermal::ThermalReport) -> String {
     let mut text = format!(
-        "{}\n{} .. {} deg C over {:.0} s",
+        "{}\n{:.1} .. {:.1} deg C over {:.0} s",
         r.recommendation, r.temp_range_c[0], r.temp_range_c[1], r.duration_s
     );
     if let Some(w) = &r.warmup {
         text.push_str(&format!(
-            ", warm-up tau {:.0} +/- {:.0} s",
-            w.tau_s, w.tau_std_s
+            ", warm-up tau {} +/- {} s",
+            number(w.tau_s),
+            number(w.tau_std_s)
         ));
     }
     text.push('\n');
     for a in &r.axes {
+        let u = DisplayUnit::of_sensor(&a.sensor);
+        let l = u.label();
         text.push_str(&format!(
-            "{:5} {}: {:+.3e} +/- {:.1e} {}/K (t {:+.2}, p {:.2e}), change over range {:.2e} vs bin scatter {:.2e}{}{}\n",
+            "{:5} {}: {} +/- {} {l}/K (t {:+.2}, p {}), change over range {} {l} vs bin scatter {} {l}{}: {}\n",
             a.sensor,
             a.axis,
-            a.bias_coeff_per_k,
-            a.bias_coeff_std_per_k,
-            a.unit,
+            u.format(a.bias_coeff_per_k),
+            u.format(a.bias_coeff_std_per_k),
             a.linear.t_stats[1],
-            a.linear.p_values[1],
-            a.predicted_change,
-            a.bin_noise,
+            p_value(a.linear.p_values[1]),
+            u.format(a.predicted_change),
+            u.format(a.bin_noise),
             a.scale_coeff_per_k
-                .map_or(String::new(), |s| format!(", as scale {:+.1} ppm/K", s * 1e6)),
-            if a.model_warranted { "  MODEL WARRANTED" } else { "" }
+                .map_or(String::new(), |s| format!(", as scale {} ppm/K", number(s * 1e6))),
+            a.verdict.word().to_uppercase()
         ));
     }
     text.push_str(&r.confounding.note);

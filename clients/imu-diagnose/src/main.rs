@@ -11,7 +11,8 @@ use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
 use imu_analysis::reference::Reference;
 use imu_analysis::render::html::{
-    Section, diagnose_section, inline_svgs, ladder_section, page, verdict_section,
+    Section, diagnose_section, diagnose_section_with_base, inline_svgs, ladder_section, page,
+    verdict_section,
 };
 use imu_analysis::workbench::{DiagnoseOptions, Ladder, LadderStep, TriadDiagnosis, Workbench};
 use imu_analysis::{ImuSeries, segment::SegmentKind};
@@ -655,6 +656,7 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
     let added: Vec<(Triad, EffectKind)> = ladder.steps.iter().filter_map(|s| s.added).collect();
     let Ladder {
         steps,
+        base_diagnoses,
         final_diagnoses,
         mut calibration,
         notes,
@@ -677,8 +679,16 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
             vec![
                 verdict_section(&[accel, gyro]),
                 ladder_section(&steps),
-                diagnose_section(accel, &wb.signal_values(Triad::Accel)),
-                diagnose_section(gyro, &wb.signal_values(Triad::Gyro)),
+                diagnose_section_with_base(
+                    accel,
+                    Some(&base_diagnoses[0]),
+                    &wb.signal_values(Triad::Accel),
+                ),
+                diagnose_section_with_base(
+                    gyro,
+                    Some(&base_diagnoses[1]),
+                    &wb.signal_values(Triad::Gyro),
+                ),
             ]
         },
     )?;

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use imu_analysis::characterize::thermal::{ThermalOptions, ThermalReport, analyze};
+use imu_analysis::characterize::thermal::{ThermalOptions, ThermalReport, ThermalVerdict, analyze};
 use imu_analysis::input::{Source, read_mcap};
 
 /// 40 minutes static while warming 22 -> 38 deg C with a 10-minute time constant.
@@ -105,5 +105,88 @@ fn hidden_temperature_bias_is_detected_and_recovered() {
         for a in &r.axes[3..] {
             assert!(!a.model_warranted, "seed {seed}: gyro {}", a.axis);
         }
+    }
+}
+
+/// A hidden gyro temperature coefficient, rad/s per K, on x only.
+fn gyro_tempco(c: f64) -> String {
+    format!("[gyro.temp-bias]\nt0-c = 25.0\ncoefficients = [[{c:e}, 0.0, 0.0]]\n")
+}
+
+#[test]
+fn a_resolvable_gyro_coefficient_is_warranted() {
+    // 1e-3 rad/s/K over 16 K is 1.6e-2 rad/s, far above the drift of a 40-minute run.
+    let truth = 1e-3;
+    let r = run(11, &gyro_tempco(truth));
+    let a = &r.axes[3];
+    assert_eq!(a.verdict, ThermalVerdict::Warranted, "{}", r.recommendation);
+    assert!(a.model_warranted && a.significant && a.linear.p_values[1] < 0.01);
+    let z = (a.bias_coeff_per_k - truth) / a.bias_coeff_std_per_k;
+    assert!(
+        z.abs() < 3.0,
+        "{:e} +/- {:e}",
+        a.bias_coeff_per_k,
+        a.bias_coeff_std_per_k
+    );
+    assert!(
+        r.recommendation.contains("IS warranted") && r.recommendation.contains("gyro x"),
+        "{}",
+        r.recommendation
+    );
+}
+
+#[test]
+fn an_unresolvable_gyro_coefficient_is_bounded_not_warranted() {
+    // 5e-5 rad/s/K (8e-4 rad/s over 16 K) is within the bias drift of this gyro (50 deg/h bias
+    // instability, 1e-5 rad/s/sqrt(s) random walk) over a 40-minute run. The verdict must not
+    // be "warranted", and its upper bound must contain the truth.
+    let truth = 5e-5;
+    for seed in [12, 13] {
+        let r = run(seed, &gyro_tempco(truth));
+        let a = &r.axes[3];
+        let ThermalVerdict::NotResolvable {
+            bound_per_k,
+            detectable_per_k,
+            change_bound,
+        } = a.verdict
+        else {
+            panic!("seed {seed}: gyro x {:?}: {}", a.verdict, r.recommendation);
+        };
+        assert!(!a.model_warranted && !a.significant);
+        assert!(
+            a.linear.p_values[1] >= 0.005,
+            "the test does not resolve it"
+        );
+        assert!(
+            bound_per_k >= truth,
+            "seed {seed}: bound {bound_per_k:e} < truth {truth:e}"
+        );
+        // The bound is the estimate plus the detection threshold, and scales to the range.
+        assert!(
+            detectable_per_k > truth,
+            "seed {seed}: {detectable_per_k:e}"
+        );
+        let range = r
+            .bins
+            .iter()
+            .map(|b| b.temp_c)
+            .fold(f64::NEG_INFINITY, f64::max)
+            - r.bins
+                .iter()
+                .map(|b| b.temp_c)
+                .fold(f64::INFINITY, f64::min);
+        assert!((change_bound - bound_per_k * range).abs() < 1e-12);
+        let text = &r.recommendation;
+        assert!(
+            text.contains("Not resolvable in this recording")
+                && text.contains("gyro x: |coefficient| <")
+                && text.contains("temperature cycle"),
+            "seed {seed}: {text}"
+        );
+        assert!(
+            !text.contains("IS warranted")
+                || !text[..text.find("Not resolvable").unwrap()].contains("gyro x"),
+            "{text}"
+        );
     }
 }

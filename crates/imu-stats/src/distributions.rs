@@ -1,7 +1,8 @@
 //! Distribution functions for the significance tests and confidence intervals: survival
-//! functions of the chi-square, F and Student t distributions and the normal and chi-square
-//! quantiles, all from `statrs` (regularized incomplete gamma and beta functions, exact
-//! inverses) rather than hand-written special functions.
+//! functions of the chi-square, F and Student t distributions, the normal and chi-square
+//! quantiles and the two-sided Student t critical value, all from `statrs` (regularized
+//! incomplete gamma and beta functions, exact inverses) rather than hand-written special
+//! functions.
 
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor, Normal, StudentsT};
 
@@ -38,6 +39,18 @@ pub fn student_t_two_sided_p(t: f64, dof: f64) -> f64 {
     match StudentsT::new(0.0, 1.0, dof) {
         Ok(d) => (2.0 * d.sf(t.abs())).clamp(0.0, 1.0),
         Err(_) => f64::NAN,
+    }
+}
+
+/// The two-sided Student t critical value: `|T| > t` with probability `p` for `dof` degrees of
+/// freedom (e.g. 2.228 for `p = 0.05`, `dof = 10`); NaN for `dof <= 0` or `p` outside (0, 1).
+pub fn student_t_two_sided_quantile(p: f64, dof: f64) -> f64 {
+    if !(p > 0.0 && p < 1.0) {
+        return f64::NAN;
+    }
+    match StudentsT::new(0.0, 1.0, dof) {
+        Ok(d) if dof > 0.0 => d.inverse_cdf(1.0 - 0.5 * p),
+        _ => f64::NAN,
     }
 }
 
@@ -113,5 +126,11 @@ mod tests {
         assert!((chi2_quantile(0.025, 10.0) - 3.246_972_780_236_841_4).abs() < 1e-8);
         assert!((chi2_quantile(0.975, 10.0) - 20.483_177_350_807_39).abs() < 1e-8);
         assert!((chi2_sf(chi2_quantile(0.9, 3.5), 3.5) - 0.1).abs() < 1e-10);
+        // scipy.stats.t.ppf(0.975, 10), t.ppf(0.995, 4.5); and the inverse of the p-value.
+        assert!((student_t_two_sided_quantile(0.05, 10.0) - 2.228_138_851_986_274).abs() < 1e-8);
+        assert!((student_t_two_sided_quantile(0.01, 4.5) - 4.272_823_993_011_293).abs() < 1e-6);
+        let t = student_t_two_sided_quantile(0.133, 7.3);
+        assert!((student_t_two_sided_p(t, 7.3) - 0.133).abs() < 1e-10);
+        assert!(student_t_two_sided_quantile(0.0, 5.0).is_nan());
     }
 }

@@ -10,7 +10,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::input::ImuSeries;
-use crate::render::svg::{Chart, Series, Style};
+use crate::render::svg::{Chart, Figure, Look, Series, SeriesLook, Style};
 use imu_stats::descriptive::correlation;
 use imu_stats::linear::ordinary_least_squares;
 
@@ -214,10 +214,45 @@ pub struct DynamicReport {
     pub raw: Option<DynamicRun>,
     /// The calibrated stream, if analysed.
     pub corrected: Option<DynamicRun>,
-    /// |raw growth| / |corrected growth| (how much calibration slows the drift).
+    /// |raw growth| / |corrected growth| (how much calibration slows the drift); `None` unless
+    /// both streams were analysed and a calibration was loaded.
     pub growth_reduction_factor: Option<f64>,
+    /// What the two streams say about the calibration.
+    pub calibration: CalibrationEffect,
     /// Plain-language summary.
     pub summary: String,
+}
+
+/// What comparing the raw and the calibrated stream says about the calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum CalibrationEffect {
+    /// Only one stream was analysed.
+    NotCompared,
+    /// The calibrated stream equals the raw one: no calibration was loaded when the recording
+    /// was made, so the comparison says nothing about a calibration.
+    NoCalibrationLoaded,
+    /// A calibration was loaded; |raw growth| / |calibrated growth|.
+    Reduces {
+        /// The factor.
+        factor: f64,
+    },
+}
+
+/// The calibrated stream is the raw one (to rounding): the largest rate difference over the
+/// compared curves is below 1e-9 of the largest rate (or 1e-12 deg/s).
+fn same_stream(raw: &DynamicRun, corrected: &DynamicRun) -> bool {
+    let scale = raw
+        .rate_curve
+        .iter()
+        .fold(0.0f64, |m, p| m.max(p.1.abs()))
+        .max(1e-3);
+    raw.rate_curve.len() == corrected.rate_curve.len()
+        && raw
+            .rate_curve
+            .iter()
+            .zip(&corrected.rate_curve)
+            .all(|(a, b)| (a.1 - b.1).abs() <= 1e-9 * scale)
 }
 
 /// Compares raw and/or calibrated runs.
@@ -226,8 +261,15 @@ pub fn compare(
     raw: Option<DynamicRun>,
     corrected: Option<DynamicRun>,
 ) -> DynamicReport {
-    let growth_reduction_factor = match (&raw, &corrected) {
-        (Some(r), Some(c)) => Some(r.growth_deg_s.abs() / c.growth_deg_s.abs()),
+    let calibration = match (&raw, &corrected) {
+        (Some(r), Some(c)) if same_stream(r, c) => CalibrationEffect::NoCalibrationLoaded,
+        (Some(r), Some(c)) => CalibrationEffect::Reduces {
+            factor: r.growth_deg_s.abs() / c.growth_deg_s.abs(),
+        },
+        _ => CalibrationEffect::NotCompared,
+    };
+    let growth_reduction_factor = match calibration {
+        CalibrationEffect::Reduces { factor } => Some(factor),
         _ => None,
     };
     let mut summary = String::new();
@@ -239,8 +281,16 @@ pub fn compare(
             ));
         }
     }
-    if let Some(f) = growth_reduction_factor {
-        summary.push_str(&format!("calibration reduces the growth {f:.1}x; "));
+    match calibration {
+        CalibrationEffect::Reduces { factor } => {
+            summary.push_str(&format!("calibration reduces the growth {factor:.1}x; "))
+        }
+        CalibrationEffect::NoCalibrationLoaded => summary.push_str(
+            "no calibration was loaded when this was recorded (the calibrated stream equals \
+             the raw one), so this says nothing about a calibration: record with one loaded \
+             (imud --calibration FILE) to see its effect on the drift; ",
+        ),
+        CalibrationEffect::NotCompared => {}
     }
     if let Some(r) = raw.as_ref().or(corrected.as_ref()) {
         summary.push_str(&format!(
@@ -253,6 +303,7 @@ pub fn compare(
         raw,
         corrected,
         growth_reduction_factor,
+        calibration,
         summary,
     }
 }
@@ -519,64 +570,85 @@ fn error_growth(
 }
 
 /// Charts like the paper's Figures 12-13 (rate and angle versus the reference) and the angle
-/// error over time for every run.
-pub fn charts(report: &DynamicReport) -> Vec<Chart> {
+/// error over time for every run. The same colour for the same stream on every chart; the
+/// calibrated stream is drawn solid under the raw one, which is dashed, so neither hides the
+/// other where they agree.
+pub fn charts(report: &DynamicReport) -> Vec<Figure> {
     let mut out = Vec::new();
-    let runs: Vec<(&str, &DynamicRun)> = [("raw", &report.raw), ("calibrated", &report.corrected)]
+    // Calibrated first (underneath), raw last (on top, dashed).
+    let runs: Vec<(&str, &DynamicRun)> = [("calibrated", &report.corrected), ("raw", &report.raw)]
         .into_iter()
         .filter_map(|(n, r)| r.as_ref().map(|r| (n, r)))
         .collect();
+    let look_of = |name: &str| SeriesLook {
+        colour: Some(if name == "raw" { 3 } else { 1 }),
+        dashed: name == "raw",
+    };
+    let reference_look = SeriesLook {
+        colour: Some(0),
+        dashed: false,
+    };
     if let Some((_, first)) = runs.first() {
-        let mut rate = vec![Series {
-            name: "reference".into(),
-            points: first.rate_curve.iter().map(|p| (p.0, p.2)).collect(),
-            style: Style::Line,
-        }];
-        let mut angle = vec![Series {
-            name: "reference".into(),
-            points: first.angle_curve.iter().map(|p| (p.0, p.2)).collect(),
-            style: Style::Line,
-        }];
-        for (name, r) in &runs {
-            rate.push(Series {
-                name: format!("gyro {} ({name})", r.axis),
-                points: r.rate_curve.iter().map(|p| (p.0, p.1)).collect(),
+        type Pick = fn(&(f64, f64, f64)) -> f64;
+        for (what, quantity, unit, curve) in [
+            (
+                "Turn rate",
+                "rate",
+                "deg/s",
+                (|r: &DynamicRun| &r.rate_curve) as fn(&DynamicRun) -> &Vec<(f64, f64, f64)>,
+            ),
+            ("Angle", "angle", "deg", |r: &DynamicRun| &r.angle_curve),
+        ] {
+            let pick = |c: &[(f64, f64, f64)], f: Pick| c.iter().map(|p| (p.0, f(p))).collect();
+            let mut series = vec![Series {
+                name: "table".into(),
+                points: pick(curve(first), |p| p.2),
                 style: Style::Line,
-            });
-            angle.push(Series {
-                name: format!("integrated gyro ({name})"),
-                points: r.angle_curve.iter().map(|p| (p.0, p.1)).collect(),
-                style: Style::Line,
+            }];
+            let mut looks = vec![reference_look];
+            for (name, r) in &runs {
+                series.push(Series {
+                    name: format!("gyro {name}"),
+                    points: pick(curve(r), |p| p.1),
+                    style: Style::Line,
+                });
+                looks.push(look_of(name));
+            }
+            out.push(Figure {
+                chart: Chart {
+                    title: format!("{what} about {}: gyro vs table", first.axis),
+                    x_label: "time [s]".into(),
+                    y_label: format!("{quantity} [{unit}]"),
+                    series,
+                    ..Chart::default()
+                },
+                look: Look {
+                    series: looks,
+                    ..Look::default()
+                },
             });
         }
-        out.push(Chart {
-            title: format!("Turn rate about {}: gyro vs table", first.axis),
-            x_label: "time [s]".into(),
-            y_label: "rate [deg/s]".into(),
-            series: rate,
-            ..Chart::default()
-        });
-        out.push(Chart {
-            title: format!("Angle about {}: integrated gyro vs table", first.axis),
-            x_label: "time [s]".into(),
-            y_label: "angle [deg]".into(),
-            series: angle,
-            ..Chart::default()
-        });
     }
-    out.push(Chart {
-        title: "Angle error (integrated gyro - table)".into(),
-        x_label: "time [s]".into(),
-        y_label: "error [deg]".into(),
-        series: runs
-            .iter()
-            .map(|(name, r)| Series {
-                name: format!("{name}: {:.3} deg/s", r.growth_deg_s),
-                points: r.error_curve.clone(),
-                style: Style::Line,
-            })
-            .collect(),
-        ..Chart::default()
+    out.push(Figure {
+        chart: Chart {
+            title: "Angle error (integrated gyro - table)".into(),
+            x_label: "time [s]".into(),
+            y_label: "error [deg]".into(),
+            series: runs
+                .iter()
+                .map(|(name, r)| Series {
+                    // Whole deg/h: the legend has room for about 24 characters.
+                    name: format!("{name}: {:.0} deg/h", r.growth_deg_h),
+                    points: r.error_curve.clone(),
+                    style: Style::Line,
+                })
+                .collect(),
+            ..Chart::default()
+        },
+        look: Look {
+            series: runs.iter().map(|(name, _)| look_of(name)).collect(),
+            ..Look::default()
+        },
     });
     out
 }

@@ -11,7 +11,7 @@
 use serde::Serialize;
 
 use crate::input::ImuSeries;
-use crate::render::svg::{Chart, Series, Style};
+use crate::render::svg::{Chart, Figure, Look, Series, Style, axis_colour};
 use imu_stats::descriptive::{mean, std_dev};
 use imu_stats::linear::ordinary_least_squares;
 
@@ -425,7 +425,7 @@ pub(crate) fn median(v: &[f64]) -> f64 {
 
 /// Charts like the paper's Figures 10-11: every accel axis and every gyro axis (offset by its
 /// median) versus time, from a second before the first event to a second after the last.
-pub fn charts(series: &ImuSeries, report: &ImpactReport) -> Vec<Chart> {
+pub fn charts(series: &ImuSeries, report: &ImpactReport) -> Vec<Figure> {
     let (Some(first), Some(last)) = (report.events.first(), report.events.last()) else {
         return Vec::new();
     };
@@ -449,12 +449,18 @@ pub fn charts(series: &ImuSeries, report: &ImpactReport) -> Vec<Chart> {
                 }
             })
             .collect();
-        out.push(Chart {
-            title: format!("Impacts: {name}, all axes"),
-            x_label: "time [s]".into(),
-            y_label: format!("output - median [{unit}]"),
-            series: s,
-            ..Chart::default()
+        out.push(Figure {
+            chart: Chart {
+                title: format!("Impacts: {name}, all axes"),
+                x_label: "time [s]".into(),
+                y_label: format!("output - median [{unit}]"),
+                series: s,
+                ..Chart::default()
+            },
+            look: Look {
+                series: (0..3).map(axis_colour).collect(),
+                ..Look::default()
+            },
         });
     }
     out

@@ -27,6 +27,9 @@ use std::fmt::Write as _;
 use std::io;
 use std::path::Path;
 
+mod look;
+pub use look::{Figure, Look, SeriesLook, Ticks, all_points, axis_colour, axis_ranges};
+
 /// A chart: axes with labels, optional logarithmic scales, and the series drawn on them.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Chart {

@@ -89,7 +89,7 @@ impl<'a> Workbench<'a> {
         let consistent = consistent_before && spectral_lines.is_empty();
         let consistent_with_drift = (consistent_before || p_value_with_drift >= self.opts.alpha)
             && spectral_lines.is_empty();
-        let verdict = verdict_text(&VerdictFacts {
+        let facts = VerdictFacts {
             triad,
             model: &model,
             consistent: consistent_before,
@@ -101,7 +101,8 @@ impl<'a> Workbench<'a> {
             ambiguities: &ambiguities,
             structure: &structure,
             lines: &spectral_lines,
-        });
+        };
+        let (verdict, state) = (verdict_text(&facts), verdict_state(&facts));
         let mut diagnosis = TriadDiagnosis {
             triad,
             effects: model.kinds(),
@@ -122,6 +123,7 @@ impl<'a> Workbench<'a> {
             candidates,
             ambiguities,
             verdict,
+            state,
             fit: base,
             noise_floor: floor.clone(),
             moves: None,
@@ -385,6 +387,16 @@ impl<'a> Workbench<'a> {
         let m = self.diagnose_moves(full_model, &d.fit.model)?;
         d.consistent &= m.verdict.consistent;
         d.consistent_with_drift &= m.verdict.consistent;
+        if !m.verdict.consistent
+            && matches!(
+                d.state,
+                VerdictState::Consistent
+                    | VerdictState::BiasWander
+                    | VerdictState::PeriodicComponent
+            )
+        {
+            d.state = VerdictState::GainsInconsistent;
+        }
         let _ = write!(d.verdict, " {}", m.text);
         // Every model handed on (to the ladder, into the calibration) is the whole gyro
         // model: the offsets from the still poses, the gains from the moves.

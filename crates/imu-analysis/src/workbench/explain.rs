@@ -117,26 +117,50 @@ pub(super) struct VerdictFacts<'a> {
     pub(super) lines: &'a [SpectralLine],
 }
 
+/// What the verdict of one triad says, decided once from its facts: the words of the verdict
+/// ([`verdict_text`]) and the report's heading both follow it, so they cannot disagree.
+pub(super) fn verdict_state(facts: &VerdictFacts<'_>) -> VerdictState {
+    if facts.consistent {
+        return if facts.lines.is_empty() {
+            VerdictState::Consistent
+        } else {
+            VerdictState::PeriodicComponent
+        };
+    }
+    let any_significant = facts.candidates.iter().any(|c| c.significant);
+    if facts.with_drift.is_some() && !any_significant {
+        return VerdictState::BiasWander;
+    }
+    match facts.candidates.first() {
+        Some(c) if c.claimed => VerdictState::MissingEffect,
+        _ if !facts.ambiguities.is_empty() => VerdictState::Ambiguous,
+        _ => VerdictState::Unexplained,
+    }
+}
+
 /// The verdict of one triad in words: consistent or not, the worst axis, the wander or the
 /// missing effect that explains the excess, ambiguities, structure and spectral lines.
 pub(super) fn verdict_text(facts: &VerdictFacts<'_>) -> String {
     let ids: Vec<&str> = facts.model.kinds().iter().map(|k| k.id()).collect();
     let mut s = format!("{} model [{}]: ", facts.triad, ids.join(", "));
+    let state = verdict_state(facts);
     if facts.consistent {
         facts.write_consistent(&mut s);
     } else {
         let worst = facts.write_inconsistent(&mut s);
-        let any_significant = facts.candidates.iter().any(|c| c.significant);
-        if let Some((pd, w)) = facts.with_drift.filter(|_| !any_significant) {
-            facts.write_wander(&mut s, pd, &w);
-        } else {
-            match facts.candidates.first() {
-                Some(c) if c.claimed => write_missing_effect(&mut s, c),
-                _ => match facts.ambiguities.first() {
-                    Some(a) => write_ambiguity(&mut s, a),
-                    None => facts.write_unexplained(&mut s, worst),
-                },
+        match (state, facts.with_drift) {
+            (VerdictState::BiasWander, Some((pd, w))) => facts.write_wander(&mut s, pd, &w),
+            (VerdictState::MissingEffect, _) => {
+                if let Some(c) = facts.candidates.first() {
+                    write_missing_effect(&mut s, c)
+                }
             }
+            (VerdictState::Ambiguous, _) => {
+                if let Some(a) = facts.ambiguities.first() {
+                    write_ambiguity(&mut s, a)
+                }
+            }
+            _ => facts.write_unexplained(&mut s, worst),
         }
     }
     facts.write_lines(&mut s);

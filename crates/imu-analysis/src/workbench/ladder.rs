@@ -12,11 +12,15 @@ impl<'a> Workbench<'a> {
         let triads = [Triad::Accel, Triad::Gyro];
         let mut steps = Vec::new();
         let mut added: Vec<(Triad, EffectKind)> = Vec::new();
+        let mut base_diagnoses = None;
         loop {
             let diags = [
                 self.diagnose(Triad::Accel, &models[0])?,
                 self.diagnose(Triad::Gyro, &models[1])?,
             ];
+            if base_diagnoses.is_none() {
+                base_diagnoses = Some(diags.clone());
+            }
             steps.push(LadderStep {
                 added: added.last().copied(),
                 accel: StepSummary::of(&diags[0]),
@@ -31,6 +35,7 @@ impl<'a> Workbench<'a> {
                 let (calibration, notes) = self.final_calibration(base, &diags);
                 return Ok(Ladder {
                     steps,
+                    base_diagnoses: base_diagnoses.take().unwrap_or_else(|| diags.clone()),
                     final_diagnoses: diags,
                     calibration,
                     notes,
@@ -40,6 +45,7 @@ impl<'a> Workbench<'a> {
                 let (calibration, notes) = self.final_calibration(base, &diags);
                 return Ok(Ladder {
                     steps,
+                    base_diagnoses: base_diagnoses.take().unwrap_or_else(|| diags.clone()),
                     final_diagnoses: diags,
                     calibration,
                     notes,

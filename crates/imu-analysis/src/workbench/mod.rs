@@ -298,6 +298,28 @@ pub struct Ambiguity {
     pub separating_recording: String,
 }
 
+/// What a triad's verdict says, decided once: its words and a report's heading follow it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum VerdictState {
+    /// The residuals are consistent with the noise floor.
+    Consistent,
+    /// Consistent in the chi-square test, but a periodic component (a spectral line) sits in
+    /// the static segments.
+    PeriodicComponent,
+    /// Not consistent with the floor alone; a slow wander of the bias between segments explains
+    /// the excess (and no library effect does significantly).
+    BiasWander,
+    /// Not consistent; a library effect is missing (the claimed candidate).
+    MissingEffect,
+    /// Not consistent; two effects explain the excess alike.
+    Ambiguous,
+    /// Not consistent, and nothing in the library explains it.
+    Unexplained,
+    /// Reference-free gyro: the gains do not match the rotations over the moves.
+    GainsInconsistent,
+}
+
 /// The model held against one triad's observations.
 #[derive(Clone, Debug, Serialize)]
 pub struct TriadDiagnosis {
@@ -346,6 +368,8 @@ pub struct TriadDiagnosis {
     pub ambiguities: Vec<Ambiguity>,
     /// The verdict in words.
     pub verdict: String,
+    /// What the verdict says (the heading of a report follows it).
+    pub state: VerdictState,
     /// The fit.
     pub fit: FitResult,
     /// The noise floor used.
@@ -496,6 +520,9 @@ impl StepSummary {
 pub struct Ladder {
     /// Base model first, then one step per added effect.
     pub steps: Vec<LadderStep>,
+    /// The base model's diagnoses (accel, gyro): what the ladder started from.
+    #[serde(skip)]
+    pub base_diagnoses: [TriadDiagnosis; 2],
     /// The final model's diagnoses (accel, gyro).
     pub final_diagnoses: [TriadDiagnosis; 2],
     /// The final model as a calibration.

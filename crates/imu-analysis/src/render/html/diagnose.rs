@@ -5,8 +5,8 @@
 
 use maud::{Markup, html};
 
-use super::{AXIS_NAMES, Section, figures, g, strong, table, text};
-use crate::render::svg::{Chart, Series, Style};
+use super::{AXIS_NAMES, Section, figures, g, p, strong, table, text};
+use crate::render::svg::{Chart, Figure, Look, Series, SeriesLook, Style, Ticks, axis_colour};
 use crate::workbench::{Ambiguity, Candidate, TriadDiagnosis};
 
 /// One triad's diagnosis: verdict, residual RMS against the noise floor per axis, the worst
@@ -17,14 +17,22 @@ use crate::workbench::{Ambiguity, Candidate, TriadDiagnosis};
 /// ([`Workbench::signal_values`](crate::workbench::Workbench::signal_values)), in the order of
 /// `d.segments`; pass an empty slice to leave the correlate charts out.
 pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Section {
-    let mut charts = vec![residual_vs_time_chart(d)];
-    charts.extend(correlate_charts(d, signals));
-    charts.push(allan_chart(d));
-    let others = other_signal_charts(d, signals, &charts);
+    diagnose_section_with_base(d, None, signals)
+}
+
+/// [`diagnose_section`] with the base model's diagnosis `base` (the ladder's first step), whose
+/// residuals are pictured beside the final model's: the base model's failure is the story.
+pub fn diagnose_section_with_base(
+    d: &TriadDiagnosis,
+    base: Option<&TriadDiagnosis>,
+    signals: &[(String, Vec<f64>)],
+) -> Section {
+    let (main, others) = figures_of(d, base, signals);
     let body = html! {
         (summary(d))
         (worst_segments(d))
-        (figures(&charts))
+        (figures(&main))
+        p { "Noise floor: " (d.noise_floor.source) "." }
         @if !others.is_empty() {
             details {
                 summary {
@@ -33,6 +41,7 @@ pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> S
                 (figures(&others))
             }
         }
+        (constant_signals(d, signals))
         (spectral_lines(d))
         (candidates(d))
         (ambiguities(&d.ambiguities))
@@ -43,6 +52,43 @@ pub fn diagnose_section(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> S
         }
     };
     Section::new(format!("{} diagnosis", d.triad), body)
+}
+
+/// Every chart of a diagnosis section: the main ones (residuals of the base model if given and
+/// of the model, residual against the strongest correlates, the Allan deviation of the floor),
+/// then those folded away (residual against every other candidate signal that varies).
+pub fn diagnose_figures(
+    d: &TriadDiagnosis,
+    base: Option<&TriadDiagnosis>,
+    signals: &[(String, Vec<f64>)],
+) -> Vec<Figure> {
+    let (mut main, others) = figures_of(d, base, signals);
+    main.extend(others);
+    main
+}
+
+/// The main and the folded-away charts of [`diagnose_figures`].
+fn figures_of(
+    d: &TriadDiagnosis,
+    base: Option<&TriadDiagnosis>,
+    signals: &[(String, Vec<f64>)],
+) -> (Vec<Figure>, Vec<Figure>) {
+    let mut main = Vec::new();
+    if let Some(b) = base {
+        main.push(residual_vs_time_chart(b, "base model"));
+    }
+    main.push(residual_vs_time_chart(
+        d,
+        if base.is_some() {
+            "final model"
+        } else {
+            "model"
+        },
+    ));
+    main.extend(correlate_charts(d, signals));
+    main.push(Figure::from(allan_chart(d)));
+    let others = other_signal_charts(d, signals, &main);
+    (main, others)
 }
 
 /// The verdict, the model with its chi-square test, and the residual RMS against the noise
@@ -62,7 +108,7 @@ fn summary(d: &TriadDiagnosis) -> Markup {
                 text(g(v.noise_floor_with_drift_rms)),
                 text(g(v.residual_rms / v.noise_floor_rms)),
                 text(format!("{:.1} / {:.0}", v.chi2, v.dof)),
-                text(g(v.p_value)),
+                text(p(v.p_value)),
             ]
         })
         .collect();
@@ -74,8 +120,8 @@ fn summary(d: &TriadDiagnosis) -> Markup {
                 ". chi2 {:.1} on {} degrees of freedom, p = {} (with drift p = {}).",
                 d.chi2,
                 d.dof,
-                g(d.p_value),
-                g(d.p_value_with_drift)
+                p(d.p_value),
+                p(d.p_value_with_drift)
             ))
         }
         (table(
@@ -127,26 +173,52 @@ fn worst_segments(d: &TriadDiagnosis) -> Markup {
     }
 }
 
-/// The segment residual per axis against the segment's mid time.
-fn residual_vs_time_chart(d: &TriadDiagnosis) -> Chart {
-    Chart {
-        title: format!("{}: segment residual vs time", d.triad),
-        x_label: "time [s]".into(),
-        y_label: format!("residual [{}]", d.triad.unit()),
-        series: AXIS_NAMES
-            .iter()
-            .enumerate()
-            .map(|(a, name)| Series {
-                name: (*name).into(),
-                points: d
-                    .segments
-                    .iter()
-                    .map(|s| (0.5 * (s.start_s + s.end_s), s.residual[a]))
-                    .collect(),
-                style: Style::Points,
-            })
-            .collect(),
-        ..Chart::default()
+/// The segment residual per axis in units of its noise floor (z) against the segment's mid
+/// time, with the band the floor allows (|z| <= 2, 95 %): a point outside it exceeds the floor.
+/// `which` names the model (`base model`, `final model`).
+fn residual_vs_time_chart(d: &TriadDiagnosis, which: &str) -> Figure {
+    let (lo, hi) = d
+        .segments
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), s| {
+            (l.min(s.start_s), h.max(s.end_s))
+        });
+    let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+    let mut series = vec![Series {
+        name: "noise floor, 95 %".into(),
+        points: vec![(lo, -2.0), (hi, -2.0)],
+        style: Style::Band {
+            upper: vec![(lo, 2.0), (hi, 2.0)],
+        },
+    }];
+    let mut looks = vec![SeriesLook {
+        colour: Some(7),
+        dashed: false,
+    }];
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
+        series.push(Series {
+            name: (*name).into(),
+            points: d
+                .segments
+                .iter()
+                .map(|s| (0.5 * (s.start_s + s.end_s), s.z[a]))
+                .collect(),
+            style: Style::Points,
+        });
+        looks.push(axis_colour(a));
+    }
+    Figure {
+        chart: Chart {
+            title: format!("{}, {which}: segment residual vs time", d.triad),
+            x_label: "time [s]".into(),
+            y_label: "residual / noise floor".into(),
+            series,
+            ..Chart::default()
+        },
+        look: Look {
+            series: looks,
+            ..Look::default()
+        },
     }
 }
 
@@ -157,8 +229,10 @@ fn residual_vs_signal_chart(
     name: &str,
     values: &[f64],
     axes: &[(usize, f64)],
-) -> Chart {
-    Chart {
+) -> Figure {
+    // A discrete signal (a sign, a count) gets whole-number ticks, never 0.5.
+    let integer = values.iter().all(|v| v.fract() == 0.0);
+    let chart = Chart {
         title: format!("{}: residual vs {name}", d.triad),
         x_label: name.into(),
         y_label: format!("residual [{}]", d.triad.unit()),
@@ -175,11 +249,18 @@ fn residual_vs_signal_chart(
             })
             .collect(),
         ..Chart::default()
+    };
+    Figure {
+        chart,
+        look: Look {
+            x_ticks: if integer { Ticks::Integer } else { Ticks::Auto },
+            series: axes.iter().map(|&(a, _)| axis_colour(a)).collect(),
+        },
     }
 }
 
 /// Residual against the strongest correlate, one chart per signal (axes sharing it together).
-fn correlate_charts(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Vec<Chart> {
+fn correlate_charts(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Vec<Figure> {
     let mut by_signal: Vec<(&str, Vec<(usize, f64)>)> = Vec::new();
     for (a, st) in d.structure.iter().enumerate() {
         if let Some(c) = st.correlates.first() {
@@ -193,19 +274,52 @@ fn correlate_charts(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Vec<C
         .into_iter()
         .filter_map(|(name, axes)| {
             let (_, values) = signals.iter().find(|(n, _)| n == name)?;
-            (values.len() == d.segments.len())
+            (values.len() == d.segments.len() && varies(values))
                 .then(|| residual_vs_signal_chart(d, name, values, &axes))
         })
         .collect()
 }
 
+/// The candidate signals that did not vary in this recording, named instead of charted: a
+/// constant cannot explain a residual that varies.
+fn constant_signals(d: &TriadDiagnosis, signals: &[(String, Vec<f64>)]) -> Markup {
+    let constant: Vec<String> = signals
+        .iter()
+        .filter(|(_, v)| v.len() == d.segments.len() && !varies(v))
+        .map(|(name, v)| {
+            let value = v
+                .iter()
+                .find(|x| x.is_finite())
+                .copied()
+                .unwrap_or(f64::NAN);
+            format!("residual vs {name} ({} throughout)", g(value))
+        })
+        .collect();
+    html! {
+        @if !constant.is_empty() {
+            p {
+                "Not charted, as the signal is constant in this recording (it cannot explain \
+                 the residual here): " (constant.join("; ")) "."
+            }
+        }
+    }
+}
+
+/// A signal worth a chart: its finite values are not all the same (a constant signal, e.g.
+/// "input magnitude" at 0 in every still segment, would draw a degenerate chart).
+fn varies(values: &[f64]) -> bool {
+    let mut finite = values.iter().filter(|v| v.is_finite());
+    let Some(first) = finite.next() else {
+        return false;
+    };
+    finite.any(|v| (v - first).abs() > 1e-12 * (1.0 + first.abs()))
+}
+
 /// The pooled Allan deviation of the noise floor per axis.
 fn allan_chart(d: &TriadDiagnosis) -> Chart {
     Chart {
-        title: format!(
-            "{}: Allan deviation of the noise floor ({})",
-            d.triad, d.noise_floor.source
-        ),
+        // The floor's source is said under the chart: in the title it ran past the view box.
+        title: format!("{}: Allan deviation of the noise floor", d.triad),
         x_label: "tau [s]".into(),
         y_label: format!("Allan deviation [{}]", d.triad.unit()),
         log_x: true,
@@ -227,11 +341,11 @@ fn allan_chart(d: &TriadDiagnosis) -> Chart {
 fn other_signal_charts(
     d: &TriadDiagnosis,
     signals: &[(String, Vec<f64>)],
-    shown: &[Chart],
-) -> Vec<Chart> {
+    shown: &[Figure],
+) -> Vec<Figure> {
     signals
         .iter()
-        .filter(|(_, values)| values.len() == d.segments.len())
+        .filter(|(_, values)| values.len() == d.segments.len() && varies(values))
         .map(|(name, values)| {
             let axes: Vec<(usize, f64)> = (0..3)
                 .map(|a| {
@@ -245,7 +359,7 @@ fn other_signal_charts(
                 .collect();
             residual_vs_signal_chart(d, name, values, &axes)
         })
-        .filter(|c| shown.iter().all(|s| s.title != c.title))
+        .filter(|c| shown.iter().all(|s| s.chart.title != c.chart.title))
         .collect()
 }
 
@@ -305,7 +419,7 @@ fn candidate_row(c: &Candidate) -> Vec<Markup> {
         text(c.effect.id()),
         text(c.new_params),
         text(g(c.f)),
-        text(g(c.p_value)),
+        text(p(c.p_value)),
         text(format!("{:.1}", c.delta_aic)),
         text(c.share_of_excess_cell()),
         if c.claimed {

@@ -14,12 +14,13 @@ use std::ops::Deref;
 
 use maud::{DOCTYPE, Markup, PreEscaped, Render, html};
 
-use crate::render::svg::{Chart, render_svg};
+use crate::render::number::{number, p_value};
+use crate::render::svg::{Chart, Figure, render_svg};
 
 pub use characterize::{dynamic_section, impact_section, thermal_section};
-pub use diagnose::diagnose_section;
+pub use diagnose::{diagnose_figures, diagnose_section, diagnose_section_with_base};
 pub use noise::{Facts, noise_sections};
-pub use workbench::{ladder_section, verdict_section};
+pub use workbench::{ladder_figures, ladder_section, verdict_heading, verdict_section};
 
 /// One titled HTML fragment.
 #[derive(Debug, Clone, PartialEq)]
@@ -112,16 +113,14 @@ const PAGE_CSS: &str = "body{font-family:sans-serif;max-width:1100px;margin:auto
     table.imu td,table.imu th{border:1px solid #bbb;padding:2px 6px}\
     figure{margin:1em 0}svg{max-width:100%;height:auto}";
 
-/// A number for a table cell: four decimals in [1e-3, 1e5), scientific otherwise, a dash if not
-/// finite.
+/// A number for a table cell: the one number format ([`number`]).
 fn g(v: f64) -> String {
-    if !v.is_finite() {
-        "\u{2013}".into()
-    } else if v == 0.0 || (1e-3..1e5).contains(&v.abs()) {
-        format!("{v:.4}")
-    } else {
-        format!("{v:.3e}")
-    }
+    number(v)
+}
+
+/// A p-value for a table cell or a sentence: `< 1e-4`, else two significant digits.
+fn p(v: f64) -> String {
+    p_value(v)
 }
 
 /// `value ± std` with both numbers as in [`g`].
@@ -153,9 +152,17 @@ fn table(head: &[&str], rows: &[Vec<Markup>]) -> Markup {
     }
 }
 
-/// Each chart as an inline SVG figure.
-fn figures(charts: &[Chart]) -> Markup {
-    html! { @for c in charts { figure { (inline_svg(c)) } } }
+/// A figure (a chart with its look) as inline SVG.
+pub fn inline_figure(figure: &Figure) -> Markup {
+    let svg = figure.to_svg();
+    let start = svg.find("<svg").unwrap_or(0);
+    // Raw markup for the same reason as in `inline_svg`: our own, escaped SVG.
+    PreEscaped(svg[start..].to_string())
+}
+
+/// Each figure as an inline SVG figure.
+fn figures(figures: &[Figure]) -> Markup {
+    html! { @for f in figures { figure { (inline_figure(f)) } } }
 }
 
 /// A standalone HTML page holding `sections` (inline CSS only).
@@ -172,7 +179,8 @@ pub fn page(title: &str, sections: &[Section]) -> String {
                 h1 { (title) }
                 @for s in sections {
                     section {
-                        h2 { (s.title) }
+                        // A page of one section titled like the page says its title once.
+                        @if s.title != title { h2 { (s.title) } }
                         (s.html)
                     }
                 }

@@ -3,22 +3,22 @@
 
 use maud::{Markup, html};
 
-use super::{AXIS_NAMES, Section, figures, g, table, text, yes_no};
-use crate::render::svg::{Chart, Series, Style};
-use crate::workbench::{LadderStep, StepSummary, TriadDiagnosis};
+use super::{AXIS_NAMES, Section, figures, g, p, table, text, yes_no};
+use crate::render::svg::{Chart, Figure, Look, Series, Style, Ticks, axis_colour};
+use crate::workbench::{LadderStep, StepSummary, TriadDiagnosis, VerdictState};
 
 /// The verdict per triad in plain words, for the top of a workbench report.
 pub fn verdict_section(diagnoses: &[&TriadDiagnosis]) -> Section {
     let body = html! {
         @for d in diagnoses {
             p {
-                strong { (d.triad) ": " (state(d)) "." }
+                strong { (d.triad) ": " (verdict_heading(d)) "." }
                 " " (d.verdict)
             }
             @if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
                 p {
                     "Add " code { (top.effect.id()) } " to the " (d.triad) " model "
-                    (format!("(p = {}, \u{394}AIC = {:.1}).", g(top.p_value), top.delta_aic))
+                    (format!("(p = {}, \u{394}AIC = {:.1}).", p(top.p_value), top.delta_aic))
                 }
             }
         }
@@ -26,14 +26,31 @@ pub fn verdict_section(diagnoses: &[&TriadDiagnosis]) -> Section {
     Section::new("Verdict", body)
 }
 
-/// Whether a triad is consistent with its noise floor, in words.
-fn state(d: &TriadDiagnosis) -> &'static str {
-    if d.consistent {
-        "consistent with its noise floor"
-    } else if d.consistent_with_drift {
-        "consistent with its noise floor plus a slow bias drift"
-    } else {
-        "NOT consistent with its noise floor: something is missing from the model"
+/// The verdict's state in words, with the test that decided it: the heading says what the
+/// verdict below it says (both follow [`VerdictState`]).
+pub fn verdict_heading(d: &TriadDiagnosis) -> String {
+    let not = format!("NOT consistent with its noise floor (p = {})", p(d.p_value));
+    match d.state {
+        VerdictState::Consistent => {
+            format!("consistent with its noise floor (p = {})", p(d.p_value))
+        }
+        VerdictState::PeriodicComponent => format!(
+            "consistent with its noise floor in the chi-square test (p = {}), but a periodic \
+             component remains",
+            p(d.p_value)
+        ),
+        VerdictState::BiasWander => format!(
+            "{not}; a slow bias wander between segments explains the excess (p = {} with it)",
+            p(d.p_value_with_drift)
+        ),
+        VerdictState::MissingEffect => format!("{not}: an effect is missing from the model"),
+        VerdictState::Ambiguous => {
+            format!("{not}: two effects explain the excess and this recording cannot tell which")
+        }
+        VerdictState::Unexplained => format!("{not}: no library effect explains the excess"),
+        VerdictState::GainsInconsistent => {
+            "NOT consistent: the gyro gains do not match the rotations over the moves".into()
+        }
     }
 }
 
@@ -68,10 +85,7 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
              (accel m/s^2, gyro rad/s)."
         }
         (table(&header, &rows))
-        (figures(&[
-            ladder_chart(steps, "accel", "m/s^2", |s| &s.accel),
-            ladder_chart(steps, "gyro", "rad/s", |s| &s.gyro),
-        ]))
+        (figures(&ladder_figures(steps)))
     };
     Section::new("The ladder", body)
 }
@@ -89,7 +103,7 @@ fn ladder_row((i, s): (usize, &LadderStep)) -> Vec<Markup> {
             "{} / {} (p {})",
             g(m.residual_rms_rad),
             g(m.expected_rms_rad),
-            g(m.p_value)
+            p(m.p_value)
         )));
     }
     r
@@ -105,43 +119,72 @@ fn step_cells(s: &StepSummary) -> Vec<Markup> {
             ))
         })
         .collect();
-    v.push(text(g(s.p_value)));
+    v.push(text(p(s.p_value)));
     v.push(text(yes_no(s.consistent_with_drift)));
     v
 }
 
+/// The ladder's charts: residual RMS against the noise floor per step, for each triad whose
+/// residual changed along the ladder (a triad nothing was added to would draw flat lines: the
+/// table says it).
+pub fn ladder_figures(steps: &[LadderStep]) -> Vec<Figure> {
+    let changes = |pick: fn(&LadderStep) -> &StepSummary| {
+        steps
+            .windows(2)
+            .any(|w| (0..3).any(|a| pick(&w[0]).residual_rms[a] != pick(&w[1]).residual_rms[a]))
+    };
+    let mut out = Vec::new();
+    if changes(|s| &s.accel) {
+        out.push(ladder_chart(steps, "accel", "m/s^2", |s| &s.accel));
+    }
+    if changes(|s| &s.gyro) {
+        out.push(ladder_chart(steps, "gyro", "rad/s", |s| &s.gyro));
+    }
+    out
+}
+
+/// The residual RMS per axis at each ladder step (points) against its noise floor (a line of
+/// the same colour): integer steps on the x axis, one colour per axis.
 fn ladder_chart(
     steps: &[LadderStep],
     triad: &str,
     unit: &str,
     pick: fn(&LadderStep) -> &StepSummary,
-) -> Chart {
-    let per_axis = |label: &str, style: Style, value: fn(&StepSummary, usize) -> f64| {
-        AXIS_NAMES
-            .iter()
-            .enumerate()
-            .map(move |(a, name)| Series {
-                name: format!("{label} {name}"),
-                points: steps
-                    .iter()
-                    .enumerate()
-                    .map(|(i, s)| (i as f64, value(pick(s), a)))
-                    .collect(),
-                style: style.clone(),
-            })
-            .collect::<Vec<_>>()
-    };
-    let mut series = per_axis("residual", Style::Points, |s, a| s.residual_rms[a]);
-    series.extend(per_axis("noise floor", Style::Line, |s, a| {
-        s.noise_floor_rms[a]
-    }));
-    Chart {
-        title: format!("{triad}: residual RMS per ladder step vs the noise floor"),
-        x_label: "ladder step".into(),
-        y_label: format!("RMS [{unit}]"),
-        log_y: true,
-        series,
-        ..Chart::default()
+) -> Figure {
+    let per_axis =
+        |a: usize, label: &str, style: Style, value: fn(&StepSummary, usize) -> f64| Series {
+            name: format!("{} {label}", AXIS_NAMES[a]),
+            points: steps
+                .iter()
+                .enumerate()
+                .map(|(i, s)| (i as f64, value(pick(s), a)))
+                .collect(),
+            style,
+        };
+    let mut series = Vec::new();
+    let mut looks = Vec::new();
+    for a in 0..3 {
+        series.push(per_axis(a, "residual", Style::Points, |s, a| {
+            s.residual_rms[a]
+        }));
+        series.push(per_axis(a, "noise floor", Style::Line, |s, a| {
+            s.noise_floor_rms[a]
+        }));
+        looks.extend([axis_colour(a), axis_colour(a)]);
+    }
+    Figure {
+        chart: Chart {
+            title: format!("{triad}: residual RMS per ladder step"),
+            x_label: "ladder step (0 = base model)".into(),
+            y_label: format!("RMS [{unit}]"),
+            log_y: true,
+            series,
+            ..Chart::default()
+        },
+        look: Look {
+            x_ticks: Ticks::Integer,
+            series: looks,
+        },
     }
 }
 
