@@ -12,7 +12,7 @@ use imu_bus::sample::{corrected_flags, raw_flags};
 use imu_bus::shm::{Publishers, ShmEvent};
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 use imu_model::nalgebra::Vector3;
-use imu_model::{Calibration, Measured};
+use imu_model::{Calibration, Measured, SealedCalibration};
 use imu_proto::decoder::{DecodeEvent, DecoderStats, RejectReason};
 use imu_proto::reply::Reply;
 use imu_proto::scale;
@@ -105,8 +105,9 @@ impl Gains {
 /// The calibration in force, ready for the per-sample path.
 #[derive(Debug, Clone)]
 pub struct ActiveCalibration {
-    /// The model.
-    pub model: Calibration,
+    /// The model, sealed: its inverse prepared once at load, no per-sample check that it is
+    /// still the model it was prepared from (nothing can change it; a reload is a new one).
+    pub model: SealedCalibration,
     /// Its content id as a number (published with every corrected sample).
     pub id: u64,
 }
@@ -115,7 +116,10 @@ impl ActiveCalibration {
     /// Wraps a loaded calibration.
     pub fn new(model: Calibration) -> Self {
         let id = u64::from_str_radix(&model.content_id(), 16).unwrap_or(0);
-        Self { model, id }
+        Self {
+            model: SealedCalibration::new(model),
+            id,
+        }
     }
 }
 

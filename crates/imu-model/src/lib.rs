@@ -148,6 +148,6 @@ pub use noise::{
     BIAS_INSTABILITY_ADEV_FACTOR, DEFAULT_BIAS_INSTABILITY_TAU_MAX_S, NoiseGenerator, NoiseModel,
 };
 pub use param::{ParamId, ParamRole};
-pub use prepared::InversePath;
+pub use prepared::{InversePath, SealedCalibration};
 pub use sample::{Conditions, Corrected, Measured, TrueMotion};
 pub use triad::Triad;

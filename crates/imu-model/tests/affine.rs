@@ -113,6 +113,7 @@ proptest! {
 /// `correct` against `correct_iterative` on measurements of random motion and on arbitrary
 /// measured vectors: 1e-12 relative and the same `converged`; and `correct` recovers the truth.
 fn check_against_iteration(cal: &Calibration, seed: u64) -> Result<(), TestCaseError> {
+    let sealed = imu_model::SealedCalibration::new(cal.clone());
     let mut rng = rng(seed ^ 0x5eed);
     for _ in 0..8 {
         let (truth, c) = random_truth(&mut rng);
@@ -126,6 +127,8 @@ fn check_against_iteration(cal: &Calibration, seed: u64) -> Result<(), TestCaseE
         for m in [forward, arbitrary] {
             let a = cal.correct(&m, args.0, args.1, args.2);
             let i = cal.correct_iterative(&m, args.0, args.1, args.2);
+            // Sealed, the same inverse without the per-call check: the very same numbers.
+            prop_assert_eq!(sealed.correct(&m, args.0, args.1, args.2), a);
             prop_assert!(a.converged && i.converged);
             let d = worst_rel_diff(&a, &i, &m);
             prop_assert!(d <= 1e-12, "relative difference {d:e}: {a:?} vs {i:?}");
