@@ -3,6 +3,7 @@
 
 use std::io::Write;
 
+use imu_analysis::render::number::number;
 use imu_model::Triad;
 
 use crate::AxisReport;
@@ -26,7 +27,7 @@ fn print_terms(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()
         let pm = |x: &imu_stats::noise_terms::Term| format!("{:.3e}+-{:.1e}", x.value, x.sigma);
         writeln!(
             w,
-            "{:<7}{:<3}{:>24}{:>24}{:>24}{:>12.2e}{:>12.2e}  N {:.4} {}, B {:.4} {}, K {:.4} {}",
+            "{:<7}{:<3}{:>24}{:>24}{:>24}{:>12.2e}{:>12.2e}  N {} {}, B {} {}, K {} {}",
             r.sensor.name(),
             r.axis,
             pm(&t.n_u_per_sqrt_hz),
@@ -34,11 +35,11 @@ fn print_terms(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()
             pm(&t.k_u_sqrt_hz),
             t.q_u_s.value,
             t.r_u_per_s.value,
-            r.display.n,
+            number(r.display.n),
             r.display.n_unit,
-            r.display.b,
+            number(r.display.b),
             r.display.b_unit,
-            r.display.k,
+            number(r.display.k),
             r.display.k_unit,
         )?;
     }
