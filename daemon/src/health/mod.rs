@@ -209,10 +209,9 @@ impl HealthMonitor {
                 TriadNoise::of(&c.model.gyro)?,
             ))
         });
-        // The floor of a still 1 s block at a nominal 100 Hz; the data floor refines it.
-        let expected_floor = tables
+        let expected = tables
             .as_ref()
-            .map(|(a, g)| (a.still_block_std(100.0), g.still_block_std(100.0)));
+            .map(|(a, g)| (a.expected_still(), g.expected_still()));
         let opts = StillOptions {
             block_s: config.block_s,
             threshold_factor: config.threshold_factor,
@@ -240,7 +239,7 @@ impl HealthMonitor {
         };
         HealthMonitor {
             config: config.clone(),
-            detector: StillDetector::new(opts, expected_floor),
+            detector: StillDetector::new(opts, expected),
             calibration_id: calibration.map_or(0, |c| c.id),
             calibrated,
             temperature_range_c: calibration.and_then(|c| c.model.provenance.temperature_range_c),

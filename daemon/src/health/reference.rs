@@ -14,7 +14,7 @@ use imu_model::earth::{earth_rate_split_rad_s, unknown_heading_variance_rad2_s2}
 use imu_model::units::EARTH_RATE_RAD_S;
 use imu_model::{EffectKind, NoiseModel, ParamRole, TriadModel, Vec3};
 
-use super::still::{Moments, StillWindow};
+use super::still::{ExpectedStill, Moments, StillWindow};
 
 /// Still windows the noise (without tables) or gravity (without a configured value) is learned
 /// from before any test is made.
@@ -59,15 +59,17 @@ impl TriadNoise {
         (white, (total - white).max(0.0))
     }
 
-    /// The block deviation (root of summed per-axis variances) of a still unit at `rate_hz`.
-    pub fn still_block_std(&self, rate_hz: f64) -> f64 {
-        (0..3)
-            .map(|i| {
-                self.model.white_density[i].powi(2) * rate_hz
-                    + self.model.quantization_lsb[i].powi(2) / 12.0
-            })
-            .sum::<f64>()
-            .sqrt()
+    /// What the tables predict for a still unit's block deviation, at any rate.
+    pub fn expected_still(&self) -> ExpectedStill {
+        ExpectedStill {
+            white_var_per_hz: self.model.white_density.iter().map(|d| d * d).sum(),
+            quantization_var: self
+                .model
+                .quantization_lsb
+                .iter()
+                .map(|q| q * q / 12.0)
+                .sum(),
+        }
     }
 }
 

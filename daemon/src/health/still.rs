@@ -168,12 +168,31 @@ pub enum Detected {
     Plateau,
 }
 
+/// What the noise tables predict for a still unit's block deviation (root of the summed
+/// per-axis variances) of one triad: `sqrt(white_var_per_hz * rate_hz + quantization_var)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExpectedStill {
+    /// Sum over the axes of the white-noise density squared, U^2/Hz.
+    pub white_var_per_hz: f64,
+    /// Sum over the axes of the quantization variance (step^2 / 12), U^2.
+    pub quantization_var: f64,
+}
+
+impl ExpectedStill {
+    /// The block deviation at `rate_hz`.
+    pub fn block_std(&self, rate_hz: f64) -> f64 {
+        (self.white_var_per_hz * rate_hz + self.quantization_var).sqrt()
+    }
+}
+
 /// The incremental detector.
 #[derive(Debug, Clone)]
 pub struct StillDetector {
     opts: StillOptions,
-    /// Expected block deviations of a still unit (accel, gyro) from the noise tables.
-    expected_floor: Option<(f64, f64)>,
+    /// What the noise tables predict for a still unit (accel, gyro).
+    expected: Option<(ExpectedStill, ExpectedStill)>,
+    /// The sample rate of the latest full block, Hz.
+    rate_hz: f64,
     block: Option<Block>,
     /// The quiet blocks of the current run.
     run: Vec<Block>,
@@ -185,12 +204,16 @@ pub struct StillDetector {
 }
 
 impl StillDetector {
-    /// A detector; `expected_floor` is the (accel m/s^2, gyro rad/s) block deviation the noise
-    /// tables predict for a still unit, when there are tables.
-    pub fn new(opts: StillOptions, expected_floor: Option<(f64, f64)>) -> StillDetector {
+    /// A detector; `expected` is what the noise tables predict for a still unit (accel, gyro),
+    /// when there are tables.
+    pub fn new(
+        opts: StillOptions,
+        expected: Option<(ExpectedStill, ExpectedStill)>,
+    ) -> StillDetector {
         StillDetector {
             opts,
-            expected_floor,
+            expected,
+            rate_hz: f64::NAN,
             block: None,
             run: Vec::new(),
             run_after_motion: false,
@@ -217,7 +240,12 @@ impl StillDetector {
             })
         };
         let (qa, qg) = (q(&self.history_accel), q(&self.history_gyro));
-        let floor = match (self.expected_floor, qa.zip(qg)) {
+        // At the stream's own rate (white noise per block grows with it).
+        let expected_floor = self
+            .expected
+            .filter(|_| self.rate_hz.is_finite())
+            .map(|(a, g)| (a.block_std(self.rate_hz), g.block_std(self.rate_hz)));
+        let floor = match (expected_floor, qa.zip(qg)) {
             (Some((ea, eg)), Some((qa, qg))) => (qa.min(3.0 * ea), qg.min(3.0 * eg)),
             (Some(e), None) => e,
             (None, Some(q)) => q,
@@ -262,6 +290,7 @@ impl StillDetector {
         if b.accel.n < 3.0 {
             return None;
         }
+        self.rate_hz = (b.accel.n - 1.0) / b.duration_s().max(1e-9);
         let (sa, sg) = (b.accel.root_sum_std(), b.gyro.root_sum_std());
         let quiet = self
             .thresholds()
@@ -341,5 +370,89 @@ impl StillDetector {
         } else {
             Detected::Plateau
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A still unit at `rate_hz` with white noise of density 1e-3 (accel) and 1e-4 (gyro) per
+    /// axis and a 5 deg/s raw gyro offset, 12 s still, 2 s of turning, 12 s still.
+    fn windows_at(rate_hz: f64) -> Vec<Detected> {
+        let opts = StillOptions {
+            block_s: 1.0,
+            threshold_factor: 2.0,
+            floor_quantile: 0.1,
+            min_still_s: 1.0,
+            max_window_s: 30.0,
+            plateau_min_rate_rad_s: 0.05,
+            max_rest_rate_rad_s: 20f64.to_radians(),
+        };
+        let expected = |n: f64| ExpectedStill {
+            white_var_per_hz: 3.0 * n * n,
+            quantization_var: 0.0,
+        };
+        let mut d = StillDetector::new(opts, Some((expected(1e-3), expected(1e-4))));
+        let mut state = 1u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        // Uniform in [-a, a] has standard deviation a / sqrt(3).
+        let (sa, sg) = (1e-3 * rate_hz.sqrt(), 1e-4 * rate_hz.sqrt());
+        let offset = 5f64.to_radians();
+        let mut out = Vec::new();
+        let n = (26.0 * rate_hz) as u64;
+        for k in 0..n {
+            let t_s = k as f64 / rate_hz;
+            let turning = (12.0..14.0).contains(&t_s);
+            let w = if turning { 1.0 } else { 0.0 };
+            let tilt = if turning { (t_s - 12.0) * w } else { 0.0 };
+            let accel = [
+                9.8 * tilt.sin() + uniform() * sa * 3f64.sqrt(),
+                uniform() * sa * 3f64.sqrt(),
+                9.8 * tilt.cos() + uniform() * sa * 3f64.sqrt(),
+            ];
+            let gyro = [
+                offset + uniform() * sg * 3f64.sqrt(),
+                w + uniform() * sg * 3f64.sqrt(),
+                uniform() * sg * 3f64.sqrt(),
+            ];
+            out.extend(d.push((t_s * 1e9) as u64, &accel, &gyro, 25.0));
+        }
+        // The last run closes on motion: two seconds of shaking.
+        for k in n..n + (2.0 * rate_hz) as u64 + 1 {
+            let t_s = k as f64 / rate_hz;
+            let shake = if k % 2 == 0 { 5.0 } else { -5.0 };
+            out.extend(d.push(
+                (t_s * 1e9) as u64,
+                &[shake, 0.0, 9.8],
+                &[0.0, shake, 0.0],
+                25.0,
+            ));
+        }
+        out
+    }
+
+    #[test]
+    fn still_windows_are_found_at_any_rate_through_a_raw_gyro_offset() {
+        for rate_hz in [20.0, 100.0, 1000.0] {
+            let found = windows_at(rate_hz);
+            let still: Vec<&StillWindow> = found
+                .iter()
+                .filter_map(|d| match d {
+                    Detected::Still(w) => Some(w),
+                    Detected::Plateau => None,
+                })
+                .collect();
+            assert_eq!(still.len(), 2, "{rate_hz} Hz: {found:?}");
+            for w in &still {
+                assert!(w.duration_s() >= 9.0, "{rate_hz} Hz: {w:?}");
+                assert!((w.mean_gyro()[0] - 5f64.to_radians()).abs() < 1e-3);
+            }
+        }
     }
 }
