@@ -741,6 +741,8 @@ impl Pipeline {
         connected: bool,
         t_mono_ns: u64,
     ) -> DaemonStatus {
+        // Health off: `unknown` (0) for both.
+        let (health_accel, health_gyro) = self.health_states().unwrap_or((0, 0));
         let (log_drops, logging) = sinks.recorder.as_ref().map_or((0, false), |r| {
             let s = r.stats();
             (s.dropped_queue_full + s.dropped_not_logging, s.logging)
@@ -765,8 +767,8 @@ impl Pipeline {
             device_connected: u8::from(connected),
             logging: u8::from(logging),
             gains_fallback: self.gains.fallback.mask(),
-            health_accel: self.health_states().map_or(0, |s| s.0),
-            health_gyro: self.health_states().map_or(0, |s| s.1),
+            health_accel,
+            health_gyro,
             reserved: [0; 3],
             clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
             clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),

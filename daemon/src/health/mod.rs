@@ -46,22 +46,36 @@ const CONSISTENT_P: f64 = 0.01;
 /// Windows kept for the offset estimate.
 const OFFSET_HISTORY: usize = 30;
 
-/// One triad's sequential test.
-#[derive(Debug, Clone, Default)]
-struct Track {
+/// An accel window for the offset estimate: up, |f| - g, its variance.
+type AccelObs = (Vec3, f64, f64);
+/// A gyro window for the offset estimate: the rate residual and its per-axis variance.
+type GyroObs = (Vec3, [f64; 3]);
+
+/// One triad's sequential test; `O` is what a window leaves for the offset estimate.
+#[derive(Debug, Clone)]
+struct Track<O> {
     state: u8,
     bad_run: u32,
     good_run: u32,
-    /// Windows since the state left `ok` (or the latest ones while `ok`): up, residual, var.
-    accel_obs: VecDeque<(Vec3, f64, f64)>,
-    /// Gyro windows: residual vector and per-axis variance.
-    gyro_obs: VecDeque<(Vec3, [f64; 3])>,
+    /// Windows since the state left `ok` (or the latest ones while `ok`).
+    obs: VecDeque<O>,
     /// The latest windows' residuals (per axis; one for accel) with their white and total
     /// variances, for the test of their mean.
     recent: VecDeque<([f64; 3], [f64; 3], [f64; 3])>,
 }
 
-impl Track {
+impl<O> Track<O> {
+    /// A track in `state` with no history.
+    fn starting(state: u8) -> Self {
+        Track {
+            state,
+            bad_run: 0,
+            good_run: 0,
+            obs: VecDeque::new(),
+            recent: VecDeque::new(),
+        }
+    }
+
     /// The window's p-value: the smaller of the latest window's and the mean of the latest
     /// [`RUN_FOR_STATE`] windows', doubled; `dims` residual components are tested.
     fn p_value(
@@ -94,8 +108,9 @@ impl Track {
         (2.0 * p_one.min(p_mean)).min(1.0)
     }
 
-    /// Applies one window's p-value; returns the new state.
-    fn update(&mut self, p: f64, alpha: f64) -> u8 {
+    /// Applies one window's p-value and keeps its observation (from scratch when the state
+    /// just left `ok`); returns the state before.
+    fn update(&mut self, p: f64, alpha: f64, obs: O) -> u8 {
         let rejected = p < alpha;
         if rejected {
             self.bad_run += 1;
@@ -118,24 +133,21 @@ impl Track {
             _ if rejected => health_state::DEGRADED,
             _ => health_state::OK,
         };
+        let was_ok = !matches!(before, health_state::DEGRADED | health_state::STALE);
+        if was_ok && self.state == health_state::DEGRADED {
+            self.obs.clear();
+        }
+        if self.obs.len() == OFFSET_HISTORY {
+            self.obs.pop_front();
+        }
+        self.obs.push_back(obs);
         before
-    }
-
-    /// Keeps an observation: since the state left `ok`, or the latest ones while `ok`.
-    fn keep<T>(obs: &mut VecDeque<T>, item: T, left_ok: bool) {
-        if left_ok {
-            obs.clear();
-        }
-        if obs.len() == OFFSET_HISTORY {
-            obs.pop_front();
-        }
-        obs.push_back(item);
     }
 }
 
 /// The accel bias offset that explains `obs` (up, |f| - g, variance): in 3-D when the ups span
 /// space, else along their mean; and whether it was 3-D.
-fn accel_offset(obs: &VecDeque<(Vec3, f64, f64)>) -> (Vec3, bool) {
+fn accel_offset(obs: &VecDeque<AccelObs>) -> (Vec3, bool) {
     if obs.is_empty() {
         return (Vec3::repeat(f64::NAN), false);
     }
@@ -160,7 +172,7 @@ fn accel_offset(obs: &VecDeque<(Vec3, f64, f64)>) -> (Vec3, bool) {
 }
 
 /// The gyro bias offset that explains `obs`: the weighted mean residual per axis.
-fn gyro_offset(obs: &VecDeque<(Vec3, [f64; 3])>) -> Vec3 {
+fn gyro_offset(obs: &VecDeque<GyroObs>) -> Vec3 {
     Vec3::from_fn(|i, _| {
         let (sw, swr) = obs.iter().fold((0.0, 0.0), |(sw, swr), (r, var)| {
             let w = 1.0 / var[i].max(1e-300);
@@ -190,8 +202,8 @@ pub struct HealthMonitor {
     temperature_range_c: Option<[f64; 2]>,
     noise: NoiseBasis,
     gravity: GravityReference,
-    accel: Track,
-    gyro: Track,
+    accel: Track<AccelObs>,
+    gyro: Track<GyroObs>,
     since_ns: Option<u64>,
     windows: u64,
     plateaus: u64,
@@ -253,14 +265,8 @@ impl HealthMonitor {
                 },
             },
             gravity,
-            accel: Track {
-                state: initial,
-                ..Track::default()
-            },
-            gyro: Track {
-                state: initial,
-                ..Track::default()
-            },
+            accel: Track::starting(initial),
+            gyro: Track::starting(initial),
             since_ns: None,
             windows: 0,
             plateaus: 0,
@@ -409,16 +415,10 @@ impl HealthMonitor {
             r.gyro_var,
             3,
         );
-        let before = self.accel.update(p_accel, alpha);
-        let left_ok = before != health_state::DEGRADED
-            && before != health_state::STALE
-            && self.accel.state == health_state::DEGRADED;
-        Track::keep(
-            &mut self.accel.accel_obs,
-            (r.up, r.accel_residual_m_s2, r.accel_var),
-            left_ok,
-        );
-        let (offset, three_d) = accel_offset(&self.accel.accel_obs);
+        let before = self
+            .accel
+            .update(p_accel, alpha, (r.up, r.accel_residual_m_s2, r.accel_var));
+        let (offset, three_d) = accel_offset(&self.accel.obs);
         report.accel_p = p_accel;
         report.accel_offset_m_s2 = offset.into();
         if three_d {
@@ -428,17 +428,11 @@ impl HealthMonitor {
             let line = change_line("accel", before, self.accel.state, p_accel, report);
             log.push(self.with_temperature(line, report));
         }
-        let before = self.gyro.update(p_gyro, alpha);
-        let left_ok = before != health_state::DEGRADED
-            && before != health_state::STALE
-            && self.gyro.state == health_state::DEGRADED;
-        Track::keep(
-            &mut self.gyro.gyro_obs,
-            (r.gyro_residual_rad_s, r.gyro_var),
-            left_ok,
-        );
+        let before = self
+            .gyro
+            .update(p_gyro, alpha, (r.gyro_residual_rad_s, r.gyro_var));
         report.gyro_p = p_gyro;
-        report.gyro_offset_rad_s = gyro_offset(&self.gyro.gyro_obs).into();
+        report.gyro_offset_rad_s = gyro_offset(&self.gyro.obs).into();
         if self.gyro.state != before {
             let line = change_line("gyro", before, self.gyro.state, p_gyro, report);
             log.push(self.with_temperature(line, report));
@@ -472,10 +466,7 @@ impl HealthMonitor {
                     fmt_vec(applied)
                 ));
                 self.applied_accel_m_s2 = applied;
-                self.accel = Track {
-                    state: health_state::OK,
-                    ..Track::default()
-                };
+                self.accel = Track::starting(health_state::OK);
             }
         }
         if self.gyro.state == health_state::STALE {
@@ -488,10 +479,7 @@ impl HealthMonitor {
                     fmt_vec(applied)
                 ));
                 self.applied_gyro_rad_s = applied;
-                self.gyro = Track {
-                    state: health_state::OK,
-                    ..Track::default()
-                };
+                self.gyro = Track::starting(health_state::OK);
             }
         }
     }
