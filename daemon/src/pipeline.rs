@@ -19,6 +19,7 @@ use imu_proto::scale;
 use imu_proto::ticks::TickUnwrapper;
 
 use imu_bus::CalibrationHealth;
+use imu_bus::sample::HealthState;
 use tracing::{info, warn};
 
 use crate::clock::{ClockFit, WallStamps};
@@ -425,7 +426,7 @@ impl Pipeline {
     }
 
     /// The health states (accel, gyro) of the calibration in force, when health is on.
-    pub fn health_states(&self) -> Option<(u8, u8)> {
+    pub fn health_states(&self) -> Option<(HealthState, HealthState)> {
         self.health.as_ref().map(HealthMonitor::states)
     }
 
@@ -742,7 +743,7 @@ impl Pipeline {
         t_mono_ns: u64,
     ) -> DaemonStatus {
         // Health off: `unknown` (0) for both.
-        let (health_accel, health_gyro) = self.health_states().unwrap_or((0, 0));
+        let (health_accel, health_gyro) = self.health_states().unwrap_or_default();
         let (log_drops, logging) = sinks.recorder.as_ref().map_or((0, false), |r| {
             let s = r.stats();
             (s.dropped_queue_full + s.dropped_not_logging, s.logging)
@@ -767,8 +768,8 @@ impl Pipeline {
             device_connected: u8::from(connected),
             logging: u8::from(logging),
             gains_fallback: self.gains.fallback.mask(),
-            health_accel,
-            health_gyro,
+            health_accel: health_accel.code(),
+            health_gyro: health_gyro.code(),
             reserved: [0; 3],
             clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
             clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),

@@ -260,26 +260,70 @@ pub struct DaemonStatus {
 
 /// The health of one triad's calibration ([`CalibrationHealth`] `accel_state` / `gyro_state`).
 pub mod health_state {
+    use super::HealthState;
+
     /// No still window has been tested yet.
-    pub const UNKNOWN: u8 = 0;
+    pub const UNKNOWN: u8 = HealthState::Unknown as u8;
     /// The still windows agree with gravity and Earth's rate within the noise model.
-    pub const OK: u8 = 1;
+    pub const OK: u8 = HealthState::Ok as u8;
     /// The latest still windows disagree beyond the false-alarm bound: something moved.
-    pub const DEGRADED: u8 = 2;
+    pub const DEGRADED: u8 = HealthState::Degraded as u8;
     /// They disagree persistently and grossly: recalibrate.
-    pub const STALE: u8 = 3;
+    pub const STALE: u8 = HealthState::Stale as u8;
     /// No calibration is loaded: there is nothing to hold against physics.
-    pub const UNCALIBRATED: u8 = 4;
+    pub const UNCALIBRATED: u8 = HealthState::Uncalibrated as u8;
+
+    /// The name of a state byte as the daemon logs it and imu-echo prints it (`invalid` for a
+    /// byte that is no state).
+    pub fn name(state: u8) -> &'static str {
+        HealthState::from_code(state).map_or("invalid", HealthState::name)
+    }
+}
+
+/// The health of one triad's calibration; on the bus as its `u8` code ([`health_state`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u8)]
+pub enum HealthState {
+    /// No still window has been tested yet.
+    #[default]
+    Unknown = 0,
+    /// The still windows agree with gravity and Earth's rate within the noise model.
+    Ok = 1,
+    /// The latest still windows disagree beyond the false-alarm bound: something moved.
+    Degraded = 2,
+    /// They disagree persistently and grossly: recalibrate.
+    Stale = 3,
+    /// No calibration is loaded: there is nothing to hold against physics.
+    Uncalibrated = 4,
+}
+
+impl HealthState {
+    /// The state's byte in [`CalibrationHealth`] and [`DaemonStatus`].
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The state of a byte, `None` for a byte that is no state.
+    pub fn from_code(code: u8) -> Option<HealthState> {
+        [
+            HealthState::Unknown,
+            HealthState::Ok,
+            HealthState::Degraded,
+            HealthState::Stale,
+            HealthState::Uncalibrated,
+        ]
+        .into_iter()
+        .find(|s| s.code() == code)
+    }
 
     /// The state's name as the daemon logs it and imu-echo prints it.
-    pub fn name(state: u8) -> &'static str {
-        match state {
-            UNKNOWN => "unknown",
-            OK => "ok",
-            DEGRADED => "degraded",
-            STALE => "stale",
-            UNCALIBRATED => "uncalibrated",
-            _ => "invalid",
+    pub fn name(self) -> &'static str {
+        match self {
+            HealthState::Unknown => "unknown",
+            HealthState::Ok => "ok",
+            HealthState::Degraded => "degraded",
+            HealthState::Stale => "stale",
+            HealthState::Uncalibrated => "uncalibrated",
         }
     }
 }

@@ -29,7 +29,7 @@ pub mod still;
 use std::collections::VecDeque;
 
 use imu_bus::CalibrationHealth;
-use imu_bus::sample::{health_checks, health_noise_source, health_state};
+use imu_bus::sample::{HealthState, health_checks, health_noise_source};
 use imu_model::{Mat3, Vec3};
 use imu_stats::distributions::chi2_sf;
 
@@ -54,7 +54,7 @@ type GyroObs = (Vec3, [f64; 3]);
 /// One triad's sequential test; `O` is what a window leaves for the offset estimate.
 #[derive(Debug, Clone)]
 struct Track<O> {
-    state: u8,
+    state: HealthState,
     bad_run: u32,
     good_run: u32,
     /// Windows since the state left `ok` (or the latest ones while `ok`).
@@ -66,7 +66,7 @@ struct Track<O> {
 
 impl<O> Track<O> {
     /// A track in `state` with no history.
-    fn starting(state: u8) -> Self {
+    fn starting(state: HealthState) -> Self {
         Track {
             state,
             bad_run: 0,
@@ -110,7 +110,7 @@ impl<O> Track<O> {
 
     /// Applies one window's p-value and keeps its observation (from scratch when the state
     /// just left `ok`); returns the state before.
-    fn update(&mut self, p: f64, alpha: f64, obs: O) -> u8 {
+    fn update(&mut self, p: f64, alpha: f64, obs: O) -> HealthState {
         let rejected = p < alpha;
         if rejected {
             self.bad_run += 1;
@@ -125,16 +125,16 @@ impl<O> Track<O> {
         }
         let before = self.state;
         self.state = match before {
-            health_state::DEGRADED | health_state::STALE if self.good_run >= RUN_FOR_STATE => {
-                health_state::OK
+            HealthState::Degraded | HealthState::Stale if self.good_run >= RUN_FOR_STATE => {
+                HealthState::Ok
             }
-            health_state::DEGRADED if self.bad_run >= RUN_FOR_STATE => health_state::STALE,
-            health_state::DEGRADED | health_state::STALE => before,
-            _ if rejected => health_state::DEGRADED,
-            _ => health_state::OK,
+            HealthState::Degraded if self.bad_run >= RUN_FOR_STATE => HealthState::Stale,
+            HealthState::Degraded | HealthState::Stale => before,
+            _ if rejected => HealthState::Degraded,
+            _ => HealthState::Ok,
         };
-        let was_ok = !matches!(before, health_state::DEGRADED | health_state::STALE);
-        if was_ok && self.state == health_state::DEGRADED {
+        let was_ok = !matches!(before, HealthState::Degraded | HealthState::Stale);
+        if was_ok && self.state == HealthState::Degraded {
             self.obs.clear();
         }
         if self.obs.len() == OFFSET_HISTORY {
@@ -245,9 +245,9 @@ impl HealthMonitor {
         };
         let calibrated = calibration.is_some();
         let initial = if calibrated {
-            health_state::UNKNOWN
+            HealthState::Unknown
         } else {
-            health_state::UNCALIBRATED
+            HealthState::Uncalibrated
         };
         HealthMonitor {
             config: config.clone(),
@@ -287,7 +287,7 @@ impl HealthMonitor {
     }
 
     /// The states (accel, gyro).
-    pub fn states(&self) -> (u8, u8) {
+    pub fn states(&self) -> (HealthState, HealthState) {
         (self.accel.state, self.gyro.state)
     }
 
@@ -340,8 +340,8 @@ impl HealthMonitor {
         if self.config.track_bias {
             self.track(&report, &mut changes);
         }
-        report.accel_state = self.accel.state;
-        report.gyro_state = self.gyro.state;
+        report.accel_state = self.accel.state.code();
+        report.gyro_state = self.gyro.state.code();
         report.bias_tracking = u8::from(
             self.applied_accel_m_s2 != Vec3::zeros() || self.applied_gyro_rad_s != Vec3::zeros(),
         );
@@ -368,8 +368,8 @@ impl HealthMonitor {
             gyro_offset_rad_s: nan3,
             gravity_m_s2: self.gravity.value().map_or(f64::NAN, |g| g.0),
             temp_c: w.temp_c,
-            accel_state: self.accel.state,
-            gyro_state: self.gyro.state,
+            accel_state: self.accel.state.code(),
+            gyro_state: self.gyro.state.code(),
             checks: 0,
             noise_source: match (&self.noise, self.noise.noise().is_some()) {
                 (NoiseBasis::Tables { .. }, _) => health_noise_source::TABLES,
@@ -456,7 +456,7 @@ impl HealthMonitor {
     fn track(&mut self, report: &CalibrationHealth, log: &mut Vec<String>) {
         let max_a = self.config.track_bias_max_m_s2;
         let max_g = self.config.track_bias_max_rad_s;
-        if self.accel.state == health_state::STALE {
+        if self.accel.state == HealthState::Stale {
             let step = Vec3::from(report.accel_offset_m_s2);
             if step.iter().all(|v| v.is_finite()) {
                 let applied = clamp_norm(self.applied_accel_m_s2 + step, max_a);
@@ -466,10 +466,10 @@ impl HealthMonitor {
                     fmt_vec(applied)
                 ));
                 self.applied_accel_m_s2 = applied;
-                self.accel = Track::starting(health_state::OK);
+                self.accel = Track::starting(HealthState::Ok);
             }
         }
-        if self.gyro.state == health_state::STALE {
+        if self.gyro.state == HealthState::Stale {
             let step = Vec3::from(report.gyro_offset_rad_s);
             if step.iter().all(|v| v.is_finite()) {
                 let applied = clamp_norm(self.applied_gyro_rad_s + step, max_g);
@@ -479,7 +479,7 @@ impl HealthMonitor {
                     fmt_vec(applied)
                 ));
                 self.applied_gyro_rad_s = applied;
-                self.gyro = Track::starting(health_state::OK);
+                self.gyro = Track::starting(HealthState::Ok);
             }
         }
     }
@@ -505,7 +505,13 @@ fn dominant_axis(v: Vec3) -> String {
 }
 
 /// The log line of a state change, with the offset that would explain it.
-fn change_line(triad: &str, before: u8, after: u8, p: f64, r: &CalibrationHealth) -> String {
+fn change_line(
+    triad: &str,
+    before: HealthState,
+    after: HealthState,
+    p: f64,
+    r: &CalibrationHealth,
+) -> String {
     let what = match triad {
         "accel" => {
             let o = Vec3::from(r.accel_offset_m_s2);
@@ -533,8 +539,8 @@ fn change_line(triad: &str, before: u8, after: u8, p: f64, r: &CalibrationHealth
     };
     format!(
         "health: {triad} {} -> {} (p {p:.1e} over still window {}): {what}",
-        health_state::name(before),
-        health_state::name(after),
+        before.name(),
+        after.name(),
         r.still_windows
     )
 }
