@@ -28,30 +28,53 @@ pub const TICKS_PER_WRAP: u64 = 1 << 16;
 /// assert_eq!(t.unwrap(4), 65_536 + 4);
 /// assert_eq!(t.wraps(), 1);
 /// ```
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+///
+/// A counter of another width (a MIP unit's u32 internal timestamp) unwraps the same way with
+/// [`TickUnwrapper::with_bits`] and [`TickUnwrapper::unwrap_wide`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TickUnwrapper {
-    last_ticks: Option<u16>,
+    last_ticks: Option<u64>,
     wraps: u64,
+    /// Distinct counter values (0: a 64-bit counter, which never wraps here).
+    modulus: u64,
+}
+
+impl Default for TickUnwrapper {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl TickUnwrapper {
-    /// A fresh unwrapper that has seen no reading.
+    /// A fresh unwrapper of the GX1's 16-bit counter that has seen no reading.
     pub const fn new() -> Self {
+        Self::with_bits(16)
+    }
+
+    /// A fresh unwrapper of a `bits`-wide counter (1..=64).
+    pub const fn with_bits(bits: u32) -> Self {
         Self {
             last_ticks: None,
             wraps: 0,
+            modulus: if bits >= 64 { 0 } else { 1 << bits },
         }
     }
 
     /// Feeds the next reading and returns the unwrapped tick count.
     pub fn unwrap(&mut self, ticks: u16) -> u64 {
+        self.unwrap_wide(u64::from(ticks))
+    }
+
+    /// [`Self::unwrap`] for a counter of the width given to [`Self::with_bits`].
+    pub fn unwrap_wide(&mut self, ticks: u64) -> u64 {
         if let Some(last) = self.last_ticks
             && ticks < last
+            && self.modulus != 0
         {
             self.wraps += 1;
         }
         self.last_ticks = Some(ticks);
-        self.wraps * TICKS_PER_WRAP + u64::from(ticks)
+        self.wraps.wrapping_mul(self.modulus).wrapping_add(ticks)
     }
 
     /// Number of wraps seen so far.
@@ -60,13 +83,17 @@ impl TickUnwrapper {
     }
 
     /// The last reading fed, if any.
-    pub const fn last_ticks(&self) -> Option<u16> {
+    pub const fn last_ticks(&self) -> Option<u64> {
         self.last_ticks
     }
 
-    /// Forgets everything, e.g. after the device was restarted.
+    /// Forgets everything, e.g. after the device was restarted (the width stays).
     pub fn reset(&mut self) {
-        *self = Self::new();
+        *self = Self {
+            last_ticks: None,
+            wraps: 0,
+            modulus: self.modulus,
+        };
     }
 }
 
@@ -130,6 +157,20 @@ mod tests {
         assert_eq!(t.wraps(), 655_000 / 65_536);
         t.reset();
         assert_eq!(t, TickUnwrapper::new());
+    }
+
+    #[test]
+    fn a_32_bit_counter_wraps_at_2_pow_32() {
+        let mut t = TickUnwrapper::with_bits(32);
+        assert_eq!(
+            t.unwrap_wide(u64::from(u32::MAX) - 10),
+            u64::from(u32::MAX) - 10
+        );
+        assert_eq!(t.unwrap_wide(52), (1 << 32) + 52);
+        assert_eq!(t.wraps(), 1);
+        let mut wide = TickUnwrapper::with_bits(64);
+        assert_eq!(wide.unwrap_wide(u64::MAX), u64::MAX);
+        assert_eq!(wide.unwrap_wide(3), 3, "a 64-bit counter never wraps");
     }
 
     #[test]

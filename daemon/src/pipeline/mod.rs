@@ -1,0 +1,656 @@
+//! The per-frame path: decoded frame -> raw sample -> corrected sample -> shared memory and log.
+//!
+//! Synchronous and allocation-free on the data path (apart from what the log record needs), so
+//! it can be benchmarked on its own (`cargo bench -p imud`). The session feeds it every decoder
+//! event with the host receive times; it never blocks: publishing overwrites the oldest sample of
+//! a slow subscriber and logging drops (and counts) records when the writer thread falls behind.
+
+//!
+//! Files: `gx1.rs` (a 3DM-GX1 reply's counts and GainScales), `mip.rs` (a MIP IMU packet),
+//! both turned into one [`DeviceReading`]; `loss.rs` (gap accounting on the device clock);
+//! `sinks.rs` (the calibration in force and the outputs). Here: the steps every protocol
+//! shares (stamp, correct, watch health, publish) and the status.
+
+mod gx1;
+mod loss;
+mod mip;
+mod sinks;
+
+use std::sync::Arc;
+
+use imu_bus::CalibrationHealth;
+use imu_bus::recording::LogRecord;
+use imu_bus::sample::HealthState;
+use imu_bus::sample::{corrected_flags, raw_flags};
+use imu_bus::shm::{Publishers, ShmEvent};
+use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
+use imu_model::Measured;
+use imu_model::nalgebra::Vector3;
+use imu_proto::decoder::{DecodeEvent, DecoderStats, RejectReason};
+use imu_proto::reply::Reply;
+use imu_proto::scale;
+use imu_proto::ticks::TickUnwrapper;
+use tracing::{info, warn};
+
+use crate::clock::{ClockFit, WallStamps};
+use crate::config::HealthConfig;
+use crate::health::HealthMonitor;
+
+pub use gx1::{Counts, GainFallback, Gains};
+pub use loss::TickKind;
+use loss::GapAccounting;
+pub use mip::MipTimebase;
+pub use sinks::{ActiveCalibration, Sinks};
+
+/// One data sample as the device sent it, whatever its protocol: what the shared steps need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviceReading {
+    /// The device's sample clock, unwrapped, in ticks of the session's timebase.
+    pub ticks_unwrapped: u64,
+    /// Its low 16 bits as sent (the GX1's whole counter).
+    pub ticks: u16,
+    /// The counts, for a device that sends counts (3DM-GX1).
+    pub counts: Option<Counts>,
+    /// The device's own reading in SI (GainScales applied, or a MIP unit's scaled fields).
+    pub measured: Measured,
+    /// A channel sat at the end of its range.
+    pub saturated: bool,
+    /// Reply code (GX1) or data set (MIP, 0x80).
+    pub command: u8,
+}
+
+/// How a session's device clock counts time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timebase {
+    /// Seconds per tick (nominal: the clock fit measures the device's oscillator).
+    pub tick_period_s: f64,
+    /// Counter width, bits (16 for the GX1, 32 for a MIP internal timestamp, 64 for ns).
+    pub tick_bits: u32,
+    /// What the ticks are.
+    pub kind: TickKind,
+}
+
+impl Timebase {
+    /// The 3DM-GX1's 16-bit timer at `tick_period_s`.
+    pub fn gx1(tick_period_s: f64) -> Self {
+        Self {
+            tick_period_s,
+            tick_bits: 16,
+            kind: TickKind::Counter,
+        }
+    }
+}
+
+/// Counters owned by the pipeline.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PipelineCounters {
+    /// Good frames seen.
+    pub frames: u64,
+    /// Data samples produced.
+    pub samples: u64,
+    /// Samples the device link lost (tick gaps in continuous mode).
+    pub samples_lost: u64,
+    /// Corrections whose accel/gyro coupling did not converge.
+    pub not_converged: u64,
+    /// Samples whose shared-memory publication failed.
+    pub publish_errors: u64,
+    /// MIP data packets that were not samples (undecodable, or without the configured clock,
+    /// accel or gyro field).
+    pub undecodable: u64,
+    /// MIP data fields skipped (unknown descriptors or unexpected sizes).
+    pub fields_skipped: u64,
+    /// Temperatures recorded.
+    pub temperatures: u64,
+}
+
+/// Where a sample's time stamp comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SampleClock {
+    /// The device's ticks mapped onto the host clock by the clock fit (a real link).
+    #[default]
+    DeviceFit,
+    /// The host time the frame is handed over with, as is: the offline path, whose "host" time
+    /// is the simulated device's exact sample time.
+    Host,
+}
+
+/// The per-frame state machine.
+pub struct Pipeline {
+    sample_clock: SampleClock,
+    gains: Gains,
+    timebase: Timebase,
+    unwrapper: TickUnwrapper,
+    gaps: GapAccounting,
+    clock: ClockFit,
+    wall: WallStamps,
+    calibration: Option<Arc<ActiveCalibration>>,
+    temp_c: f64,
+    /// When a temperature that comes with every sample (MIP) was last recorded.
+    temp_logged_ns: Option<u64>,
+    /// The last two corrected rates with their times (older first), for the angular
+    /// acceleration of the lever-arm term.
+    last_gyro: [Option<(u64, Vector3<f64>)>; 2],
+    /// First sample time of the session and samples since (for the sample-rate estimate).
+    rate_origin: Option<(u64, u64)>,
+    last_sample_ns: Option<u64>,
+    seq: u64,
+    counters: PipelineCounters,
+    /// The health settings (none: health is off) and the monitor of the calibration in force.
+    health_config: Option<HealthConfig>,
+    health: Option<HealthMonitor>,
+    /// The newest health report not yet taken.
+    health_report: Option<CalibrationHealth>,
+}
+
+impl Pipeline {
+    /// A pipeline for one device session.
+    pub fn new(
+        gains: Gains,
+        tick_period_s: f64,
+        calibration: Option<Arc<ActiveCalibration>>,
+    ) -> Self {
+        Self {
+            sample_clock: SampleClock::default(),
+            gains,
+            timebase: Timebase::gx1(tick_period_s),
+            unwrapper: TickUnwrapper::new(),
+            gaps: GapAccounting::default(),
+            clock: ClockFit::new(tick_period_s),
+            wall: WallStamps::default(),
+            calibration,
+            temp_c: f64::NAN,
+            temp_logged_ns: None,
+            last_gyro: [None; 2],
+            rate_origin: None,
+            last_sample_ns: None,
+            seq: 0,
+            counters: PipelineCounters::default(),
+            health_config: None,
+            health: None,
+            health_report: None,
+        }
+    }
+
+    /// Turns the live calibration health on (with these settings) or off.
+    pub fn set_health(&mut self, config: Option<HealthConfig>) {
+        self.health_config = config.filter(|c| c.enabled);
+        self.restart_health();
+    }
+
+    /// A fresh monitor for the calibration in force.
+    fn restart_health(&mut self) {
+        self.health = self
+            .health_config
+            .as_ref()
+            .map(|c| HealthMonitor::new(c, self.calibration.as_deref()));
+    }
+
+    /// The newest health report since the last call (one per still window).
+    pub fn take_health(&mut self) -> Option<CalibrationHealth> {
+        self.health_report.take()
+    }
+
+    /// The health states (accel, gyro) of the calibration in force, when health is on.
+    pub fn health_states(&self) -> Option<(HealthState, HealthState)> {
+        self.health.as_ref().map(HealthMonitor::states)
+    }
+
+    /// Chooses where sample stamps come from (default: the device clock fit).
+    pub fn set_sample_clock(&mut self, clock: SampleClock) {
+        self.sample_clock = clock;
+    }
+
+    /// Starts a new device session (after a reconnect): keeps the sequence numbering and the
+    /// stamps' order, forgets the device's clock. `gains` are a GX1's (a MIP unit has none:
+    /// [`Gains::NOT_APPLICABLE`]), `timebase` its sample clock.
+    pub fn new_session(&mut self, gains: Gains, timebase: Timebase) {
+        self.gains = gains;
+        self.timebase = timebase;
+        self.unwrapper = TickUnwrapper::with_bits(timebase.tick_bits);
+        self.gaps = GapAccounting::new(self.gaps.enabled, timebase.kind);
+        if self.clock.nominal_tick_period_s() != timebase.tick_period_s {
+            self.clock = ClockFit::new(timebase.tick_period_s);
+        }
+        self.clock.reset();
+        if let Some(h) = &mut self.health {
+            h.interrupt();
+        }
+        self.last_gyro = [None; 2];
+        self.rate_origin = None;
+        self.last_sample_ns = None;
+    }
+
+    /// The monotonic stamp of the last sample of this session, ns.
+    pub fn last_stamp_ns(&self) -> Option<u64> {
+        self.last_sample_ns
+    }
+
+    /// The GainScales in force.
+    pub fn gains(&self) -> Gains {
+        self.gains
+    }
+
+    /// Measured data rate, Hz, once at least two seconds of samples were seen this session.
+    pub fn sample_rate_hz(&self) -> Option<f64> {
+        let (t0, n0) = self.rate_origin?;
+        let (t1, n1) = (self.last_sample_ns?, self.counters.samples);
+        let span_s = (t1.saturating_sub(t0)) as f64 * 1e-9;
+        (span_s >= 2.0).then(|| (n1 - n0 - 1) as f64 / span_s)
+    }
+
+    /// Turns on loss accounting for a continuous stream (the device paces it; the tick step is
+    /// learned from its first samples); off for polling, whose intervals are the host's.
+    pub fn set_continuous(&mut self, continuous: bool) {
+        self.gaps = GapAccounting::new(continuous, self.timebase.kind);
+    }
+
+    /// Puts a calibration in force from the next sample on (returns that sample's seq).
+    pub fn set_calibration(&mut self, calibration: Option<Arc<ActiveCalibration>>) -> u64 {
+        self.calibration = calibration;
+        self.restart_health();
+        self.seq
+    }
+
+    /// The calibration in force.
+    pub fn calibration(&self) -> Option<&Arc<ActiveCalibration>> {
+        self.calibration.as_ref()
+    }
+
+    /// The latest temperature, deg C (NaN if none yet).
+    pub fn temp_c(&self) -> f64 {
+        self.temp_c
+    }
+
+    /// Counters so far.
+    pub fn counters(&self) -> PipelineCounters {
+        self.counters
+    }
+
+    /// The device-clock fit.
+    pub fn clock(&self) -> &ClockFit {
+        &self.clock
+    }
+
+    /// Handles one decoder event received at the given host times.
+    pub fn on_event(&mut self, ev: DecodeEvent, t_mono_ns: u64, t_wall_ns: u64, sinks: &mut Sinks) {
+        match ev {
+            DecodeEvent::Frame {
+                reply,
+                bytes,
+                offset,
+            } => {
+                self.counters.frames += 1;
+                sinks.log(LogRecord::RawFrame {
+                    t_host_wall_ns: t_wall_ns,
+                    t_host_monotonic_ns: t_mono_ns,
+                    stream_offset: offset,
+                    accepted: true,
+                    reject_reason: None,
+                    bytes: bytes.to_vec(),
+                });
+                self.on_reply(&reply, t_mono_ns, t_wall_ns, sinks);
+            }
+            DecodeEvent::Rejected {
+                bytes,
+                offset,
+                reason,
+            } => log_rejected(bytes, offset, reason, t_mono_ns, t_wall_ns, sinks),
+        }
+    }
+
+    /// Handles one good reply: a temperature is kept, a data reply becomes a raw and a corrected
+    /// sample (gap accounting, time stamp, scaling, correction, publishing).
+    pub fn on_reply(&mut self, reply: &Reply, t_mono_ns: u64, t_wall_ns: u64, sinks: &mut Sinks) {
+        if let Reply::Temperature { raw, .. } = *reply {
+            self.temp_c = scale::temp_raw_to_c(raw);
+            self.counters.temperatures += 1;
+            sinks.log(LogRecord::Temperature {
+                t_wall_ns,
+                temp_c: self.temp_c,
+            });
+            return;
+        }
+        let Some(counts) = Counts::of(reply) else {
+            return;
+        };
+        let ticks = reply.ticks().unwrap_or(0);
+        let reading = DeviceReading {
+            ticks_unwrapped: self.unwrapper.unwrap(ticks),
+            ticks,
+            counts: Some(counts),
+            measured: counts.to_units(self.gains),
+            saturated: counts.saturated(),
+            command: reply.code(),
+        };
+        self.on_reading(&reading, t_mono_ns, t_wall_ns, sinks);
+    }
+
+    /// The steps every protocol shares: gap accounting, time stamp, the raw sample, correction,
+    /// health, publishing.
+    pub fn on_reading(
+        &mut self,
+        reading: &DeviceReading,
+        t_mono_ns: u64,
+        t_wall_ns: u64,
+        sinks: &mut Sinks,
+    ) {
+        let ticks_unwrapped = reading.ticks_unwrapped;
+        let step =
+            self.gaps
+                .on_sample(self.seq, ticks_unwrapped, self.timebase.tick_period_s);
+        self.counters.samples_lost += step.lost_before + step.lost_earlier;
+        if step.learned {
+            // Positions were whole ticks until now: their lower envelope is biased by up to
+            // half a tick, so the fit starts again from exact positions.
+            self.clock.restart_fit();
+        }
+        let t_sample_ns = match self.sample_clock {
+            SampleClock::DeviceFit => {
+                self.clock
+                    .update(step.position_ticks, step.spacing_ticks, t_mono_ns)
+            }
+            // Exact already: no fit to run (and none to report).
+            SampleClock::Host => t_mono_ns,
+        };
+        let t_device_ns = match self.timebase.kind {
+            TickKind::FineNs => ticks_unwrapped,
+            TickKind::Counter => {
+                (ticks_unwrapped as f64 * self.timebase.tick_period_s * 1e9) as u64
+            }
+        };
+        let mut flags = match reading.counts {
+            Some(c) if c.scaled => raw_flags::SCALED_COUNTS,
+            Some(_) => 0,
+            None => raw_flags::NO_COUNTS,
+        };
+        if step.lost_before > 0 {
+            flags |= raw_flags::GAP_BEFORE;
+        }
+        if self.temp_c.is_nan() {
+            flags |= raw_flags::TEMP_STALE;
+        }
+        if reading.saturated {
+            flags |= raw_flags::SATURATED;
+        }
+        let counts = reading.counts.unwrap_or(Counts {
+            accel: [0; 3],
+            gyro: [0; 3],
+            mag: [0; 3],
+            scaled: false,
+        });
+        let m = &reading.measured;
+        let raw = RawSample {
+            seq: self.seq,
+            t_device_ns,
+            t_host_monotonic_ns: t_mono_ns,
+            t_host_wall_ns: t_wall_ns,
+            t_sample_ns,
+            ticks_unwrapped,
+            accel_counts: counts.accel,
+            gyro_counts: counts.gyro,
+            mag_counts: counts.mag,
+            temp_c: self.temp_c,
+            ticks: reading.ticks,
+            command: reading.command,
+            reserved: 0,
+            flags,
+            accel_device_m_s2: m.accel_m_s2.into(),
+            gyro_device_rad_s: m.gyro_rad_s.into(),
+            mag_device_gauss: m.mag_gauss.into(),
+        };
+        let mut corrected = self.correct(m, t_sample_ns, t_device_ns);
+        corrected.t_wall_ns = self.wall.stamp(t_sample_ns, t_mono_ns, t_wall_ns);
+        self.watch_health(&mut corrected, sinks);
+        self.publish(raw, corrected, sinks);
+    }
+
+    /// Applies the calibration in force (or only the GainScales) to one sample.
+    fn correct(&mut self, m: &Measured, t_sample_ns: u64, t_device_ns: u64) -> CorrectedSample {
+        let mut flags = if self.gains.fallback.any() {
+            corrected_flags::FALLBACK_GAINS
+        } else {
+            0
+        };
+        if self.temp_c.is_nan() {
+            flags |= corrected_flags::TEMP_STALE;
+        }
+        let (accel, gyro, mag, calibration_id) = match &self.calibration {
+            Some(cal) => {
+                // Angular acceleration for the lever-arm term: finite difference of the last
+                // two corrected rates (one sample late, which the lever-arm magnitude makes
+                // negligible). Never the measured rate against a corrected one: their
+                // difference is the gyro's bias and scale error, not an acceleration.
+                let angular_accel = match self.last_gyro {
+                    [Some((t0, w0)), Some((t1, w1))] if t1 > t0 => {
+                        (w1 - w0) / ((t1 - t0) as f64 * 1e-9)
+                    }
+                    _ => Vector3::zeros(),
+                };
+                let temp = if self.temp_c.is_nan() {
+                    25.0
+                } else {
+                    self.temp_c
+                };
+                let c = cal
+                    .model
+                    .correct(m, temp, t_device_ns as f64 * 1e-9, angular_accel);
+                if !c.converged {
+                    flags |= corrected_flags::NOT_CONVERGED;
+                    self.counters.not_converged += 1;
+                }
+                self.last_gyro = [self.last_gyro[1], Some((t_sample_ns, c.gyro_rad_s))];
+                (c.accel_m_s2, c.gyro_rad_s, c.mag_gauss, cal.id)
+            }
+            None => {
+                flags |= corrected_flags::UNCALIBRATED;
+                (m.accel_m_s2, m.gyro_rad_s, m.mag_gauss, 0)
+            }
+        };
+        CorrectedSample {
+            seq: self.seq,
+            t_sample_ns,
+            t_wall_ns: 0,
+            t_device_ns,
+            accel_m_s2: accel.into(),
+            gyro_rad_s: gyro.into(),
+            mag_gauss: mag.into(),
+            temp_c: self.temp_c,
+            calibration_id,
+            flags,
+            reserved: 0,
+        }
+    }
+
+    /// Bias tracking's offsets applied, the sample handed to the health monitor, and a report
+    /// published, recorded and its state changes logged.
+    fn watch_health(&mut self, corrected: &mut CorrectedSample, sinks: &mut Sinks) {
+        let Some(monitor) = &mut self.health else {
+            return;
+        };
+        let (accel_offset, gyro_offset) = monitor.applied_offsets();
+        if accel_offset != Vector3::zeros() || gyro_offset != Vector3::zeros() {
+            for i in 0..3 {
+                corrected.accel_m_s2[i] -= accel_offset[i];
+                corrected.gyro_rad_s[i] -= gyro_offset[i];
+            }
+            corrected.flags |= corrected_flags::BIAS_TRACKED;
+        }
+        let Some(event) = monitor.push(
+            corrected.t_sample_ns,
+            corrected.t_wall_ns,
+            &corrected.accel_m_s2,
+            &corrected.gyro_rad_s,
+            corrected.temp_c,
+        ) else {
+            return;
+        };
+        for line in &event.changes {
+            if line.contains("-> ok") {
+                info!("{line}");
+            } else {
+                warn!("{line}");
+            }
+        }
+        if let Some(p) = &mut sinks.publishers {
+            let sent = p.publish_health(&event.report).is_ok() & p.notify(ShmEvent::Health).is_ok();
+            if !sent {
+                self.counters.publish_errors += 1;
+            }
+        }
+        sinks.log(LogRecord::Health(event.report));
+        self.health_report = Some(event.report);
+    }
+
+    /// Counts the sample and hands it to shared memory and the log.
+    fn publish(&mut self, raw: RawSample, corrected: CorrectedSample, sinks: &mut Sinks) {
+        self.rate_origin
+            .get_or_insert((raw.t_sample_ns, self.counters.samples));
+        self.last_sample_ns = Some(raw.t_sample_ns);
+        self.seq += 1;
+        self.counters.samples += 1;
+        if let Some(p) = &mut sinks.publishers {
+            let sent = p.publish_raw(&raw).is_ok()
+                & p.publish_corrected(&corrected).is_ok()
+                & p.notify(ShmEvent::Samples).is_ok();
+            if !sent {
+                self.counters.publish_errors += 1;
+            }
+        }
+        sinks.log(LogRecord::Raw(raw));
+        sinks.log(LogRecord::Corrected(corrected));
+    }
+
+    /// Builds the status record from the pipeline's, the decoder's and the sinks' counters.
+    pub fn status(
+        &self,
+        decoder: &DecoderStats,
+        sinks: &Sinks,
+        reconnects: u64,
+        connected: bool,
+        t_mono_ns: u64,
+    ) -> DaemonStatus {
+        // Health off: `unknown` (0) for both.
+        let (health_accel, health_gyro) = self.health_states().unwrap_or_default();
+        let (log_drops, logging) = sinks.recorder.as_ref().map_or((0, false), |r| {
+            let s = r.stats();
+            (s.dropped_queue_full + s.dropped_not_logging, s.logging)
+        });
+        DaemonStatus {
+            t_host_monotonic_ns: t_mono_ns,
+            frames: self.counters.frames,
+            samples: self.counters.samples,
+            checksum_failures: decoder.checksum_failures,
+            resyncs: decoder.resyncs,
+            garbage_bytes: decoder.garbage_bytes,
+            truncated_frames: decoder.truncated_frames,
+            samples_lost: self.counters.samples_lost,
+            log_drops,
+            publish_drops: sinks.publishers.as_ref().map_or(0, Publishers::drops)
+                + self.counters.publish_errors,
+            reconnects,
+            calibration_id: self.calibration.as_ref().map_or(0, |c| c.id),
+            tick_period_est_s: self.clock.tick_period_s().unwrap_or(f64::NAN),
+            clock_drift_ppm: self.clock.drift_ppm().unwrap_or(f64::NAN),
+            temp_c: self.temp_c,
+            device_connected: u8::from(connected),
+            logging: u8::from(logging),
+            gains_fallback: self.gains.fallback.mask(),
+            health_accel: health_accel.code(),
+            health_gyro: health_gyro.code(),
+            reserved: [0; 3],
+            clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
+            clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),
+            gain_scale_accel: self.gains.accel,
+            gain_scale_gyro: self.gains.gyro,
+            gain_scale_mag: self.gains.mag,
+            reserved_end: [0; 2],
+        }
+    }
+}
+
+/// Logs bytes the decoder rejected (either protocol's decoder: the reasons are shared).
+fn log_rejected(
+    bytes: Vec<u8>,
+    offset: u64,
+    reason: RejectReason,
+    t_mono_ns: u64,
+    t_wall_ns: u64,
+    sinks: &Sinks,
+) {
+    sinks.log(LogRecord::RawFrame {
+        t_host_wall_ns: t_wall_ns,
+        t_host_monotonic_ns: t_mono_ns,
+        stream_offset: offset,
+        accepted: false,
+        reject_reason: Some(std::borrow::Cow::Borrowed(match reason {
+            RejectReason::BadChecksum => "bad-checksum",
+            RejectReason::Malformed => "malformed",
+            RejectReason::Truncated => "truncated",
+            RejectReason::Garbage => "garbage",
+        })),
+        bytes,
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn raw(ticks: u16) -> Reply {
+        Reply::RawSensorBits {
+            mag: [32_768; 3],
+            accel: [32_768, 32_768, 32_768 + 4681],
+            rate: [32_768; 3],
+            ticks,
+        }
+    }
+
+    #[test]
+    fn continuous_gaps_are_counted_and_flagged() {
+        let gains = Gains {
+            accel: 7000,
+            gyro: 10000,
+            mag: 2000,
+            fallback: GainFallback::NONE,
+        };
+        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        p.set_continuous(true);
+        let mut sinks = Sinks::default();
+        let lost = [300u64, 301, 302, 500];
+        for k in 0..1000u64 {
+            if lost.contains(&k) {
+                continue;
+            }
+            // 100 Hz on 6.5536 ms ticks: steps of 1 and 2 ticks, and a wrap past 65535.
+            let ticks = ((k as f64 * 0.01 / 6.5536e-3).floor() as u64 + 65_000) % 65_536;
+            p.on_reply(
+                &raw(ticks as u16),
+                k * 10_000_000,
+                k * 10_000_000,
+                &mut sinks,
+            );
+        }
+        assert_eq!(p.counters().samples, 996);
+        assert_eq!(p.counters().samples_lost, 4);
+        // Without a calibration the corrected stream is the GainScale conversion: z = +1 g.
+        assert!(p.calibration().is_none());
+    }
+
+    #[test]
+    fn polled_streams_do_not_count_gaps() {
+        let gains = Gains {
+            accel: 7000,
+            gyro: 10000,
+            mag: 2000,
+            fallback: GainFallback::ALL,
+        };
+        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        p.set_continuous(false);
+        let mut sinks = Sinks::default();
+        for k in 0..300u64 {
+            let ticks = (k * k) % 65_536; // irregular polls
+            p.on_reply(&raw(ticks as u16), k, k, &mut sinks);
+        }
+        assert_eq!(p.counters().samples_lost, 0);
+    }
+}
