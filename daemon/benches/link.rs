@@ -6,8 +6,10 @@
 //! 2. Latency from the daemon reading a frame's last byte to a subscriber's receipt (p50, p99,
 //!    p99.9), both on CLOCK_MONOTONIC, with event wake-ups.
 //! 3. CPU use of the imud process at 100 Hz and at 1 kHz.
+//! 4. The same unit speaking MIP at 1 kHz (its base rate): every frame logged, and CPU.
 //!
-//! Run: `cargo bench -p imud --bench link`. Numbers go to BENCHMARKS.md.
+//! Run: `cargo bench -p imud --bench link` (`-- mip` for the MIP part alone). Numbers go to
+//! BENCHMARKS.md.
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -17,11 +19,12 @@ use imu_bus::RawSample;
 use imu_bus::recording::read_recording;
 use imu_bus::shm::Subscription;
 use imu_model::Calibration;
+use imu_proto::DeviceProtocol;
 use imu_sim::{Pacing, Scenario, SimOptions};
 
-fn scenario(rate_hz: f64, duration_s: f64, baud: u32) -> String {
+fn scenario(rate_hz: f64, duration_s: f64, baud: u32, protocol: DeviceProtocol) -> String {
     format!(
-        "name = \"bench\"\nrate-hz = {rate_hz}\n[device]\nbaud = {baud}\n[[segment]]\nkind = \"static\"\nduration-s = {duration_s}\n"
+        "name = \"bench\"\nrate-hz = {rate_hz}\n[device]\nbaud = {baud}\nprotocol = \"{protocol}\"\n[[segment]]\nkind = \"static\"\nduration-s = {duration_s}\n"
     )
 }
 
@@ -44,9 +47,11 @@ fn sim(dir: &Path, text: &str, pacing: Pacing) -> imu_sim::SimHandle {
     .expect("simulator")
 }
 
-fn imud(dir: &Path, name: &str, baud: u32) -> Child {
+/// imud on the simulated device, told its protocol (the probe is not what is measured).
+fn imud(dir: &Path, name: &str, baud: u32, protocol: DeviceProtocol) -> Child {
     Command::new(env!("CARGO_BIN_EXE_imud"))
         .args(["--name", name, "--baud", &baud.to_string()])
+        .args(["--protocol", protocol.name()])
         .arg("--device")
         .arg(dir.join("imu0"))
         .arg("--log-dir")
@@ -88,16 +93,16 @@ fn recorded_raw(dir: &Path) -> usize {
 
 /// Streams `n_frames` through the pty, either as fast as the link allows (`rate_hz` = None) or
 /// paced at `rate_hz` in real time (the simulated baud rate is set high enough not to limit it).
-fn throughput(n_frames: u64, rate_hz: Option<f64>) {
+fn throughput(n_frames: u64, rate_hz: Option<f64>, protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().expect("tmp");
     let name = format!(
-        "bench-tp-{}-{}",
+        "bench-tp-{}-{protocol}-{}",
         rate_hz.unwrap_or(0.0) as u64,
         std::process::id()
     );
     let rate = rate_hz.unwrap_or(1000.0);
-    let text = scenario(rate, n_frames as f64 / rate, 100_000_000);
-    let daemon = imud(dir.path(), &name, 4_000_000);
+    let text = scenario(rate, n_frames as f64 / rate, 100_000_000, protocol);
+    let daemon = imud(dir.path(), &name, 4_000_000, protocol);
     let mut sub =
         Subscription::<RawSample>::open(&name, Duration::from_secs(10)).expect("subscriber");
     let pacing = if rate_hz.is_some() {
@@ -128,16 +133,21 @@ fn throughput(n_frames: u64, rate_hz: Option<f64>) {
     stop(daemon);
     let logged = recorded_raw(dir.path());
     let secs = (last - t0).as_secs_f64();
+    // A MIP unit sends nothing before it is configured; the GX1 answers one start-up poll.
+    let sent = match protocol {
+        DeviceProtocol::Gx1 => report.data_replies - 1,
+        DeviceProtocol::Mip => report.data_replies,
+    };
     println!(
-        "throughput ({}): {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
+        "throughput, {protocol} ({}): {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
         rate_hz.map_or("as fast as the pty allows".to_string(), |r| format!(
             "paced at {r} Hz"
         )),
-        report.data_replies - 1,
+        sent,
         secs,
-        (report.data_replies - 1) as f64 / secs,
+        sent as f64 / secs,
         logged,
-        if logged as u64 == report.data_replies - 1 {
+        if logged as u64 == sent {
             "zero loss"
         } else {
             "LOSS"
@@ -149,8 +159,8 @@ fn throughput(n_frames: u64, rate_hz: Option<f64>) {
 fn latency() {
     let dir = tempfile::tempdir().expect("tmp");
     let name = format!("bench-lat-{}", std::process::id());
-    let text = scenario(500.0, 40.0, 115_200);
-    let daemon = imud(dir.path(), &name, 115_200);
+    let text = scenario(500.0, 40.0, 115_200, DeviceProtocol::Gx1);
+    let daemon = imud(dir.path(), &name, 115_200, DeviceProtocol::Gx1);
     let mut sub =
         Subscription::<RawSample>::open(&name, Duration::from_secs(10)).expect("subscriber");
     let sim = sim(dir.path(), &text, Pacing::RealTime);
@@ -184,12 +194,16 @@ fn latency() {
     );
 }
 
-fn cpu(rate_hz: f64) {
+fn cpu(rate_hz: f64, protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().expect("tmp");
-    let name = format!("bench-cpu-{}-{}", rate_hz as u64, std::process::id());
+    let name = format!(
+        "bench-cpu-{}-{protocol}-{}",
+        rate_hz as u64,
+        std::process::id()
+    );
     let baud = if rate_hz > 300.0 { 460_800 } else { 115_200 };
-    let text = scenario(rate_hz, 25.0, baud);
-    let daemon = imud(dir.path(), &name, baud);
+    let text = scenario(rate_hz, 25.0, baud, protocol);
+    let daemon = imud(dir.path(), &name, baud, protocol);
     let sim = sim(dir.path(), &text, Pacing::RealTime);
     std::thread::sleep(Duration::from_secs(3));
     let (t0, c0) = (Instant::now(), cpu_ticks(daemon.id()));
@@ -200,14 +214,23 @@ fn cpu(rate_hz: f64) {
     drop(sim);
     stop(daemon);
     println!(
-        "cpu: imud at {rate_hz} Hz uses {cpu_pct:.1} % of one core (user+system, 15 s window, logging and publishing on)"
+        "cpu: imud ({protocol}) at {rate_hz} Hz uses {cpu_pct:.1} % of one core (user+system, 15 s window, logging and publishing on)"
     );
 }
 
 fn main() {
-    throughput(600_000, Some(60_000.0));
-    throughput(300_000, None);
+    let mip = DeviceProtocol::Mip;
+    if std::env::args().skip(1).any(|a| a == "mip") {
+        throughput(60_000, Some(1000.0), mip);
+        cpu(1000.0, mip);
+        return;
+    }
+    let gx1 = DeviceProtocol::Gx1;
+    throughput(600_000, Some(60_000.0), gx1);
+    throughput(300_000, None, gx1);
     latency();
-    cpu(100.0);
-    cpu(1000.0);
+    cpu(100.0, gx1);
+    cpu(1000.0, gx1);
+    throughput(60_000, Some(1000.0), mip);
+    cpu(1000.0, mip);
 }

@@ -1,6 +1,8 @@
 //! Per-frame cost of imud's data path: decode + calibrate + publish (iceoryx2) + log enqueue
-//! (MCAP writer thread), on pre-encoded 3DM-GX1 raw-bits frames. Prints the median and tail of
-//! the per-frame time over batches, for each stage combination. Run: `cargo bench -p imud`.
+//! (MCAP writer thread), on pre-encoded 3DM-GX1 raw-bits frames and on MIP IMU packets (the
+//! fields imud configures: scaled accel, gyro, mag, temperature, reference time). Prints the
+//! median and tail of the per-frame time over batches, for each stage combination and protocol.
+//! Run: `cargo bench -p imud --bench pipeline`.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -8,29 +10,63 @@ use std::time::Instant;
 use imu_bus::recording::{Recorder, RecordingConfig};
 use imu_bus::shm::{Publishers, ShmOptions};
 use imu_model::Calibration;
-use imu_proto::decoder::ReplyDecoder;
+use imu_proto::DeviceProtocol;
+use imu_proto::mip::{ImuData, TemperatureStats};
 use imu_proto::reply::Reply;
-use imud::pipeline::{ActiveCalibration, GainFallback, Gains, Pipeline, Sinks};
+use imud::link::Link;
+use imud::pipeline::{ActiveCalibration, GainFallback, Gains, MipTimebase, Pipeline, Sinks};
 
 const BATCH: usize = 1000;
 const BATCHES: usize = 1000;
 
-fn frames() -> Vec<u8> {
-    let mut bytes = Vec::with_capacity(BATCH * 23);
-    for i in 0..BATCH {
-        let w = |k: usize| 32_768u16.wrapping_add(((i * 7 + k * 13) % 200) as u16);
-        Reply::RawSensorBits {
-            mag: [w(0), w(1), w(2)],
-            accel: [w(3), w(4), 32_768 + 4_681],
-            rate: [w(6), w(7), w(8)],
-            ticks: (i * 2) as u16,
+/// One batch of encoded frames of `protocol` (each frame its own slice) and the host spacing.
+fn frames(protocol: DeviceProtocol) -> (Vec<Vec<u8>>, u64) {
+    let w = |i: usize, k: usize| ((i * 7 + k * 13) % 200) as u16;
+    match protocol {
+        DeviceProtocol::Gx1 => {
+            let frames = (0..BATCH)
+                .map(|i| {
+                    let c = |k| 32_768u16.wrapping_add(w(i, k));
+                    let mut bytes = Vec::with_capacity(23);
+                    Reply::RawSensorBits {
+                        mag: [c(0), c(1), c(2)],
+                        accel: [c(3), c(4), 32_768 + 4_681],
+                        rate: [c(6), c(7), c(8)],
+                        ticks: (i * 2) as u16,
+                    }
+                    .encode(&mut bytes);
+                    bytes
+                })
+                .collect();
+            (frames, 10_000_000)
         }
-        .encode(&mut bytes);
+        DeviceProtocol::Mip => {
+            let frames = (0..BATCH)
+                .map(|i| {
+                    let f = |k| f32::from(w(i, k)) * 1e-4;
+                    ImuData {
+                        accel_g: Some([f(0), f(1), -1.0 + f(2)]),
+                        gyro_rad_s: Some([f(3), f(4), f(5)]),
+                        mag_gauss: Some([0.2 + f(6), f(7), 0.4]),
+                        temperature: Some(TemperatureStats {
+                            min_c: 24.0,
+                            max_c: 25.0,
+                            mean_c: 24.5,
+                        }),
+                        reference_time_ns: Some(1_000_000 * i as u64),
+                        ..ImuData::default()
+                    }
+                    .to_packet()
+                    .as_bytes()
+                    .to_vec()
+                })
+                .collect();
+            (frames, 1_000_000)
+        }
     }
-    bytes
 }
 
-fn run(label: &str, sinks: &mut Sinks, calibrated: bool, health: bool) {
+fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: bool, health: bool) {
     let model = Calibration::load(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../config/models/example-3dm-gx1.toml"
@@ -44,25 +80,36 @@ fn run(label: &str, sinks: &mut Sinks, calibrated: bool, health: bool) {
         fallback: GainFallback::NONE,
     };
     let mut pipeline = Pipeline::new(gains, 6.5536e-3, cal);
+    // The daemon's own decoders, as the session feeds them.
+    let mut link = Link::new(protocol);
+    if protocol == DeviceProtocol::Mip {
+        pipeline.new_session(Gains::NOT_APPLICABLE, MipTimebase::ReferenceTime.timebase());
+        // Loss accounting on, as when streaming (the GX1 batches repeat their ticks, so they
+        // run without it, as in every earlier run of this benchmark).
+        pipeline.set_continuous(true);
+    }
     // The daemon watches its calibration's health by default (imud::health).
     pipeline.set_health(health.then(imud::config::HealthConfig::default));
-    let mut decoder = ReplyDecoder::new();
-    let stream = frames();
+    let (stream, spacing_ns) = frames(protocol);
     let mut per_frame_ns = Vec::with_capacity(BATCHES);
     for b in 0..BATCHES {
+        // MIP stamps run on: the batch's packets shifted by the batch's time.
+        let batch = match protocol {
+            DeviceProtocol::Gx1 => stream.clone(),
+            DeviceProtocol::Mip => shifted_mip(&stream, (b * BATCH) as u64 * spacing_ns),
+        };
         let start = Instant::now();
-        for (k, frame) in stream.chunks_exact(23).enumerate() {
-            decoder.push(frame);
-            let t = (b * BATCH + k) as u64 * 10_000_000;
-            while let Some(ev) = decoder.next_event() {
-                pipeline.on_event(ev, t, t, sinks);
-            }
+        for (k, frame) in batch.iter().enumerate() {
+            let t = (b * BATCH + k) as u64 * spacing_ns;
+            link.push(frame);
+            link.drain_into(&mut pipeline, t, t, sinks);
         }
         per_frame_ns.push(start.elapsed().as_nanos() as f64 / BATCH as f64);
         // Let the writer thread drain between batches (untimed): the daemon runs at hundreds of
         // Hz, so the enqueue cost that matters is the one with a queue that keeps up, and a full
         // queue would only measure the (cheaper) drop path.
         if let Some(r) = &sinks.recorder {
+            // Raw frame, raw and corrected sample per frame (and a MIP temperature a second).
             let expected = 3 * ((b + 1) * BATCH) as u64;
             let waited = Instant::now();
             while waited.elapsed().as_secs() < 5 {
@@ -91,10 +138,48 @@ fn run(label: &str, sinks: &mut Sinks, calibrated: bool, health: bool) {
     assert_eq!(pipeline.counters().samples as usize, BATCH * BATCHES);
 }
 
+/// The MIP packets with their reference time moved on by `offset_ns` (re-encoded, untimed).
+fn shifted_mip(stream: &[Vec<u8>], offset_ns: u64) -> Vec<Vec<u8>> {
+    stream
+        .iter()
+        .map(|bytes| {
+            let packet = imu_proto::mip::Packet::parse(bytes).expect("packet");
+            let mut data = ImuData::decode_packet(&packet).expect("data");
+            data.reference_time_ns = data.reference_time_ns.map(|t| t + offset_ns);
+            data.to_packet().as_bytes().to_vec()
+        })
+        .collect()
+}
+
 fn main() {
+    let protocol = match std::env::args()
+        .skip(1)
+        .find(|a| a == "mip" || a == "3dm-gx1")
+    {
+        Some(p) => p.parse().expect("protocol"),
+        None => {
+            for p in DeviceProtocol::ALL {
+                bench(p);
+            }
+            return;
+        }
+    };
+    bench(protocol);
+}
+
+fn bench(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().expect("temp dir");
-    let name = format!("bench-{}", std::process::id());
-    println!("imud per-frame path, {BATCH}-frame batches x {BATCHES} (raw-bits frames, 23 bytes)");
+    let name = format!("bench-{}-{protocol}", std::process::id());
+    let (stream, spacing_ns) = frames(protocol);
+    println!(
+        "imud per-frame path, {protocol}: {BATCH}-frame batches x {BATCHES} ({} bytes a frame, \
+         {:.0} Hz)",
+        stream[0].len(),
+        1e9 / spacing_ns as f64
+    );
+    let run = |label, sinks: &mut Sinks, calibrated, health| {
+        run(protocol, label, sinks, calibrated, health)
+    };
     run(
         "decode only (uncalibrated, no sinks)",
         &mut Sinks::default(),

@@ -64,6 +64,11 @@ pub struct ClockFit {
 }
 
 impl ClockFit {
+    /// The tick period the fit starts from, s.
+    pub fn nominal_tick_period_s(&self) -> f64 {
+        self.nominal_tick_period_s
+    }
+
     /// A fit that starts from the nominal tick period.
     pub fn new(nominal_tick_period_s: f64) -> Self {
         Self {

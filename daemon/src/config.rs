@@ -135,6 +135,13 @@ pub struct GainConfig {
 pub struct DeviceConfig {
     /// Device path, e.g. `/dev/ttyUSB0` or a udev link `/dev/imu0`.
     pub path: PathBuf,
+    /// The protocol the device speaks; none: probed at each start-up (`startup/probe.rs`).
+    #[serde(with = "protocol_option", skip_serializing_if = "Option::is_none")]
+    pub protocol: Option<imu_proto::DeviceProtocol>,
+    /// MIP: the data rate to configure, Hz (the unit's base rate / a whole decimation); none:
+    /// the rate the unit is set to.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rate_hz: Option<f64>,
     /// Serial line rate, bits/s (38400 is the factory default).
     pub baud: u32,
     /// Continuous or polled acquisition.
@@ -164,6 +171,8 @@ impl Default for DeviceConfig {
         let fb = imu_proto::GainScales::DEFAULT_FALLBACK;
         Self {
             path: PathBuf::from("/dev/ttyUSB0"),
+            protocol: None,
+            rate_hz: None,
             baud: 38_400,
             mode: AcquisitionMode::Continuous,
             command: SampleCommand::RawBits,
@@ -180,6 +189,26 @@ impl Default for DeviceConfig {
             reconnect_max_s: 10.0,
             silence_timeout_s: 2.0,
         }
+    }
+}
+
+/// `device.protocol` as its name (`"3dm-gx1"`, `"mip"`), absent when probed.
+mod protocol_option {
+    use imu_proto::DeviceProtocol;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(p: &Option<DeviceProtocol>, s: S) -> Result<S::Ok, S::Error> {
+        match p {
+            Some(p) => s.serialize_str(p.name()),
+            None => s.serialize_none(),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<DeviceProtocol>, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map(Some).map_err(serde::de::Error::custom)
     }
 }
 
@@ -458,6 +487,17 @@ impl Config {
             if !positive(v) {
                 return Some((key, format!("{v} must be a positive number of seconds")));
             }
+        }
+        if d.protocol == Some(imu_proto::DeviceProtocol::Mip) && d.mode == AcquisitionMode::Polled {
+            return Some((
+                "device.mode",
+                "a MIP unit streams: \"polled\" is a 3DM-GX1 mode".into(),
+            ));
+        }
+        if let Some(r) = d.rate_hz
+            && !(positive(r) && r <= 10_000.0)
+        {
+            return Some(("device.rate-hz", format!("{r} Hz must be in (0, 10000]")));
         }
         if d.reconnect_max_s < d.reconnect_min_s {
             return Some((

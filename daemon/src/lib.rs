@@ -6,6 +6,7 @@ pub mod clock;
 pub mod config;
 pub mod gaps;
 pub mod health;
+pub mod link;
 pub mod offline;
 pub mod pipeline;
 pub mod ros2;

@@ -40,6 +40,10 @@ struct Args {
     /// Serial device path (overrides device.path).
     #[arg(long, value_name = "PATH")]
     device: Option<PathBuf>,
+    /// The device's protocol, `3dm-gx1` or `mip` (default: probed; with --sim, the simulated
+    /// device's protocol too).
+    #[arg(long, value_name = "PROTOCOL")]
+    protocol: Option<imu_proto::DeviceProtocol>,
     /// Baud rate (overrides device.baud).
     #[arg(long, value_name = "N")]
     baud: Option<u32>,
@@ -194,6 +198,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     if let Some(d) = &args.device {
         config.device.path = d.clone();
     }
+    if let Some(p) = args.protocol {
+        config.device.protocol = Some(p);
+    }
     if let Some(b) = args.baud {
         config.device.baud = b;
     }
@@ -220,6 +227,7 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
 fn sim_options(
     scenario: Option<&std::path::Path>,
     seed: Option<u64>,
+    protocol: Option<imu_proto::DeviceProtocol>,
 ) -> anyhow::Result<imu_sim::SimOptions> {
     let mut opts = if let Some(path) = scenario {
         imu_sim::SimOptions::from_files(path, None)?
@@ -242,6 +250,9 @@ fn sim_options(
     if let Some(seed) = seed {
         opts.seed = seed;
     }
+    if let Some(p) = protocol {
+        opts.scenario.set_protocol(p, "--protocol")?;
+    }
     Ok(opts)
 }
 
@@ -259,9 +270,11 @@ fn start_sim(mut opts: imu_sim::SimOptions, config: &Config) -> anyhow::Result<i
                 .join(format!("{}-sim-truth-{stamp}.mcap", config.name)),
         );
     }
+    let opts_protocol = opts.scenario.device.protocol;
     let handle = imu_sim::spawn(opts)?;
     info!(
-        "simulated 3DM-GX1 on {} (truth: {})",
+        "simulated {} device on {} (truth: {})",
+        opts_protocol,
         handle.device_path().display(),
         config.log.dir.display()
     );
@@ -275,7 +288,11 @@ async fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     if args.offline {
-        let mut opts = sim_options(args.sim.as_ref().and_then(|s| s.as_deref()), args.seed)?;
+        let mut opts = sim_options(
+            args.sim.as_ref().and_then(|s| s.as_deref()),
+            args.seed,
+            args.protocol,
+        )?;
         opts.truth_out = Some(config.log.dir.join(format!("{}-truth.mcap", config.name)));
         let report = imud::offline::record(opts, &config)?;
         for f in &report.files {
@@ -293,7 +310,10 @@ async fn run(args: Args) -> anyhow::Result<()> {
     repair_log_dir(&config);
     let _sim = match &args.sim {
         Some(scenario) => {
-            let h = start_sim(sim_options(scenario.as_deref(), args.seed)?, &config)?;
+            let opts = sim_options(scenario.as_deref(), args.seed, args.protocol)?;
+            // The daemon speaks what the simulated device speaks (no probe needed).
+            config.device.protocol = Some(opts.scenario.device.protocol);
+            let h = start_sim(opts, &config)?;
             config.device.path = h.device_path().to_path_buf();
             Some(h)
         }
@@ -358,6 +378,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
     );
     pipeline.set_health(Some(config.health.clone()));
     let device_path = config.device.path.clone();
+    let config_protocol = config.device.protocol.unwrap_or_default();
     let mut daemon = Daemon {
         calibration: CalibrationSource::new(
             config.calibration.path.clone(),
@@ -366,24 +387,12 @@ async fn run(args: Args) -> anyhow::Result<()> {
         config,
         sinks,
         pipeline,
-        decoder: imu_proto::decoder::ReplyDecoder::new(),
+        link: imud::link::Link::new(config_protocol),
         reconnects: 0,
         notified_ready: false,
         on_identity: Box::new(move |id: &DeviceIdentity, sinks: &Sinks| {
-            if let Some(d) = &sinks.ros2 {
-                d.set_gains(id.gains);
-            }
             if let Some(r) = &sinks.recorder {
-                let mut metadata = BTreeMap::from([
-                    ("path".to_string(), device_path.display().to_string()),
-                    (
-                        "firmware".to_string(),
-                        imu_proto::scale::format_firmware_version(id.firmware),
-                    ),
-                    ("serial-number".to_string(), id.serial.to_string()),
-                ]);
-                metadata.extend(id.gains.metadata());
-                r.update_metadata("imud.device", metadata);
+                r.update_metadata("imud.device", id.metadata(&device_path));
             }
         }),
         calibration_noise_pending: false,

@@ -6,6 +6,11 @@
 //! `imud` would have logged for the same scenario, seed and truth model (host timestamps are
 //! synthetic: the scenario clock plus a fixed offset). This is how hours of data for the offline
 //! tools' accuracy tests are produced in seconds: `imud --sim SCENARIO --offline`.
+//!
+//! A scenario whose device speaks MIP (`[device] protocol = "mip"`, or `--protocol mip`) runs
+//! through the MIP codec the same way: the unit is configured by the live start-up's first
+//! message format (accel, gyro, mag, temperature, reference time) and its data packets are
+//! decoded by the MIP decoder.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -13,13 +18,18 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use imu_bus::recording::{Recorder, RecordingConfig};
 use imu_bus::truth::TruthWriter;
+use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
 use imu_proto::decoder::ReplyDecoder;
+use imu_proto::mip::{MipCommand, MipDecoder, Setting};
 use imu_proto::reply::Reply;
+use imu_sim::mip_device::MipDevice;
 use imu_sim::{DeviceCore, SimOptions};
 
 use crate::config::Config;
-use crate::pipeline::{ActiveCalibration, GainFallback, Gains, Pipeline, SampleClock, Sinks};
+use crate::pipeline::{
+    ActiveCalibration, GainFallback, Gains, MipTimebase, Pipeline, SampleClock, Sinks, Timebase,
+};
 
 /// What an offline run produced.
 #[derive(Debug, Clone)]
@@ -139,18 +149,36 @@ pub fn health_reports(
 impl Run {
     /// A run of `sim` into `sinks`: the device started, its gains read, the pipeline made.
     fn start(sim: SimOptions, config: &Config, mut sinks: Sinks) -> anyhow::Result<Run> {
-        let mut device = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
-        let truth = open_truth(&sim, &device)?;
-        let period_s = device.sample_period_s();
+        let mut core = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
+        let truth = open_truth(&sim, &core)?;
+        let period_s = core.sample_period_s();
         anyhow::ensure!(
-            device.timeline().duration_s().is_finite(),
+            core.timeline().duration_s().is_finite(),
             "offline recording needs a scenario that ends (the last segment has no duration-s)"
         );
-        let gains = read_gains(&mut device, config);
-        let pipeline = start_pipeline(&sim, config, gains, period_s, &mut sinks)?;
+        let (device, gains, timebase) = match sim.scenario.device.protocol {
+            DeviceProtocol::Gx1 => {
+                let gains = read_gains(&mut core, config);
+                let timebase = Timebase::gx1(config.device.tick_period_s);
+                (
+                    OfflineDevice::Gx1(core, ReplyDecoder::new()),
+                    gains,
+                    timebase,
+                )
+            }
+            DeviceProtocol::Mip => {
+                let device = configure_mip(core, period_s)?;
+                let timebase = MipTimebase::ReferenceTime.timebase();
+                (
+                    OfflineDevice::Mip(Box::new(device), MipDecoder::new()),
+                    Gains::NOT_APPLICABLE,
+                    timebase,
+                )
+            }
+        };
+        let pipeline = start_pipeline(&sim, config, (gains, timebase), period_s, &mut sinks)?;
         Ok(Run {
             device,
-            decoder: ReplyDecoder::new(),
             pipeline,
             sinks,
             truth,
@@ -168,8 +196,8 @@ impl Run {
 
     /// Every sample of the scenario through the pipeline, `after` called after each.
     fn for_each_sample(&mut self, mut after: impl FnMut(&mut Pipeline)) -> anyhow::Result<()> {
-        let period_s = self.device.sample_period_s();
-        let duration_s = self.device.timeline().duration_s();
+        let period_s = self.device.core().sample_period_s();
+        let duration_s = self.device.core().timeline().duration_s();
         let mut bytes = Vec::with_capacity(64);
         let mut k: u64 = 0;
         loop {
@@ -263,12 +291,39 @@ fn read_gain(device: &mut DeviceCore, address: u16, fallback: u16) -> (u16, bool
     }
 }
 
-/// The pipeline for a new session with `gains`, the configured calibration applied and logged,
-/// and the device metadata written to the recorder.
+/// The MIP unit configured as the live start-up configures it: its first message format at the
+/// scenario's rate, then resumed; each command through the codec.
+fn configure_mip(core: DeviceCore, period_s: f64) -> anyhow::Result<MipDevice> {
+    let mut device = MipDevice::new(core);
+    let decimation = device.decimation();
+    let format = crate::startup::preferred_mip_format(decimation);
+    for cmd in [
+        MipCommand::ImuMessageFormat(Setting::Write(format)),
+        MipCommand::Resume,
+    ] {
+        device.push(cmd.to_packet().as_bytes());
+        while let Some(request) = device.next_request() {
+            let request = request.map_err(|n| anyhow::anyhow!("the unit rejected {n} bytes"))?;
+            let reply = device.handle(request);
+            let replies = imu_proto::mip::MipReply::decode_packet(&reply)?;
+            anyhow::ensure!(
+                replies
+                    .iter()
+                    .all(|r| r.code == imu_proto::mip::AckCode::Ok),
+                "the simulated unit refused {cmd:?} at {:.0} Hz: {replies:?}",
+                1.0 / period_s
+            );
+        }
+    }
+    Ok(device)
+}
+
+/// The pipeline for a new session with `gains` on `timebase`, the configured calibration
+/// applied and logged, and the device metadata written to the recorder.
 fn start_pipeline(
     sim: &SimOptions,
     config: &Config,
-    gains: Gains,
+    (gains, timebase): (Gains, Timebase),
     period_s: f64,
     sinks: &mut Sinks,
 ) -> anyhow::Result<Pipeline> {
@@ -279,7 +334,7 @@ fn start_pipeline(
         None => None,
     };
     let mut pipeline = Pipeline::new(gains, config.device.tick_period_s, None);
-    pipeline.new_session(gains);
+    pipeline.new_session(gains, timebase);
     // The synthetic host time is the scenario's exact sample time: stamp with it (the clock fit
     // would place samples on whole 6.5536 ms ticks, coarser than a 100 Hz sample interval).
     pipeline.set_sample_clock(SampleClock::Host);
@@ -289,14 +344,18 @@ fn start_pipeline(
         sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));
     }
     if let Some(r) = &sinks.recorder {
+        let protocol = sim.scenario.device.protocol;
         let mut metadata = BTreeMap::from([
             ("path".to_string(), "offline simulation".to_string()),
+            ("protocol".to_string(), protocol.name().to_string()),
             (
                 "serial-number".to_string(),
                 sim.scenario.device.serial_number.to_string(),
             ),
         ]);
-        metadata.extend(gains.metadata());
+        if protocol == DeviceProtocol::Gx1 {
+            metadata.extend(gains.metadata());
+        }
         r.update_metadata("imud.device", metadata);
     }
     Ok(pipeline)
@@ -313,10 +372,28 @@ fn temperature_every(config: &Config, period_s: f64) -> u64 {
     }
 }
 
+/// The simulated device of an offline run and the host's decoder for it.
+// One lives per offline run: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+enum OfflineDevice {
+    /// A 3DM-GX1, polled.
+    Gx1(DeviceCore, ReplyDecoder),
+    /// A MIP unit, streaming.
+    Mip(Box<MipDevice>, MipDecoder),
+}
+
+impl OfflineDevice {
+    fn core(&self) -> &DeviceCore {
+        match self {
+            OfflineDevice::Gx1(core, _) => core,
+            OfflineDevice::Mip(device, _) => device.core(),
+        }
+    }
+}
+
 /// The state of an offline run between samples.
 struct Run {
-    device: DeviceCore,
-    decoder: ReplyDecoder,
+    device: OfflineDevice,
     pipeline: Pipeline,
     sinks: Sinks,
     truth: Option<TruthWriter>,
@@ -334,26 +411,38 @@ impl Run {
     fn step(&mut self, k: u64, t_s: f64, bytes: &mut Vec<u8>) -> anyhow::Result<()> {
         bytes.clear();
         let mut truths = Vec::with_capacity(2);
-        if k.is_multiple_of(self.temp_every) {
-            let (reply, t) = self.device.data_reply(Command::Temperature, t_s);
-            reply.encode(bytes);
-            truths.push(t);
-            self.report.temperatures += 1;
+        let (mono, wall) = {
+            let t_ns = (t_s * 1e9) as u64;
+            (MONO_ORIGIN_NS + t_ns, WALL_ORIGIN_NS + t_ns)
+        };
+        match &mut self.device {
+            OfflineDevice::Gx1(device, decoder) => {
+                if k.is_multiple_of(self.temp_every) {
+                    let (reply, t) = device.data_reply(Command::Temperature, t_s);
+                    reply.encode(bytes);
+                    truths.push(t);
+                    self.report.temperatures += 1;
+                }
+                let (reply, t) = device.data_reply(self.cmd, t_s);
+                reply.encode(bytes);
+                truths.push(t);
+                decoder.push(bytes);
+                while let Some(ev) = decoder.next_event() {
+                    self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
+                }
+            }
+            OfflineDevice::Mip(device, decoder) => {
+                // The temperature comes with every packet (recorded once a second).
+                let (packet, t) = device.data_packet(t_s);
+                truths.push(t);
+                decoder.push(packet.as_bytes());
+                while let Some(ev) = decoder.next_event() {
+                    self.pipeline.on_mip_event(ev, mono, wall, &mut self.sinks);
+                }
+                self.report.temperatures = self.pipeline.counters().temperatures;
+            }
         }
-        let (reply, t) = self.device.data_reply(self.cmd, t_s);
-        reply.encode(bytes);
-        truths.push(t);
         self.report.samples += 1;
-        self.decoder.push(bytes);
-        let t_ns = (t_s * 1e9) as u64;
-        while let Some(ev) = self.decoder.next_event() {
-            self.pipeline.on_event(
-                ev,
-                MONO_ORIGIN_NS + t_ns,
-                WALL_ORIGIN_NS + t_ns,
-                &mut self.sinks,
-            );
-        }
         if let Some(w) = &mut self.truth {
             for t in &truths {
                 w.write_sample(t)?;

@@ -10,25 +10,52 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, anyhow};
 use imu_bus::recording::LogRecord;
+use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
-use imu_proto::decoder::ReplyDecoder;
+use imu_proto::mip::MipCommand;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::signal::unix::{Signal, SignalKind, signal};
 use tokio_serial::SerialStream;
 use tracing::{error, info, warn};
 
 use crate::config::{AcquisitionMode, Config};
+use crate::link::Link;
 use crate::pipeline::{ActiveCalibration, Gains, Pipeline, Sinks};
 
 /// What the device told us at start-up.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeviceIdentity {
-    /// Firmware version word.
-    pub firmware: u16,
+    /// The protocol it speaks.
+    pub protocol: DeviceProtocol,
+    /// Model name ("3DM-GX1", or what a MIP unit reports, e.g. "3DM-GX5-25").
+    pub model: String,
+    /// Firmware version as the vendor writes it.
+    pub firmware: String,
     /// Serial number.
-    pub serial: u16,
-    /// GainScales in force (each read from the device or the configured fallback).
+    pub serial: String,
+    /// GainScales in force (each read from the device or the configured fallback; a MIP unit
+    /// has none: [`Gains::NOT_APPLICABLE`]).
     pub gains: Gains,
+    /// Protocol-specific facts for the recording metadata (key, value).
+    pub details: Vec<(String, String)>,
+}
+
+impl DeviceIdentity {
+    /// The recording metadata `imud.device` for the device at `path`.
+    pub fn metadata(&self, path: &std::path::Path) -> std::collections::BTreeMap<String, String> {
+        let mut m = std::collections::BTreeMap::from([
+            ("path".to_string(), path.display().to_string()),
+            ("protocol".to_string(), self.protocol.name().to_string()),
+            ("model".to_string(), self.model.clone()),
+            ("firmware".to_string(), self.firmware.clone()),
+            ("serial-number".to_string(), self.serial.clone()),
+        ]);
+        if self.protocol == DeviceProtocol::Gx1 {
+            m.extend(self.gains.metadata());
+        }
+        m.extend(self.details.iter().cloned());
+        m
+    }
 }
 
 /// Host clocks now: (CLOCK_MONOTONIC ns, Unix wall-clock ns). CLOCK_MONOTONIC is system-wide, so
@@ -121,8 +148,8 @@ pub struct Daemon {
     pub sinks: Sinks,
     /// The per-frame state.
     pub pipeline: Pipeline,
-    /// The decoder (kept across reconnects so its counters are cumulative).
-    pub decoder: ReplyDecoder,
+    /// The decoders (kept across reconnects so their counters are cumulative).
+    pub link: Link,
     /// The calibration source.
     pub calibration: CalibrationSource,
     /// Reconnects so far.
@@ -194,7 +221,7 @@ impl Daemon {
     fn publish_status(&mut self, connected: bool) {
         let (mono, wall) = now_ns();
         let mut status = self.pipeline.status(
-            &self.decoder.stats(),
+            &self.link.stats(),
             &self.sinks,
             self.reconnects,
             connected,
@@ -232,9 +259,8 @@ impl Daemon {
 
     pub(crate) fn drain_decoder(&mut self) {
         let (mono, wall) = now_ns();
-        while let Some(ev) = self.decoder.next_event() {
-            self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
-        }
+        self.link
+            .drain_into(&mut self.pipeline, mono, wall, &mut self.sinks);
     }
 
     /// Runs until SIGTERM/SIGINT: sessions with reconnects in between.
@@ -265,7 +291,7 @@ impl Daemon {
                 }
                 Err(e) => SessionEnd::Lost(e),
             };
-            self.decoder.flush();
+            self.link.flush();
             self.drain_decoder();
             match end {
                 SessionEnd::Shutdown => {
@@ -302,7 +328,8 @@ impl Daemon {
     /// Streams (or polls) until the device is lost or a shutdown signal arrives.
     async fn stream(&mut self, mut port: SerialStream, signals: &mut Signals) -> SessionEnd {
         let cfg = self.config.device.clone();
-        let polled = cfg.mode == AcquisitionMode::Polled;
+        let polled =
+            cfg.mode == AcquisitionMode::Polled && self.link.protocol() == DeviceProtocol::Gx1;
         let poll_period = Duration::from_secs_f64(1.0 / cfg.poll_rate_hz);
         let mut poll = tokio::time::interval(poll_period);
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
@@ -330,10 +357,8 @@ impl Daemon {
                     Ok(n) => {
                         last_bytes = tokio::time::Instant::now();
                         let (mono, wall) = now_ns();
-                        self.decoder.push(&buf[..n]);
-                        while let Some(ev) = self.decoder.next_event() {
-                            self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
-                        }
+                        self.link.push(&buf[..n]);
+                        self.link.drain_into(&mut self.pipeline, mono, wall, &mut self.sinks);
                     }
                     Err(e) => return SessionEnd::Lost(anyhow!(e).context("reading from the device")),
                 },
@@ -364,11 +389,14 @@ impl Daemon {
 
     /// Leaves the device idle on shutdown (best effort).
     async fn stop_device(&mut self, port: &mut SerialStream) {
-        if self.config.device.mode == AcquisitionMode::Continuous {
-            let _ = port
-                .write_all(&Command::SetContinuous { command: 0 }.to_bytes())
-                .await;
-        }
+        let stop = match self.link.protocol() {
+            DeviceProtocol::Mip => MipCommand::SetToIdle.to_packet().as_bytes().to_vec(),
+            DeviceProtocol::Gx1 if self.config.device.mode == AcquisitionMode::Continuous => {
+                Command::SetContinuous { command: 0 }.to_bytes()
+            }
+            DeviceProtocol::Gx1 => return,
+        };
+        let _ = port.write_all(&stop).await;
     }
 }
 

@@ -1,6 +1,8 @@
 //! End-to-end: imu-sim on a real pty -> the imud binary -> a real iceoryx2 subscriber and the MCAP
 //! file, checked against the simulator's truth: no frame lost, values correct, hot reload,
-//! reconnect after unplug, garbage skipped and counted, a readable file after kill -9.
+//! reconnect after unplug, garbage skipped and counted, a readable file after kill -9. The
+//! streaming tests run over both protocols (the simulated unit speaking 3DM-GX1 or MIP; imud
+//! probes which), the offline one too.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -9,8 +11,10 @@ use std::time::{Duration, Instant};
 use imu_bus::CorrectedSample;
 use imu_bus::recording::read_recording;
 use imu_bus::shm::Subscription;
+use imu_bus::truth::is_data_command;
 use imu_bus::truth::read_truth;
 use imu_model::Calibration;
+use imu_proto::DeviceProtocol;
 use imu_sim::{Pacing, Scenario, SimOptions};
 
 const TRUTH: &str = r#"
@@ -32,13 +36,14 @@ value = [0.003, 0.001, -0.002]
 white-density = [0.0002, 0.0002, 0.0002]
 "#;
 
-fn scenario(endless: bool) -> String {
+fn scenario(endless: bool, protocol: DeviceProtocol) -> String {
     format!(
         r#"
 name = "e2e"
 rate-hz = 100.0
 [device]
 baud = 115200
+protocol = "{protocol}"
 [[segment]]
 kind = "static"
 orientation = {{ x = "north", z = "up" }}
@@ -56,6 +61,26 @@ kind = "static"
 "#,
         if endless { "" } else { "duration-s = 1.0" }
     )
+}
+
+/// One data sample of the device equals one truth data record: the same device time.
+fn assert_same_device_time(
+    protocol: DeviceProtocol,
+    raw: &imu_bus::RawSample,
+    truth: &imu_bus::truth::TruthSample,
+    i: usize,
+) {
+    match protocol {
+        DeviceProtocol::Gx1 => assert_eq!(raw.ticks, truth.ticks, "sample {i}"),
+        // The truth holds the 62.5 kHz internal timestamp, imud the ns reference time: both
+        // floor the same device time.
+        DeviceProtocol::Mip => {
+            let truth_ns = truth.ticks_unwrapped as f64 * 16_000.0;
+            let d = raw.t_device_ns as f64 - truth_ns;
+            // -1: the ns floor of a time just above a whole ns in f64.
+            assert!((-1.0..16_001.0).contains(&d), "sample {i}: {d} ns");
+        }
+    }
 }
 
 struct Imud {
@@ -112,8 +137,8 @@ impl Drop for Imud {
     }
 }
 
-fn sim_options(dir: &Path, endless: bool) -> SimOptions {
-    let text = scenario(endless);
+fn sim_options(dir: &Path, endless: bool, protocol: DeviceProtocol) -> SimOptions {
+    let text = scenario(endless, protocol);
     SimOptions {
         scenario: Scenario::from_toml_str(&text, "e2e scenario").unwrap(),
         scenario_text: text,
@@ -178,11 +203,20 @@ fn drain(
 
 #[test]
 fn every_frame_reaches_log_and_subscriber_and_matches_truth() {
+    every_frame_reaches_log_and_subscriber(DeviceProtocol::Gx1);
+}
+
+#[test]
+fn every_mip_frame_reaches_log_and_subscriber_and_matches_truth() {
+    every_frame_reaches_log_and_subscriber(DeviceProtocol::Mip);
+}
+
+fn every_frame_reaches_log_and_subscriber(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let cal_path = dir.path().join("calibration.toml");
     std::fs::write(&cal_path, TRUTH).unwrap();
-    let name = unique("lossless");
-    let opts = sim_options(dir.path(), false);
+    let name = unique(&format!("lossless-{protocol}"));
+    let opts = sim_options(dir.path(), false, protocol);
     // The daemon starts before the device exists and retries; the subscriber connects before any
     // sample is published, so it must see every one.
     let imud = Imud::start(dir.path(), &name, &dir.path().join("imu0"), &cal_path);
@@ -202,10 +236,16 @@ fn every_frame_reaches_log_and_subscriber_and_matches_truth() {
     let log = imud.terminate();
 
     let truth = read_truth(&dir.path().join("truth.mcap")).unwrap();
-    let truth_data: Vec<_> = truth.samples.iter().filter(|s| s.command == 0x01).collect();
+    let truth_data: Vec<_> = truth
+        .samples
+        .iter()
+        .filter(|s| is_data_command(s.command))
+        .collect();
     assert!(report.completed);
+    // 750 samples in the scenario, less the start-up (about 0.5-1 s on a loaded machine, the
+    // protocol probe included): the session spans every segment.
     assert!(
-        truth_data.len() > 700,
+        truth_data.len() > 600,
         "{} samples: {log}",
         truth_data.len()
     );
@@ -218,8 +258,13 @@ fn every_frame_reaches_log_and_subscriber_and_matches_truth() {
     assert_eq!(rec.raw.len(), truth_data.len(), "{log}");
     for (i, (r, t)) in rec.raw.iter().zip(&truth_data).enumerate() {
         assert_eq!(r.seq, i as u64);
-        assert_eq!(r.ticks, t.ticks, "sample {i}");
+        assert_same_device_time(protocol, r, t, i);
     }
+    let device = rec.metadata.get("imud.device").expect("device metadata");
+    assert_eq!(
+        device.get("protocol").map(String::as_str),
+        Some(protocol.name())
+    );
     assert!(
         rec.frames.iter().all(|f| f.accepted),
         "a clean line has no rejected bytes"
@@ -299,14 +344,23 @@ fn every_frame_reaches_log_and_subscriber_and_matches_truth() {
 
 #[test]
 fn hot_reload_garbage_unplug_and_kill_9() {
+    hot_reload_garbage_unplug_and_kill(DeviceProtocol::Gx1);
+}
+
+#[test]
+fn mip_hot_reload_garbage_unplug_and_kill_9() {
+    hot_reload_garbage_unplug_and_kill(DeviceProtocol::Mip);
+}
+
+fn hot_reload_garbage_unplug_and_kill(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let cal_path = dir.path().join("calibration.toml");
     std::fs::write(&cal_path, TRUTH).unwrap();
-    let name = unique("faults");
+    let name = unique(&format!("faults-{protocol}"));
     let imud = Imud::start(dir.path(), &name, &dir.path().join("imu0"), &cal_path);
     let mut sub = Subscription::<CorrectedSample>::open(&name, Duration::from_secs(10))
         .unwrap_or_else(|e| panic!("{e}: {}", imud.stderr()));
-    let sim = imu_sim::spawn(sim_options(dir.path(), true)).unwrap();
+    let sim = imu_sim::spawn(sim_options(dir.path(), true, protocol)).unwrap();
     let mut got = Vec::new();
     // Wait until the scenario reached its final, endless still segment (6.5 s in).
     drain(
@@ -513,7 +567,7 @@ fn polled_mode_logs_temperature_and_reloads_on_file_change() {
     )
     .unwrap();
     let name = unique("polled");
-    let mut opts = sim_options(dir.path(), true);
+    let mut opts = sim_options(dir.path(), true, DeviceProtocol::Gx1);
     opts.scenario.temperature = imu_sim::scenario::TemperatureProfile::Warmup {
         ambient_c: 22.0,
         operating_c: 38.0,
@@ -603,7 +657,11 @@ fn polled_mode_logs_temperature_and_reloads_on_file_change() {
     // Every poll answered is logged: samples and temperatures (at 2 Hz) match the truth.
     let truth = read_truth(&dir.path().join("truth.mcap")).unwrap();
     let rec = read_recording(&recordings(dir.path())[0]).unwrap();
-    let truth_samples = truth.samples.iter().filter(|s| s.command == 0x01).count();
+    let truth_samples = truth
+        .samples
+        .iter()
+        .filter(|s| is_data_command(s.command))
+        .count();
     let truth_temps: Vec<f64> = truth
         .samples
         .iter()
@@ -632,12 +690,24 @@ fn polled_mode_logs_temperature_and_reloads_on_file_change() {
 
 #[test]
 fn offline_recording_equals_the_truth_sample_for_sample() {
+    offline_recording_equals_the_truth(DeviceProtocol::Gx1);
+}
+
+#[test]
+fn offline_mip_recording_equals_the_truth_sample_for_sample() {
+    offline_recording_equals_the_truth(DeviceProtocol::Mip);
+}
+
+fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let scenario_path = dir.path().join("scenario.toml");
     // The scenario names its truth model (a top-level key, so before any table).
     std::fs::write(
         &scenario_path,
-        format!("truth = \"truth-model.toml\"\n{}", scenario(false)),
+        format!(
+            "truth = \"truth-model.toml\"\n{}",
+            scenario(false, protocol)
+        ),
     )
     .unwrap();
     std::fs::write(dir.path().join("truth-model.toml"), TRUTH).unwrap();
@@ -660,17 +730,46 @@ fn offline_recording_equals_the_truth_sample_for_sample() {
     let rec = read_recording(Path::new(files[0])).unwrap();
     let truth = read_truth(Path::new(files[1])).unwrap();
     assert_eq!(truth.run.get("seed").map(String::as_str), Some("9"));
-    let data: Vec<_> = truth.samples.iter().filter(|s| s.command == 0x01).collect();
+    let data: Vec<_> = truth
+        .samples
+        .iter()
+        .filter(|s| is_data_command(s.command))
+        .collect();
     assert_eq!(rec.raw.len(), data.len());
     assert_eq!(rec.raw.len(), 750, "7.5 s at 100 Hz");
-    // Temperature at the default 1 Hz, as a thermal analysis needs.
+    // Temperature at the default 1 Hz, as a thermal analysis needs (polled from a GX1, the
+    // MIP packets' field recorded once a second).
     assert_eq!(rec.temperatures.len(), 8);
-    for (r, t) in rec.raw.iter().zip(&data) {
-        assert_eq!(r.ticks, t.ticks);
-        // Raw counts decode to the truth's pre-quantization measurement within half an LSB.
-        let a = imu_proto::scale::raw_bits_to_units(r.accel_counts[2] as u16, 7000) * 9.80665;
-        assert!(
-            (a - t.measured_accel_m_s2[2]).abs() <= 0.5 * 7000.0 / 32_768_000.0 * 9.80665 + 1e-12
-        );
+    for (i, (r, t)) in rec.raw.iter().zip(&data).enumerate() {
+        assert_same_device_time(protocol, r, t, i);
+        match protocol {
+            DeviceProtocol::Gx1 => {
+                // Raw counts decode to the truth's pre-quantization measurement within half
+                // an LSB, and the device reading is that decoding.
+                let a =
+                    imu_proto::scale::raw_bits_to_units(r.accel_counts[2] as u16, 7000) * 9.80665;
+                assert!(
+                    (a - t.measured_accel_m_s2[2]).abs()
+                        <= 0.5 * 7000.0 / 32_768_000.0 * 9.80665 + 1e-12
+                );
+                assert_eq!(r.accel_device_m_s2[2], a);
+            }
+            DeviceProtocol::Mip => {
+                // No counts; the device reading is the measurement in f32.
+                assert_eq!(r.flags & imu_bus::sample::raw_flags::NO_COUNTS, 16);
+                for k in 0..3 {
+                    let (got, want) = (r.gyro_device_rad_s[k], t.measured_gyro_rad_s[k]);
+                    assert!(
+                        (got - want).abs() <= 1e-7 * want.abs() + 1e-30,
+                        "{got} {want}"
+                    );
+                    let (got, want) = (r.accel_device_m_s2[k], t.measured_accel_m_s2[k]);
+                    assert!(
+                        (got - want).abs() <= 1e-6 * want.abs() + 1e-12,
+                        "{got} {want}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -3,35 +3,14 @@
 //! start-up reply never shifts a GainScale onto another sensor, dropped frames are counted
 //! exactly, and stamps stay strictly increasing through a one-second link stall.
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+mod python_device;
 
-use imu_bus::recording::{Recording, read_recording};
+use imu_bus::recording::Recording;
 
 /// The test device's GainScales (accel, gyro, mag): none equals another or a fallback.
 const DEVICE_GAINS: [u16; 3] = [8500, 8800, 2500];
 /// imud's default configured fallbacks.
 const FALLBACK_GAINS: [u16; 3] = [7000, 10_000, 2000];
-
-struct Killed(Child);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn terminate(child: &mut Killed) -> std::process::ExitStatus {
-    let ok = Command::new("kill")
-        .args(["-TERM", &child.0.id().to_string()])
-        .status()
-        .expect("kill")
-        .success();
-    assert!(ok);
-    child.0.wait().expect("wait")
-}
 
 /// One session: the device with `device_args`, imud on it until `stream_s` after it has said
 /// which gains are in force. Returns the recording, the device's report and imud's log.
@@ -40,64 +19,16 @@ fn session(
     device_args: &[&str],
     stream_s: f64,
 ) -> (Recording, serde_json::Value, String) {
-    let dir = tempfile::tempdir().expect("tmp");
-    let link = dir.path().join("imu0");
-    let report = dir.path().join("report.json");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/python/faulty_gx1.py");
-    let mut device = Killed(
-        Command::new("python3")
-            .arg(&script)
-            .arg("--link")
-            .arg(&link)
-            .arg("--report")
-            .arg(&report)
-            .args(device_args)
-            .stdout(Stdio::null())
-            .spawn()
-            .expect("python3 runs the test device"),
-    );
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !link.exists() {
-        assert!(Instant::now() < deadline, "the test device did not start");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let config = dir.path().join("imud.toml");
-    std::fs::write(&config, "[publish]\nenabled = false\n").expect("config");
-    let log_path = dir.path().join("imud.stderr");
-    let mut imud = Killed(
-        Command::new(env!("CARGO_BIN_EXE_imud"))
-            .arg("--config")
-            .arg(&config)
-            .args(["--name", &format!("faults-{name}-{}", std::process::id())])
-            .arg("--device")
-            .arg(&link)
-            .arg("--log-dir")
-            .arg(dir.path().join("logs"))
-            .env("IMUD_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&log_path).expect("log"))
-            .spawn()
-            .expect("imud"),
-    );
-    let log = || std::fs::read_to_string(&log_path).unwrap_or_default();
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while !log().contains("GainScales in force") {
-        assert!(Instant::now() < deadline, "no start-up: {}", log());
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    std::thread::sleep(Duration::from_secs_f64(stream_s));
-    assert!(terminate(&mut imud).success(), "{}", log());
-    assert!(terminate(&mut device).success());
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).expect("report")).expect("json");
-    let files: Vec<PathBuf> = std::fs::read_dir(dir.path().join("logs"))
-        .expect("logs")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
-        .collect();
-    assert_eq!(files.len(), 1, "{files:?}");
-    let rec = read_recording(&files[0]).expect("recording");
-    (rec, report, log())
+    let s = python_device::run(&python_device::Setup {
+        script: "faulty_gx1.py",
+        name: &format!("faults-{name}"),
+        device_args,
+        imud_args: &[],
+        config: "",
+        ready: "GainScales in force",
+        stream_s,
+    });
+    (s.rec, s.report, s.log)
 }
 
 /// The gains in force by the metadata, the status and the log: each one is exactly the

@@ -15,8 +15,6 @@ mod ros2_common;
 
 use imu_bus::recording::Recording;
 use imu_bus::ros2::Imu;
-use imud::pipeline::{GainFallback, Gains};
-use imud::ros2::raw_imu_values;
 use ros2_common::{End, Options, Run, Started, samples, stamp_ns};
 use serde_json::Value;
 
@@ -171,21 +169,19 @@ fn assert_late_tail(late: &[Value], rec: &Recording) {
     );
 }
 
-/// `imu/data_raw`: the recorded raw samples in physical units with the recorded GainScales,
-/// stamped like their corrected samples.
+/// `imu/data_raw`: the recorded raw counts (raw bits) in physical units with the recorded
+/// GainScales, which are the raw samples' device readings, stamped like their corrected samples.
 fn assert_raw_topic(early: &Value, rec: &Recording) {
     let device = &rec.metadata["imud.device"];
     let gain = |k: &str| device[k].parse::<u16>().unwrap();
-    let gains = Gains {
-        accel: gain("gain-scale-accel"),
-        gyro: gain("gain-scale-gyro"),
-        mag: gain("gain-scale-mag"),
-        fallback: GainFallback::NONE,
-    };
+    let (ga, gg) = (gain("gain-scale-accel"), gain("gain-scale-gyro"));
+    let units = |c: [i32; 3], g: u16| c.map(|c| imu_proto::scale::raw_bits_to_units(c as u16, g));
     let raw = samples(&early["imu_raw"], "imu_raw");
     assert_eq!(raw.len(), rec.raw.len());
     for ((g, r), imu) in raw.iter().zip(&rec.raw).zip(&rec.imu) {
-        let (accel, gyro, _) = raw_imu_values(r, gains);
+        let accel = units(r.accel_counts, ga).map(|a| a * imu_model::units::STANDARD_GRAVITY_M_S2);
+        let gyro = units(r.gyro_counts, gg);
+        assert_eq!((accel, gyro), (r.accel_device_m_s2, r.gyro_device_rad_s));
         assert_eq!(stamp_ns(g), imu.header.stamp.to_ns());
         assert_eq!(f64s(&g["linear_acceleration"]), accel);
         assert_eq!(f64s(&g["angular_velocity"]), gyro);

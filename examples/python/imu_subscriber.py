@@ -6,7 +6,7 @@ the iceoryx2 crate imud is built with, see requirements-dev.txt). It opens the s
 `imu-echo`:
 
     imud/<name>/corrected   CorrectedSample  (type name "imud::CorrectedSample.v1")
-    imud/<name>/raw         RawSample        (type name "imud::RawSample.v1"), with --raw
+    imud/<name>/raw         RawSample        (type name "imud::RawSample.v2"), with --raw
     imud/<name>/event       wakes subscribers when the daemon has published
 
 The ctypes Structures below mirror the `#[repr(C)]` layouts documented in
@@ -33,7 +33,7 @@ import iceoryx2 as iox2
 
 
 class RawSample(ctypes.Structure):
-    """One decoded data frame as the device sent it (imud::RawSample.v1, 104 bytes)."""
+    """One decoded data frame as the device sent it (imud::RawSample.v2, 176 bytes)."""
 
     _fields_ = [
         ("seq", ctypes.c_uint64),
@@ -51,12 +51,15 @@ class RawSample(ctypes.Structure):
         ("command", ctypes.c_uint8),
         ("reserved", ctypes.c_uint8),
         ("flags", ctypes.c_uint32),
+        ("accel_device_m_s2", ctypes.c_double * 3),
+        ("gyro_device_rad_s", ctypes.c_double * 3),
+        ("mag_device_gauss", ctypes.c_double * 3),
     ]
 
     @classmethod
     def type_name(cls) -> str:
         """The iceoryx2 type name shared with the Rust side."""
-        return "imud::RawSample.v1"
+        return "imud::RawSample.v2"
 
 
 class CorrectedSample(ctypes.Structure):
@@ -83,7 +86,8 @@ class CorrectedSample(ctypes.Structure):
 
 
 # The same layout guards as the Rust side: a mismatch here is a bug in this file.
-assert ctypes.sizeof(RawSample) == 104 and ctypes.alignment(RawSample) == 8
+assert ctypes.sizeof(RawSample) == 176 and ctypes.alignment(RawSample) == 8
+assert RawSample.accel_device_m_s2.offset == 104 and RawSample.mag_device_gauss.offset == 152
 assert RawSample.temp_c.offset == 88 and RawSample.flags.offset == 100
 assert ctypes.sizeof(CorrectedSample) == 128 and ctypes.alignment(CorrectedSample) == 8
 assert CorrectedSample.temp_c.offset == 104 and CorrectedSample.reserved.offset == 124

@@ -17,15 +17,12 @@ sent, EEPROM reads answered) to --report and exits.
 """
 
 import argparse
-import json
-import os
 import random
-import select
-import signal
 import struct
 import sys
 import time
-import tty
+
+from pty_device import serve
 
 GAIN_ADDRS = {230: "accel", 130: "gyro", 232: "mag"}
 
@@ -125,6 +122,10 @@ class Device:
         # other bytes: ignored, as garbage
         return True
 
+    def handle_input(self):
+        while self.inbuf and self.command():
+            pass
+
     def stream(self):
         if self.streaming is None:
             return
@@ -170,39 +171,7 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
 
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    os.set_blocking(master, False)
-    if os.path.lexists(args.link):
-        os.unlink(args.link)
-    os.symlink(os.ttyname(slave), args.link)
-    dev = Device(args)
-    stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
-    try:
-        while not stop:
-            r, _, _ = select.select([master], [], [], 0.002)
-            if r:
-                try:
-                    dev.inbuf += os.read(master, 4096)
-                except (BlockingIOError, OSError):
-                    pass
-            busy = time.monotonic() < dev.hold_until
-            if not busy:
-                while dev.inbuf and dev.command():
-                    pass
-            # The device keeps sampling while the link is stalled; the frames queue up.
-            dev.stream()
-            if dev.out and time.monotonic() >= dev.hold_until:
-                try:
-                    n = os.write(master, dev.out)
-                    del dev.out[:n]
-                except (BlockingIOError, OSError):
-                    pass
-    finally:
-        with open(args.report, "w") as f:
-            json.dump(dev.report(), f)
-        os.unlink(args.link)
+    serve(Device(args), args.link, args.report)
 
 
 if __name__ == "__main__":

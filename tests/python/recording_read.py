@@ -68,6 +68,8 @@ def convert(topic, m):
         for f in ["accel_counts", "gyro_counts", "mag_counts"]:
             out[f] = [int(x) for x in getattr(m, f)]
         out["temp_c"] = num(m.temp_c)
+        for f in ["accel_device_m_s2", "gyro_device_rad_s", "mag_device_gauss"]:
+            out[f] = floats(getattr(m, f))
         return out
     if topic == "/imu/raw_frame":
         return {

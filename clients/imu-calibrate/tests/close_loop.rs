@@ -259,10 +259,45 @@ fn calibration_file_from_imu_calibrate_corrects_a_new_session_in_imud() {
 /// up to 2e-3 rad/s at 1 g: several times the noise of a segment mean.)
 #[test]
 fn workbench_ladder_calibration_corrects_a_new_session_in_imud() {
+    workbench_ladder_through_imud(imu_proto::DeviceProtocol::Gx1);
+}
+
+/// The same loop with the unit speaking MIP: its SI readings (no counts, no GainScales) are
+/// what the workbench reads and what imud corrects.
+#[test]
+fn workbench_ladder_through_imud_over_mip() {
+    workbench_ladder_through_imud(imu_proto::DeviceProtocol::Mip);
+}
+
+/// The scenario file for `protocol`: the shipped one, or a copy in `dir` whose device speaks
+/// MIP (its truth model is passed explicitly, so the copy's place does not matter).
+fn scenario_for(dir: &Path, rel: &str, protocol: imu_proto::DeviceProtocol) -> PathBuf {
+    let path = config_path(rel);
+    if protocol == imu_proto::DeviceProtocol::Gx1 {
+        return path;
+    }
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        !text.contains("[device]"),
+        "{rel} has its own [device] table"
+    );
+    let copy = dir.join(format!(
+        "{protocol}-{}",
+        path.file_name().unwrap().to_string_lossy()
+    ));
+    std::fs::write(
+        &copy,
+        format!("{text}\n[device]\nprotocol = \"{protocol}\"\n"),
+    )
+    .unwrap();
+    copy
+}
+
+fn workbench_ladder_through_imud(protocol: imu_proto::DeviceProtocol) {
     use imu_analysis::workbench::{DiagnoseOptions, Workbench};
     use imu_model::Triad;
     let dir = tempfile::tempdir().unwrap();
-    let scenario = config_path("scenarios/workbench-demo.toml");
+    let scenario = scenario_for(dir.path(), "scenarios/workbench-demo.toml", protocol);
     let truth_model_path = config_path("models/workbench-demo.toml");
     let truth_model = Calibration::load(&truth_model_path).unwrap();
 

@@ -105,6 +105,12 @@ impl Echo for RawSample {
         col("mag_x_counts", "mx[cnt]", 8),
         col("mag_y_counts", "my[cnt]", 8),
         col("mag_z_counts", "mz[cnt]", 8),
+        col("accel_x_device_m_s2", "ax[m/s2]", 9),
+        col("accel_y_device_m_s2", "ay[m/s2]", 9),
+        col("accel_z_device_m_s2", "az[m/s2]", 9),
+        col("gyro_x_device_rad_s", "gx[rad/s]", 10),
+        col("gyro_y_device_rad_s", "gy[rad/s]", 10),
+        col("gyro_z_device_rad_s", "gz[rad/s]", 10),
         col("temp_c", "temp[C]", 8),
         col("command", "cmd", 5),
         col("flags", "flags", 6),
@@ -117,6 +123,8 @@ impl Echo for RawSample {
         ints(out, &self.accel_counts);
         ints(out, &self.gyro_counts);
         ints(out, &self.mag_counts);
+        floats(out, &self.accel_device_m_s2, 4);
+        floats(out, &self.gyro_device_rad_s, 5);
         floats(out, &[self.temp_c], 2);
         out.push(Cell::Hex(self.command.into()));
         out.push(Cell::Hex(self.flags.into()));

@@ -13,7 +13,7 @@
 //!
 //! | Rust type           | iceoryx2 type name          | size | align |
 //! |---------------------|-----------------------------|------|-------|
-//! | [`RawSample`]       | `imud::RawSample.v1`        | 104  | 8     |
+//! | [`RawSample`]       | `imud::RawSample.v2`        | 176  | 8     |
 //! | [`CorrectedSample`] | `imud::CorrectedSample.v1`  | 128  | 8     |
 //! | [`DaemonStatus`]    | `imud::DaemonStatus.v2`     | 152  | 8     |
 //! | [`CalibrationHealth`] | `imud::CalibrationHealth.v1` | 176 | 8    |
@@ -30,8 +30,12 @@
 //!  72 int32_t  mag_counts[3];       84 (4 bytes of padding: contents unspecified)
 //!  88 double   temp_c;              96 uint16_t ticks;
 //!  98 uint8_t  command;             99 uint8_t  reserved;
-//! 100 uint32_t flags;              104 = sizeof
+//! 100 uint32_t flags;             104 double   accel_device_m_s2[3];
+//! 128 double   gyro_device_rad_s[3]; 152 double mag_device_gauss[3];
+//! 176 = sizeof
 //! ```
+//! (v1, 104 bytes, ended at `flags`: v2 appends the device's own reading in SI, which is all a
+//! MIP device sends.)
 //! C layout of `CorrectedSample`:
 //! ```text
 //!   0 uint64_t seq;                 8 uint64_t t_sample_ns;
@@ -83,7 +87,7 @@
 use iceoryx2::prelude::ZeroCopySend;
 
 /// iceoryx2 type name of [`RawSample`] (see the module docs for the C layout).
-pub const RAW_SAMPLE_TYPE_NAME: &str = "imud::RawSample.v1";
+pub const RAW_SAMPLE_TYPE_NAME: &str = "imud::RawSample.v2";
 /// iceoryx2 type name of [`CorrectedSample`] (see the module docs for the C layout).
 pub const CORRECTED_SAMPLE_TYPE_NAME: &str = "imud::CorrectedSample.v1";
 /// iceoryx2 type name of [`DaemonStatus`] (see the module docs for the C layout).
@@ -93,7 +97,7 @@ pub const CALIBRATION_HEALTH_TYPE_NAME: &str = "imud::CalibrationHealth.v1";
 
 // Layout guards: a size change must come with a new type-name version (and new mirrors in
 // examples/python/imu_subscriber.py). Offsets are checked in the tests below.
-const _: () = assert!(size_of::<RawSample>() == 104 && align_of::<RawSample>() == 8);
+const _: () = assert!(size_of::<RawSample>() == 176 && align_of::<RawSample>() == 8);
 const _: () = assert!(size_of::<CorrectedSample>() == 128 && align_of::<CorrectedSample>() == 8);
 const _: () = assert!(size_of::<DaemonStatus>() == 152 && align_of::<DaemonStatus>() == 8);
 const _: () =
@@ -109,6 +113,9 @@ pub mod raw_flags {
     pub const SCALED_COUNTS: u32 = 1 << 2;
     /// Frames were lost just before this one (the tick counter jumped further than expected).
     pub const GAP_BEFORE: u32 = 1 << 3;
+    /// The device sent no counts (a MIP unit streams scaled floats): the `*_counts` fields are
+    /// zero and the `*_device_*` fields are the whole reading.
+    pub const NO_COUNTS: u32 = 1 << 4;
 }
 
 /// Bit flags of a [`CorrectedSample`].
@@ -129,11 +136,12 @@ pub mod corrected_flags {
 /// One decoded data frame as the device sent it, with the daemon's timestamps.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, serde::Serialize)]
 #[repr(C)]
-#[type_name("imud::RawSample.v1")]
+#[type_name("imud::RawSample.v2")]
 pub struct RawSample {
     /// Daemon sequence number of data samples since start (increments by one per sample).
     pub seq: u64,
-    /// Device time: unwrapped timer ticks times the tick period in force, ns since power-on.
+    /// Device time: unwrapped timer ticks times the tick period in force, ns since power-on
+    /// (a MIP unit's reference time, or its internal timestamp's counts at 62.5 kHz).
     pub t_device_ns: u64,
     /// Host monotonic clock (CLOCK_MONOTONIC) when the frame's last byte was read, ns.
     pub t_host_monotonic_ns: u64,
@@ -141,9 +149,10 @@ pub struct RawSample {
     pub t_host_wall_ns: u64,
     /// Sample time on the host monotonic timebase from the online device-clock fit, ns.
     pub t_sample_ns: u64,
-    /// Unwrapped timer ticks.
+    /// Unwrapped timer ticks (a MIP unit's reference time in ns, or its internal timestamp).
     pub ticks_unwrapped: u64,
-    /// Accelerometer counts (raw ADC bits as u16, or scaled i16, widened).
+    /// Accelerometer counts (raw ADC bits as u16, or scaled i16, widened; zero with
+    /// [`raw_flags::NO_COUNTS`]).
     pub accel_counts: [i32; 3],
     /// Gyro counts.
     pub gyro_counts: [i32; 3],
@@ -151,14 +160,21 @@ pub struct RawSample {
     pub mag_counts: [i32; 3],
     /// Latest device temperature, deg C (NaN before the first reading).
     pub temp_c: f64,
-    /// The reply's 16-bit timer ticks as sent.
+    /// The reply's 16-bit timer ticks as sent (a MIP unit's: the low 16 bits).
     pub ticks: u16,
-    /// Reply header byte (0x01 raw bits, 0x02/0x03 vectors, ...).
+    /// Reply header byte (0x01 raw bits, 0x02/0x03 vectors, ...; 0x80, the data set, for MIP).
     pub command: u8,
     /// Reserved, zero.
     pub reserved: u8,
     /// [`raw_flags`] bits.
     pub flags: u32,
+    /// The device's own reading of specific force before imud's calibration, m/s^2: the
+    /// GainScale conversion of the counts (3DM-GX1), the scaled field (MIP).
+    pub accel_device_m_s2: [f64; 3],
+    /// The device's own reading of angular rate, rad/s (as [`Self::accel_device_m_s2`]).
+    pub gyro_device_rad_s: [f64; 3],
+    /// The device's own reading of the magnetic field, gauss (as [`Self::accel_device_m_s2`]).
+    pub mag_device_gauss: [f64; 3],
 }
 
 /// One sample in SI units with the calibration in force applied.
@@ -436,7 +452,10 @@ mod tests {
         assert_eq!(offset_of!(RawSample, command), 98);
         assert_eq!(offset_of!(RawSample, reserved), 99);
         assert_eq!(offset_of!(RawSample, flags), 100);
-        assert_eq!(size_of::<RawSample>(), 104);
+        assert_eq!(offset_of!(RawSample, accel_device_m_s2), 104);
+        assert_eq!(offset_of!(RawSample, gyro_device_rad_s), 128);
+        assert_eq!(offset_of!(RawSample, mag_device_gauss), 152);
+        assert_eq!(size_of::<RawSample>(), 176);
     }
 
     #[test]

@@ -29,6 +29,17 @@ pub const SCENARIO_METADATA: &str = "imu-sim.scenario";
 /// Metadata record whose `toml` key holds the truth error model (imu-model calibration format).
 pub const TRUTH_MODEL_METADATA: &str = "imu-sim.truth-model";
 
+/// The 3DM-GX1's temperature reply code (`imu_proto::Command::Temperature`): the one truth
+/// record that is not a data sample (imu-bus does not depend on the codec; a test in
+/// imu-analysis holds the two equal).
+pub const TEMPERATURE_COMMAND: u8 = 0x07;
+
+/// True when a truth record with this `command` is a data sample: any GX1 data reply (0x01
+/// raw bits, 0x02/0x03 vectors, ...) or a MIP IMU packet (0x80), not a temperature.
+pub fn is_data_command(command: u8) -> bool {
+    command != TEMPERATURE_COMMAND
+}
+
 /// The true state behind one data reply of the virtual device.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TruthSample {

@@ -169,6 +169,15 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
             assert_eq!(g[field], serde_json::json!(value), "{what} {field}");
         }
         close(&g["temp_c"], w.temp_c, &what);
+        for (field, value) in [
+            ("accel_device_m_s2", w.accel_device_m_s2),
+            ("gyro_device_rad_s", w.gyro_device_rad_s),
+            ("mag_device_gauss", w.mag_device_gauss),
+        ] {
+            for (i, v) in value.iter().enumerate() {
+                close(&g[field][i], *v, &format!("{what} {field}[{i}]"));
+            }
+        }
     }
 
     let frames = msgs["/imu/raw_frame"].as_array().unwrap();

@@ -50,6 +50,9 @@ fn raw_sample(seq: u64) -> RawSample {
         command: 0x31,
         reserved: 0,
         flags: 0b1011,
+        accel_device_m_s2: [1.5, -9.81, 0.0],
+        gyro_device_rad_s: [f64::MIN_POSITIVE, -1.0, 1e300],
+        mag_device_gauss: [0.3, 0.2, -0.1],
     }
 }
 

@@ -65,6 +65,9 @@ fn raw_sample(seq: u64) -> RawSample {
         command: 0x0c,
         reserved: 0,
         flags: (seq % 16) as u32,
+        accel_device_m_s2: [seq as f64 * 0.5, -9.80665, f64::INFINITY],
+        gyro_device_rad_s: [1e-3, -2e-3, seq as f64],
+        mag_device_gauss: [0.25, -0.5, 0.125],
     }
 }
 
@@ -121,6 +124,9 @@ fn expected_raw(s: &RawSample) -> Value {
         "command": s.command,
         "reserved": s.reserved,
         "flags": s.flags,
+        "accel_device_m_s2": floats(&s.accel_device_m_s2),
+        "gyro_device_rad_s": floats(&s.gyro_device_rad_s),
+        "mag_device_gauss": floats(&s.mag_device_gauss),
     })
 }
 

@@ -37,8 +37,8 @@ use crate::config::HealthConfig;
 use crate::health::HealthMonitor;
 
 pub use gx1::{Counts, GainFallback, Gains};
-pub use loss::TickKind;
 use loss::GapAccounting;
+pub use loss::TickKind;
 pub use mip::MipTimebase;
 pub use sinks::{ActiveCalibration, Sinks};
 
@@ -59,24 +59,54 @@ pub struct DeviceReading {
     pub command: u8,
 }
 
-/// How a session's device clock counts time.
+/// A session's device clock: which one, and so how it counts time.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Timebase {
-    /// Seconds per tick (nominal: the clock fit measures the device's oscillator).
-    pub tick_period_s: f64,
-    /// Counter width, bits (16 for the GX1, 32 for a MIP internal timestamp, 64 for ns).
-    pub tick_bits: u32,
-    /// What the ticks are.
-    pub kind: TickKind,
+pub enum Timebase {
+    /// The 3DM-GX1's 16-bit timer at a (configured, disputed) tick period.
+    Gx1 {
+        /// Seconds per tick.
+        tick_period_s: f64,
+    },
+    /// One of a MIP unit's timestamps.
+    Mip(MipTimebase),
 }
 
 impl Timebase {
     /// The 3DM-GX1's 16-bit timer at `tick_period_s`.
     pub fn gx1(tick_period_s: f64) -> Self {
-        Self {
-            tick_period_s,
-            tick_bits: 16,
-            kind: TickKind::Counter,
+        Self::Gx1 { tick_period_s }
+    }
+
+    /// Seconds per tick (nominal: the clock fit measures the device's oscillator).
+    pub fn tick_period_s(self) -> f64 {
+        match self {
+            Self::Gx1 { tick_period_s } => tick_period_s,
+            Self::Mip(m) => m.tick_ns() as f64 * 1e-9,
+        }
+    }
+
+    /// Counter width, bits.
+    pub fn tick_bits(self) -> u32 {
+        match self {
+            Self::Gx1 { .. } => 16,
+            Self::Mip(MipTimebase::InternalTimestamp) => 32,
+            Self::Mip(MipTimebase::ReferenceTime) => 64,
+        }
+    }
+
+    /// How the ticks compare with the sample interval.
+    pub fn kind(self) -> TickKind {
+        match self {
+            Self::Gx1 { .. } => TickKind::Coarse,
+            Self::Mip(_) => TickKind::Fine,
+        }
+    }
+
+    /// Device time of `ticks`, ns (exact integers where a tick is a whole number of ns).
+    pub fn device_ns(self, ticks: u64) -> u64 {
+        match self {
+            Self::Gx1 { tick_period_s } => (ticks as f64 * tick_period_s * 1e9) as u64,
+            Self::Mip(m) => ticks.saturating_mul(m.tick_ns()),
         }
     }
 }
@@ -206,10 +236,10 @@ impl Pipeline {
     pub fn new_session(&mut self, gains: Gains, timebase: Timebase) {
         self.gains = gains;
         self.timebase = timebase;
-        self.unwrapper = TickUnwrapper::with_bits(timebase.tick_bits);
-        self.gaps = GapAccounting::new(self.gaps.enabled, timebase.kind);
-        if self.clock.nominal_tick_period_s() != timebase.tick_period_s {
-            self.clock = ClockFit::new(timebase.tick_period_s);
+        self.unwrapper = TickUnwrapper::with_bits(timebase.tick_bits());
+        self.gaps = GapAccounting::new(self.gaps.enabled, timebase.kind());
+        if self.clock.nominal_tick_period_s() != timebase.tick_period_s() {
+            self.clock = ClockFit::new(timebase.tick_period_s());
         }
         self.clock.reset();
         if let Some(h) = &mut self.health {
@@ -241,7 +271,7 @@ impl Pipeline {
     /// Turns on loss accounting for a continuous stream (the device paces it; the tick step is
     /// learned from its first samples); off for polling, whose intervals are the host's.
     pub fn set_continuous(&mut self, continuous: bool) {
-        self.gaps = GapAccounting::new(continuous, self.timebase.kind);
+        self.gaps = GapAccounting::new(continuous, self.timebase.kind());
     }
 
     /// Puts a calibration in force from the next sample on (returns that sample's seq).
@@ -279,15 +309,7 @@ impl Pipeline {
                 bytes,
                 offset,
             } => {
-                self.counters.frames += 1;
-                sinks.log(LogRecord::RawFrame {
-                    t_host_wall_ns: t_wall_ns,
-                    t_host_monotonic_ns: t_mono_ns,
-                    stream_offset: offset,
-                    accepted: true,
-                    reject_reason: None,
-                    bytes: bytes.to_vec(),
-                });
+                self.log_frame(&bytes, offset, t_mono_ns, t_wall_ns, sinks);
                 self.on_reply(&reply, t_mono_ns, t_wall_ns, sinks);
             }
             DecodeEvent::Rejected {
@@ -296,6 +318,26 @@ impl Pipeline {
                 reason,
             } => log_rejected(bytes, offset, reason, t_mono_ns, t_wall_ns, sinks),
         }
+    }
+
+    /// Logs one good frame (either protocol's) and counts it.
+    pub(crate) fn log_frame(
+        &mut self,
+        bytes: &[u8],
+        offset: u64,
+        t_mono_ns: u64,
+        t_wall_ns: u64,
+        sinks: &Sinks,
+    ) {
+        self.counters.frames += 1;
+        sinks.log(LogRecord::RawFrame {
+            t_host_wall_ns: t_wall_ns,
+            t_host_monotonic_ns: t_mono_ns,
+            stream_offset: offset,
+            accepted: true,
+            reject_reason: None,
+            bytes: bytes.to_vec(),
+        });
     }
 
     /// Handles one good reply: a temperature is kept, a data reply becomes a raw and a corrected
@@ -335,9 +377,9 @@ impl Pipeline {
         sinks: &mut Sinks,
     ) {
         let ticks_unwrapped = reading.ticks_unwrapped;
-        let step =
-            self.gaps
-                .on_sample(self.seq, ticks_unwrapped, self.timebase.tick_period_s);
+        let step = self
+            .gaps
+            .on_sample(self.seq, ticks_unwrapped, self.timebase.tick_period_s());
         self.counters.samples_lost += step.lost_before + step.lost_earlier;
         if step.learned {
             // Positions were whole ticks until now: their lower envelope is biased by up to
@@ -352,12 +394,7 @@ impl Pipeline {
             // Exact already: no fit to run (and none to report).
             SampleClock::Host => t_mono_ns,
         };
-        let t_device_ns = match self.timebase.kind {
-            TickKind::FineNs => ticks_unwrapped,
-            TickKind::Counter => {
-                (ticks_unwrapped as f64 * self.timebase.tick_period_s * 1e9) as u64
-            }
-        };
+        let t_device_ns = self.timebase.device_ns(ticks_unwrapped);
         let mut flags = match reading.counts {
             Some(c) if c.scaled => raw_flags::SCALED_COUNTS,
             Some(_) => 0,
@@ -569,7 +606,7 @@ impl Pipeline {
 }
 
 /// Logs bytes the decoder rejected (either protocol's decoder: the reasons are shared).
-fn log_rejected(
+pub fn log_rejected(
     bytes: Vec<u8>,
     offset: u64,
     reason: RejectReason,

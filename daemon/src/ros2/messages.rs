@@ -4,49 +4,19 @@
 
 use imu_bus::recording::{header, imu_message};
 use imu_bus::ros2::{DiagnosticArray, DiagnosticLevel, DiagnosticStatus, Imu, KeyValue};
-use imu_bus::sample::raw_flags;
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
-use imu_proto::scale;
 
 use super::Ros2Stats;
-use crate::pipeline::Gains;
 
-const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
-
-/// A raw sample in physical units with the GainScales alone, as the pipeline scales it before
-/// the calibration: (accel m/s^2, gyro rad/s, mag gauss).
-pub fn raw_imu_values(raw: &RawSample, gains: Gains) -> ([f64; 3], [f64; 3], [f64; 3]) {
-    let scaled = raw.flags & raw_flags::SCALED_COUNTS != 0;
-    let unit = |counts: [i32; 3], gain: u16| {
-        counts.map(|c| {
-            if scaled {
-                scale::scaled_to_units(c as i16, gain)
-            } else {
-                scale::raw_bits_to_units(c as u16, gain)
-            }
-        })
-    };
-    (
-        unit(raw.accel_counts, gains.accel).map(|a| a * G0),
-        unit(raw.gyro_counts, gains.gyro),
-        unit(raw.mag_counts, gains.mag),
-    )
-}
-
-/// The `imu/data_raw` message: the raw sample in physical units, stamped and framed like the
-/// corrected sample of the same `seq` (covariance unknown: the noise model is the calibrated
-/// outputs').
-pub fn raw_imu_message(
-    raw: &RawSample,
-    corrected: &CorrectedSample,
-    gains: Gains,
-    frame_id: &str,
-) -> Imu {
-    let (accel_m_s2, gyro_rad_s, mag_gauss) = raw_imu_values(raw, gains);
+/// The `imu/data_raw` message: the device's own reading (the raw sample's `*_device_*`: the
+/// GainScale conversion of a GX1's counts, a MIP unit's scaled fields), stamped and framed like
+/// the corrected sample of the same `seq` (covariance unknown: the noise model is the
+/// calibrated outputs').
+pub fn raw_imu_message(raw: &RawSample, corrected: &CorrectedSample, frame_id: &str) -> Imu {
     let as_sample = CorrectedSample {
-        accel_m_s2,
-        gyro_rad_s,
-        mag_gauss,
+        accel_m_s2: raw.accel_device_m_s2,
+        gyro_rad_s: raw.gyro_device_rad_s,
+        mag_gauss: raw.mag_device_gauss,
         ..*corrected
     };
     imu_message(&as_sample, frame_id, None)
@@ -174,13 +144,14 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::{GainFallback, Pipeline, Sinks};
+    use crate::pipeline::{GainFallback, Gains, Pipeline, Sinks};
     use imu_bus::recording::{Recorder, RecordingConfig, TESLA_PER_GAUSS, read_recording};
+    use imu_bus::sample::raw_flags;
     use imu_proto::reply::Reply;
 
-    /// The uncalibrated topic's values are the pipeline's own GainScale conversion: without a
-    /// calibration the corrected stream (as the MCAP log stores it) is exactly that, for raw
-    /// bits and for scaled vectors.
+    /// The uncalibrated topic's values are the raw sample's device reading, which is the
+    /// pipeline's own GainScale conversion: without a calibration the corrected stream (as the
+    /// MCAP log stores it) is exactly that, for raw bits and for scaled vectors.
     #[test]
     fn raw_values_equal_the_uncalibrated_pipeline() {
         let gains = Gains {
@@ -234,16 +205,21 @@ mod tests {
             raw_flags::SCALED_COUNTS
         );
         for ((raw, imu), mag) in rec.raw.iter().zip(&rec.imu).zip(&rec.mag) {
-            let (a, g, m) = raw_imu_values(raw, gains);
-            assert_eq!(a, <[f64; 3]>::from(imu.linear_acceleration));
-            assert_eq!(g, <[f64; 3]>::from(imu.angular_velocity));
+            let c = CorrectedSample {
+                seq: raw.seq,
+                ..CorrectedSample::default()
+            };
+            let msg = raw_imu_message(raw, &c, "imu_link");
+            assert_eq!(msg.linear_acceleration, imu.linear_acceleration);
+            assert_eq!(msg.angular_velocity, imu.angular_velocity);
             assert_eq!(
-                m.map(|v| v * TESLA_PER_GAUSS),
+                raw.mag_device_gauss.map(|v| v * TESLA_PER_GAUSS),
                 <[f64; 3]>::from(mag.magnetic_field)
             );
         }
         // Raw bits: accel z of 4681 counts above the middle at GainScale 7000 is ~1 g.
-        let (a, _, _) = raw_imu_values(&rec.raw[0], gains);
-        assert!((a[2] - G0).abs() < 1e-3 * G0, "{a:?}");
+        let g0 = imu_model::units::STANDARD_GRAVITY_M_S2;
+        let a = rec.raw[0].accel_device_m_s2;
+        assert!((a[2] - g0).abs() < 1e-3 * g0, "{a:?}");
     }
 }

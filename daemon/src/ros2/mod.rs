@@ -20,14 +20,11 @@ use std::thread::JoinHandle;
 use imu_bus::recording::{ImuNoiseVariances, LogRecord};
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 
-use crate::pipeline::Gains;
-
 pub mod config;
 mod messages;
 mod publisher;
 
 pub use config::{Ros2Config, Ros2Qos, Ros2Topics};
-pub use messages::raw_imu_values;
 
 /// Why the DDS output could not start.
 #[derive(Debug, thiserror::Error)]
@@ -58,7 +55,6 @@ enum Item {
         temp_c: f64,
     },
     Noise(Option<ImuNoiseVariances>),
-    Gains(Gains),
     Status {
         t_wall_ns: u64,
         status: DaemonStatus,
@@ -147,11 +143,6 @@ impl Ros2Sink {
             LogRecord::RawFrame { .. } | LogRecord::Health(_) => return,
         };
         self.send(item);
-    }
-
-    /// Queues the GainScales in force (the uncalibrated topic's scaling).
-    pub fn set_gains(&self, gains: Gains) {
-        self.send(Item::Gains(gains));
     }
 
     /// Queues a status for `/diagnostics`.

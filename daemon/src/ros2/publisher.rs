@@ -21,7 +21,6 @@ use rustdds::{
 use super::config::{Ros2Config, Ros2Qos};
 use super::messages::{diagnostics, raw_imu_message};
 use super::{Item, Ros2Error, Shared, stats_of};
-use crate::pipeline::{GainFallback, Gains};
 
 /// One message already encoded as CDR fields (the bytes after the encapsulation header).
 pub(super) struct CdrPayload(Bytes);
@@ -65,7 +64,6 @@ pub(super) struct Publisher {
     setup: Setup,
     shared: Arc<Shared>,
     noise: Option<ImuNoiseVariances>,
-    gains: Option<Gains>,
     /// The raw sample waiting for its corrected sample (same `seq`), for the stamp they share.
     pending_raw: Option<RawSample>,
     scratch: Vec<u8>,
@@ -153,7 +151,6 @@ impl Publisher {
             setup,
             shared,
             noise: None,
-            gains: None,
             pending_raw: None,
             scratch: Vec::with_capacity(512),
             warned_write_failure: false,
@@ -176,16 +173,7 @@ impl Publisher {
                 self.write(Topic::Temperature, &msg);
             }
             Item::Noise(noise) => self.noise = noise,
-            Item::Gains(g) => self.gains = Some(g),
             Item::Status { t_wall_ns, status } => {
-                // The status states the GainScales in force, should a gains item have been
-                // dropped (which fallbacks they are does not change the scaling).
-                self.gains.get_or_insert(Gains {
-                    accel: status.gain_scale_accel,
-                    gyro: status.gain_scale_gyro,
-                    mag: status.gain_scale_mag,
-                    fallback: GainFallback::NONE,
-                });
                 let c = &self.setup.config;
                 let msg = diagnostics(
                     t_wall_ns,
@@ -204,10 +192,8 @@ impl Publisher {
         let frame_id = &self.setup.frame_id;
         let imu = imu_message(c, frame_id, self.noise.as_ref());
         let mag = magnetic_field_message(c, frame_id, self.noise.as_ref());
-        let raw = match (self.pending_raw.take(), self.gains) {
-            (Some(raw), Some(gains)) if raw.seq == c.seq => {
-                Some(raw_imu_message(&raw, c, gains, frame_id))
-            }
+        let raw = match self.pending_raw.take() {
+            Some(raw) if raw.seq == c.seq => Some(raw_imu_message(&raw, c, frame_id)),
             _ => None,
         };
         self.write(Topic::Imu, &imu);

@@ -18,7 +18,7 @@ use imu_proto::command::Command;
 use imu_proto::decoder::DecodeEvent;
 use imu_proto::device::{ACCEL_GAIN_SCALE_ADDR, GYRO_GAIN_SCALE_ADDR, MAG_GAIN_SCALE_ADDR};
 use imu_proto::reply::Reply;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::io::AsyncWriteExt;
 use tokio_serial::{SerialPort, SerialStream};
 use tracing::{error, info, warn};
 
@@ -76,14 +76,7 @@ impl Daemon {
                         return Ok(reply);
                     }
                 }
-                let n = port
-                    .read(&mut buf)
-                    .await
-                    .context("reading from the device")?;
-                if n == 0 {
-                    bail!("the device closed the line");
-                }
-                self.link.push(&buf[..n]);
+                self.read_into_link(port, &mut buf).await?;
             }
         })
         .await
@@ -296,10 +289,7 @@ impl Daemon {
             firmware,
             serial: serial.to_string(),
             gains,
-            details: vec![(
-                "tick-period-s".into(),
-                cfg.tick_period_s.to_string(),
-            )],
+            details: vec![("tick-period-s".into(), cfg.tick_period_s.to_string())],
         })
     }
 }

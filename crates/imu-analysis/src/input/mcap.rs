@@ -1,5 +1,6 @@
-//! MCAP recordings: imud's own (corrected `/imu/data`, or the raw counts through the recorded
-//! GainScales) and any file with `sensor_msgs/msg/Imu` channels (rosbag2 from other drivers),
+//! MCAP recordings: imud's own (corrected `/imu/data`, or the raw stream: the device's own SI
+//! reading a v2 `RawSample` carries, or a v1 record's counts through the recorded GainScales)
+//! and any file with `sensor_msgs/msg/Imu` channels (rosbag2 from other drivers),
 //! read front to back in bounded memory besides the series itself.
 
 use std::collections::BTreeMap;
@@ -62,10 +63,22 @@ struct Collector {
     series: ImuSeries,
     abs_ns: Vec<u64>,
     temps_ns: Vec<(u64, f64)>,
-    /// Raw samples are kept as their counts (in the series' own arrays, converted in place once
-    /// the GainScales are known: the metadata holding them is written when the file is closed)
-    /// and whether they are scaled-vector counts: 57 bytes a sample instead of a RawSample's 112.
-    scaled_counts: Vec<bool>,
+    /// What each raw sample's values in the series' own arrays are: SI already (the device's
+    /// reading of a v2 record), or counts converted in place once the GainScales are known (the
+    /// metadata holding them is written when the file is closed): 49 bytes a sample instead of
+    /// a RawSample's 176.
+    raw_units: Vec<RawUnits>,
+}
+
+/// The units of one raw sample's values as read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RawUnits {
+    /// The device's own reading in SI (a v2 record: every protocol).
+    Si,
+    /// 3DM-GX1 raw ADC bits (a v1 record).
+    RawBits,
+    /// 3DM-GX1 scaled i16 vectors (a v1 record).
+    ScaledCounts,
 }
 
 fn vec3(v: &imu_bus::ros2::Vector3) -> [f64; 3] {
@@ -98,10 +111,22 @@ impl Collector {
                     s.t_host_wall_ns
                         .saturating_sub(s.t_host_monotonic_ns.saturating_sub(s.t_sample_ns)),
                 );
-                self.series.accel_m_s2.push(s.accel_counts.map(f64::from));
-                self.series.gyro_rad_s.push(s.gyro_counts.map(f64::from));
-                self.scaled_counts
-                    .push(s.flags & raw_flags::SCALED_COUNTS != 0);
+                let si = s.accel_device_m_s2.iter().all(|v| v.is_finite())
+                    && s.gyro_device_rad_s.iter().all(|v| v.is_finite());
+                if si {
+                    self.series.accel_m_s2.push(s.accel_device_m_s2);
+                    self.series.gyro_rad_s.push(s.gyro_device_rad_s);
+                    self.raw_units.push(RawUnits::Si);
+                } else {
+                    self.series.accel_m_s2.push(s.accel_counts.map(f64::from));
+                    self.series.gyro_rad_s.push(s.gyro_counts.map(f64::from));
+                    self.raw_units
+                        .push(if s.flags & raw_flags::SCALED_COUNTS != 0 {
+                            RawUnits::ScaledCounts
+                        } else {
+                            RawUnits::RawBits
+                        });
+                }
             }
             "sensor_msgs/msg/Temperature" => {
                 let m = Temperature::from_cdr(data)
@@ -150,8 +175,13 @@ impl Collector {
         }
     }
 
-    /// Raw counts to SI with the recording's GainScales (metadata `imud.device`).
+    /// Raw counts to SI with the recording's GainScales (metadata `imud.device`); samples in
+    /// SI already need none.
     fn convert_raw(&mut self, path: &Path, report: &ReadReport) -> Result<(), InputError> {
+        self.chosen = Some(imu_bus::recording::RAW_TOPIC.to_string());
+        if self.raw_units.iter().all(|u| *u == RawUnits::Si) {
+            return Ok(());
+        }
         let dev = report.metadata.get("imud.device");
         let gain = |key: &str| -> Result<u16, InputError> {
             dev.and_then(|m| m.get(key))
@@ -163,24 +193,23 @@ impl Collector {
         };
         let (ga, gg) = (gain("gain-scale-accel")?, gain("gain-scale-gyro")?);
         // The counts were stored as f64 (exact for any i32).
-        let to_units = |c: f64, g: u16, scaled: bool| {
-            if scaled {
-                scale::scaled_to_units(c as i16, g)
-            } else {
-                scale::raw_bits_to_units(c as u16, g)
-            }
+        let to_units = |c: f64, g: u16, units: RawUnits| match units {
+            RawUnits::ScaledCounts => scale::scaled_to_units(c as i16, g),
+            RawUnits::RawBits => scale::raw_bits_to_units(c as u16, g),
+            RawUnits::Si => c,
         };
-        for ((a, w), &scaled) in self
+        for ((a, w), &units) in self
             .series
             .accel_m_s2
             .iter_mut()
             .zip(&mut self.series.gyro_rad_s)
-            .zip(&self.scaled_counts)
+            .zip(&self.raw_units)
         {
-            *a = a.map(|c| to_units(c, ga, scaled) * G0);
-            *w = w.map(|c| to_units(c, gg, scaled));
+            if units != RawUnits::Si {
+                *a = a.map(|c| to_units(c, ga, units) * G0);
+                *w = w.map(|c| to_units(c, gg, units));
+            }
         }
-        self.chosen = Some(imu_bus::recording::RAW_TOPIC.to_string());
         Ok(())
     }
 

@@ -4,15 +4,19 @@
 use super::*;
 
 /// Mean truth over each segment's samples. In an offline recording the k-th data sample is the
-/// k-th truth sample with command 0x01 (same order, no gaps), so the truth is averaged over
-/// exactly the samples of the segment.
+/// k-th truth data record (`imu_bus::truth::is_data_command`: any protocol's data, not a
+/// temperature; same order, no gaps), so the truth is averaged over exactly the samples of the
+/// segment.
 pub fn truth_for_segments(
     series: &ImuSeries,
     segments: &[Segment],
     truth: &imu_bus::truth::Truth,
 ) -> Result<Vec<SegmentTruth>, ReferenceError> {
-    let data: Vec<&imu_bus::truth::TruthSample> =
-        truth.samples.iter().filter(|s| s.command == 0x01).collect();
+    let data: Vec<&imu_bus::truth::TruthSample> = truth
+        .samples
+        .iter()
+        .filter(|s| imu_bus::truth::is_data_command(s.command))
+        .collect();
     if data.len() < series.len() {
         return Err(ReferenceError::TooShort {
             truth_samples: data.len(),
@@ -82,10 +86,10 @@ impl<'a> SegmentAccumulator<'a> {
         }
     }
 
-    /// One truth message (JSON); data samples (command 0x01) count, others are skipped.
+    /// One truth message (JSON); data samples count, temperatures are skipped.
     pub(super) fn add(&mut self, json: &[u8]) -> Result<(), String> {
         let s: TruthInput = serde_json::from_slice(json).map_err(|e| e.to_string())?;
-        if s.command != 0x01 {
+        if !imu_bus::truth::is_data_command(s.command) {
             return Ok(());
         }
         let k = self.k;
@@ -112,7 +116,7 @@ impl<'a> SegmentAccumulator<'a> {
 /// Truth messages handed from the reading thread to the parsing thread at a time.
 pub(super) const BATCH_MESSAGES: usize = 4096;
 
-/// [`truth_for_segments`] streaming the truth file: the k-th data sample (command 0x01) is added
+/// [`truth_for_segments`] streaming the truth file: the k-th data sample is added
 /// to the segment holding sample k. Decompression (this thread) and JSON parsing (a second
 /// thread, fed in order through a short queue) overlap; memory stays a few batches.
 pub fn truth_file_for_segments(
@@ -159,4 +163,17 @@ pub fn truth_file_for_segments(
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_truth_files_temperature_code_is_the_codecs() {
+        assert_eq!(
+            imu_bus::truth::TEMPERATURE_COMMAND,
+            imu_proto::Command::Temperature.code()
+        );
+        assert!(imu_bus::truth::is_data_command(0x80));
+        assert!(imu_bus::truth::is_data_command(0x01));
+    }
 }

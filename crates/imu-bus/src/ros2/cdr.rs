@@ -186,6 +186,11 @@ impl<'a> CdrReader<'a> {
         Ok(out)
     }
 
+    /// Bytes not read yet (a message written by an older schema ends early).
+    pub fn remaining(&self) -> usize {
+        self.data.len().saturating_sub(self.pos)
+    }
+
     /// Reads a `uint8`.
     pub fn u8(&mut self, field: &'static str) -> Result<u8, CdrError> {
         Ok(self.take(field, 1, 1)?[0])

@@ -143,12 +143,14 @@ float64[9] magnetic_field_covariance # Row major about x, y, z axes; 0 is interp
 pub const RAW_SAMPLE_DEF: MsgDefinition = MsgDefinition {
     type_name: "imud_msgs/msg/RawSample",
     text: "\
-# One decoded 3DM-GX1 data frame as the device sent it, with imud's timestamps.
+# One decoded data frame (3DM-GX1 reply or MIP IMU packet) as the device sent it, with imud's
+# timestamps. Recordings before the device_* fields end at `flags`.
 # header.stamp: host wall clock when the frame's last byte was read.
 uint32 FLAG_TEMP_STALE=1      # no temperature reading yet, or it is stale
 uint32 FLAG_SATURATED=2       # at least one channel sat at a 16-bit limit
 uint32 FLAG_SCALED_COUNTS=4   # counts are scaled i16 vectors, not raw ADC bits
 uint32 FLAG_GAP_BEFORE=8      # frames were lost just before this one
+uint32 FLAG_NO_COUNTS=16      # the device sent no counts (MIP): the *_counts are zero
 
 std_msgs/Header header
 uint64 seq                    # daemon sequence number of data samples since start
@@ -162,9 +164,12 @@ int32[3] gyro_counts
 int32[3] mag_counts
 float64 temp_c                # latest device temperature, deg C (NaN before the first reading)
 uint16 ticks                  # the reply's 16-bit timer ticks as sent
-uint8 command                 # reply header byte (0x01 raw bits, 0x02/0x03 vectors, ...)
+uint8 command                 # reply header byte (0x01 raw bits, 0x02/0x03 vectors, ...; 0x80 MIP)
 uint8 reserved
 uint32 flags                  # FLAG_* bits
+float64[3] accel_device_m_s2  # the device's own reading before imud's calibration, m/s^2
+float64[3] gyro_device_rad_s  # ... rad/s
+float64[3] mag_device_gauss   # ... gauss
 ",
     uses: &[&HEADER_DEF],
 };

@@ -310,9 +310,13 @@ impl RosMessage for RawSampleMsg {
         w.u8(s.command);
         w.u8(s.reserved);
         w.u32(s.flags);
+        w.f64_array(&s.accel_device_m_s2);
+        w.f64_array(&s.gyro_device_rad_s);
+        w.f64_array(&s.mag_device_gauss);
     }
+    /// A record of the v1 schema (before the device's own SI reading) reads with NaN there.
     fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(Self {
+        let mut msg = Self {
             header: Header::read_fields(r)?,
             sample: RawSample {
                 seq: r.u64("seq")?,
@@ -329,8 +333,19 @@ impl RosMessage for RawSampleMsg {
                 command: r.u8("command")?,
                 reserved: r.u8("reserved")?,
                 flags: r.u32("flags")?,
+                accel_device_m_s2: [f64::NAN; 3],
+                gyro_device_rad_s: [f64::NAN; 3],
+                mag_device_gauss: [f64::NAN; 3],
             },
-        })
+        };
+        // A v1 message ends at `flags` (4-aligned, so no writer pads after it).
+        if r.remaining() > 0 {
+            let s = &mut msg.sample;
+            s.accel_device_m_s2 = r.f64_array("accel_device_m_s2")?;
+            s.gyro_device_rad_s = r.f64_array("gyro_device_rad_s")?;
+            s.mag_device_gauss = r.f64_array("mag_device_gauss")?;
+        }
+        Ok(msg)
     }
 }
 
@@ -566,4 +581,5 @@ const _: () = {
     assert!(raw_flags::SATURATED == 2);
     assert!(raw_flags::SCALED_COUNTS == 4);
     assert!(raw_flags::GAP_BEFORE == 8);
+    assert!(raw_flags::NO_COUNTS == 16);
 };

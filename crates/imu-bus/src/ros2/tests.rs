@@ -70,10 +70,18 @@ fn empty_frame_id_pads_to_the_next_eight() {
 }
 
 fn round_trip<M: RosMessage + PartialEq + std::fmt::Debug>(m: &M) {
+    round_trip_with_legacy_prefix(m, None);
+}
+
+/// [`round_trip`], where a prefix of `legacy_len` bytes is an older schema's whole message.
+fn round_trip_with_legacy_prefix<M: RosMessage + PartialEq + std::fmt::Debug>(
+    m: &M,
+    legacy_len: Option<usize>,
+) {
     let bytes = m.to_cdr();
     assert_eq!(&M::from_cdr(&bytes).unwrap(), m);
     // Every strict prefix is an error, never a panic (no message here ends in padding).
-    for n in 0..bytes.len() {
+    for n in (0..bytes.len()).filter(|&n| Some(n) != legacy_len) {
         assert!(
             M::from_cdr(&bytes[..n]).is_err(),
             "{} decoded from {n} bytes",
@@ -95,25 +103,38 @@ fn every_type_round_trips_and_rejects_truncation() {
         magnetic_field: [2.2e-5, -4.2e-5, 1e-6].into(),
         magnetic_field_covariance: diagonal_covariance([1e-14, 2e-14, 3e-14]),
     });
-    round_trip(&RawSampleMsg {
+    // A v1 RawSample ended before the device reading (three f64 arrays).
+    let raw_v2_len = RawSampleMsg {
         header: header("imu_link"),
-        sample: RawSample {
-            seq: 42,
-            t_device_ns: 1,
-            t_host_monotonic_ns: 2,
-            t_host_wall_ns: 3,
-            t_sample_ns: 4,
-            ticks_unwrapped: 70_000,
-            accel_counts: [32768, 1, -5],
-            gyro_counts: [65535, 0, 7],
-            mag_counts: [-32768, 2, 3],
-            temp_c: 25.25,
-            ticks: 4464,
-            command: 0x0C,
-            reserved: 0,
-            flags: raw_flags::SATURATED | raw_flags::GAP_BEFORE,
+        ..RawSampleMsg::default()
+    }
+    .to_cdr()
+    .len();
+    round_trip_with_legacy_prefix(
+        &RawSampleMsg {
+            header: header("imu_link"),
+            sample: RawSample {
+                seq: 42,
+                t_device_ns: 1,
+                t_host_monotonic_ns: 2,
+                t_host_wall_ns: 3,
+                t_sample_ns: 4,
+                ticks_unwrapped: 70_000,
+                accel_counts: [32768, 1, -5],
+                gyro_counts: [65535, 0, 7],
+                mag_counts: [-32768, 2, 3],
+                temp_c: 25.25,
+                ticks: 4464,
+                command: 0x0C,
+                reserved: 0,
+                flags: raw_flags::SATURATED | raw_flags::GAP_BEFORE,
+                accel_device_m_s2: [0.25, -9.75, 1e-3],
+                gyro_device_rad_s: [1e-4, 2.5, -0.125],
+                mag_device_gauss: [0.2, -0.4, 0.5],
+            },
         },
-    });
+        Some(raw_v2_len - 72),
+    );
     round_trip(&RawFrameMsg {
         header: header("imu_link"),
         t_host_monotonic_ns: 5,
@@ -159,6 +180,34 @@ fn every_type_round_trips_and_rejects_truncation() {
         id: "abc123".into(),
         toml: "format = \"imu-model/1\"\n# µ".into(),
     });
+}
+
+#[test]
+fn a_v1_raw_sample_without_the_device_reading_reads_with_nan_there() {
+    let v2 = RawSampleMsg {
+        header: header("imu_link"),
+        sample: RawSample {
+            seq: 7,
+            accel_counts: [1, 2, 3],
+            flags: raw_flags::GAP_BEFORE,
+            accel_device_m_s2: [1.0; 3],
+            ..RawSample::default()
+        },
+    };
+    let bytes = v2.to_cdr();
+    // v1 ended at `flags`: the three f64 arrays (72 bytes) go (no padding precedes them with
+    // this frame id).
+    let v1_len = bytes.len() - 72;
+    {
+        let back = RawSampleMsg::from_cdr(&bytes[..v1_len]).unwrap();
+        assert_eq!(back.sample.seq, 7);
+        assert_eq!(back.sample.accel_counts, [1, 2, 3]);
+        assert_eq!(back.sample.flags, raw_flags::GAP_BEFORE);
+        assert!(back.sample.accel_device_m_s2.iter().all(|v| v.is_nan()));
+        assert!(back.sample.mag_device_gauss.iter().all(|v| v.is_nan()));
+    }
+    // Cut inside the new fields: an error, not a silent NaN.
+    assert!(RawSampleMsg::from_cdr(&bytes[..bytes.len() - 8]).is_err());
 }
 
 #[test]

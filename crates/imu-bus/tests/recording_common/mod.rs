@@ -42,6 +42,9 @@ pub fn raw(seq: u64) -> RawSample {
         } else {
             0
         },
+        accel_device_m_s2: [0.01 * seq as f64, -9.8, 0.5],
+        gyro_device_rad_s: [1e-3, -(seq as f64) * 1e-4, 0.0],
+        mag_device_gauss: [0.2, 0.0, -0.4],
     }
 }
 
