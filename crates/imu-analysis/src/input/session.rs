@@ -319,6 +319,22 @@ fn join_labels(parts: Vec<Option<Labels>>) -> Option<Labels> {
     Some(out)
 }
 
+/// `a + b + c (topic)`, or the first and last of many files.
+fn origin(info: &InputInfo) -> String {
+    let topic = info
+        .topic
+        .as_ref()
+        .map_or(String::new(), |t| format!(" ({t})"));
+    let names: Vec<String> = info.files.iter().map(|f| f.display().to_string()).collect();
+    let listed = match names.as_slice() {
+        [first, .., last] if names.len() > 3 => {
+            format!("{first} .. {last} ({} files)", names.len())
+        }
+        _ => names.join(" + "),
+    };
+    format!("{listed}{topic}")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -377,20 +393,4 @@ mod tests {
         b.input.imud_file = None;
         assert_eq!(group_sessions(vec![a, b]).unwrap().len(), 2);
     }
-}
-
-/// `a + b + c (topic)`, or the first and last of many files.
-fn origin(info: &InputInfo) -> String {
-    let topic = info
-        .topic
-        .as_ref()
-        .map_or(String::new(), |t| format!(" ({t})"));
-    let names: Vec<String> = info.files.iter().map(|f| f.display().to_string()).collect();
-    let listed = match names.as_slice() {
-        [first, .., last] if names.len() > 3 => {
-            format!("{first} .. {last} ({} files)", names.len())
-        }
-        _ => names.join(" + "),
-    };
-    format!("{listed}{topic}")
 }
