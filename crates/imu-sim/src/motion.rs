@@ -66,7 +66,8 @@ pub struct Phase {
 pub struct SegmentInfo {
     /// Segment index.
     pub index: u32,
-    /// `static`, `move`, `rate` or `impacts`.
+    /// `static`, `move`, `rate` or `impacts`; `held` for a still pose held by a trembling
+    /// hand (a scenario's `[hand] tremor-deg`): still but for the tremor.
     pub kind: String,
     /// Human-readable label.
     pub label: String,

@@ -37,6 +37,13 @@ impl Scenario {
             let target = targets[i];
             self.compile_segment(&mut b, i + 1, seg, target, (&mut rng, &mut tilts));
         }
+        if self.hand.tremor_deg > 0.0 {
+            // A trembling hand's still poses are still only nominally: `held`, not `static`
+            // (whose sensor direction of gravity never changes).
+            for seg in b.segments.iter_mut().filter(|s| s.kind == "static") {
+                seg.kind = "held".into();
+            }
+        }
         let timeline = Timeline::new(
             b.phases,
             b.segments,

@@ -119,7 +119,8 @@ pub struct Scenario {
 /// `tilt-noise-deg`: each held pose (a `static` segment with an `orientation`, each pose of
 /// `random-poses`) is off its nominal attitude by a random tilt about a random horizontal axis
 /// of up to this many degrees (uniform in +-tilt). Both are seeded (`--seed`) and both are in
-/// the truth: the truth file records the motion the sensor really made.
+/// the truth: the truth file records the motion the sensor really made, and with tremor its
+/// still segments are of kind `held` (still but for the tremor), not `static`.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
 pub struct HandSpec {

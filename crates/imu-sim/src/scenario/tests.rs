@@ -162,6 +162,9 @@ fn hand_tilts_poses_and_trembles() {
         largest_deg = largest_deg.max(off_deg);
     }
     assert!(largest_deg > 0.3, "no tilt: {largest_deg}");
+    // With tremor the rests are held, not static.
+    assert!(h.segments().iter().all(|s| s.kind != "static"));
+    assert!(h.segments().iter().any(|s| s.kind == "held"));
     let again = hand.compile(7);
     assert_eq!(again.state(3.0), h.state(3.0));
     // In the middle of the first face: plain is still, the hand trembles (deg/s of rate) and
