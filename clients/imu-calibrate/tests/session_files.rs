@@ -2,7 +2,8 @@
 //! next to another recording: the files that chain (same recorder prefix and device,
 //! consecutive file indices, in time order) are one recording, the other file stays a recording
 //! of its own with its own reference. The fit equals the one from the session's directory, and
-//! every fitted parameter lies within 3 standard errors of the hidden truth model.
+//! every fitted parameter lies within 3 standard errors of the hidden truth model. And
+//! `--reference-free`, which takes one recording, takes the rotated files of one session.
 
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -110,4 +111,37 @@ fn rotated_files_in_any_order_are_one_recording_beside_another() {
         }
     }
     assert!(fitted >= 15 + 21, "{fitted} fitted");
+}
+
+/// `--reference-free` takes one recording: the rotated files of one session, in any order, are
+/// one, and give the poses and moves the single file gives.
+#[test]
+fn reference_free_takes_a_session_of_rotated_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (files, _) = record(dir.path(), "hand", "hand-held-raw.toml", 23, 1);
+    assert!(files.len() >= 3, "rotation made {files:?}");
+    let (whole, _) = record(dir.path(), "whole", "hand-held-raw.toml", 23, 512);
+    assert_eq!(whole.len(), 1);
+    let common = os(&[&"--reference-free", &"--latitude-deg", &"40"]);
+    let mut shuffled: Vec<OsString> = files.iter().rev().map(|p| p.clone().into()).collect();
+    shuffled.extend(common.clone());
+    let by_files = run_json(&shuffled);
+    let by_one = run_json(&[os(&[&whole[0]]), common].concat());
+    let listed: Vec<PathBuf> = by_files["input"]["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| PathBuf::from(f.as_str().unwrap()))
+        .collect();
+    assert_eq!(listed, files);
+    for key in ["poses", "moves"] {
+        assert_eq!(
+            by_files["fit"][key].as_array().unwrap().len(),
+            by_one["fit"][key].as_array().unwrap().len(),
+            "{key}"
+        );
+    }
+    assert_eq!(by_files["fit"]["poses"].as_array().unwrap().len(), 41);
+    // The same samples: the same fit.
+    assert_eq!(by_files["fit"]["accel"], by_one["fit"]["accel"]);
 }
