@@ -479,3 +479,93 @@ fn ferraris_agrees_with_an_independent_implementation_on_held_out_data() {
         assert!(d_deg < 0.2, "move {w:?}: {d_deg} deg");
     }
 }
+
+/// The part a lab would label truth segment `s` with: its face, its turn, or `move`.
+fn part_label(s: &TruthSegment) -> String {
+    let signed = |v: [f64; 3]| {
+        let a = (0..3)
+            .max_by(|&i, &j| v[i].abs().total_cmp(&v[j].abs()))
+            .unwrap();
+        (["x", "y", "z"][a], if v[a] < 0.0 { "-" } else { "+" })
+    };
+    match s.kind.as_str() {
+        "static" => {
+            let (axis, sign) = signed(s.gravity_dir_sensor.map(|g| -g));
+            format!("face-{axis}{sign}")
+        }
+        _ if s.label.contains("rotate") => format!("turn-{}", signed(s.axis_sensor.unwrap()).0),
+        _ => "move".into(),
+    }
+}
+
+/// A labelled Ferraris session as text (`t,ax,ay,az,gx,gy,gz,part`, the `part` column found by
+/// its header): one command, faces and turns from the labels, every parameter within 3
+/// standard errors; a turn labelled about the wrong axis is refused, naming the part.
+#[test]
+fn a_labelled_ferraris_session_in_text_calibrates_with_one_command() {
+    const G: f64 = 9.80665;
+    let dir = tempfile::tempdir().unwrap();
+    let truth_model = dir.path().join("truth.toml");
+    std::fs::write(&truth_model, TRUTH).unwrap();
+    let session = record(
+        dir.path(),
+        "fer",
+        &repo_path("config/scenarios/ferraris.toml"),
+        &truth_model,
+        12,
+    );
+    let plan = dir.path().join("ferraris.toml");
+    let shipped = std::fs::read_to_string(repo_path("config/plans/ferraris.toml")).unwrap();
+    std::fs::write(
+        &plan,
+        format!("{shipped}gravity-m-s2 = {G}\ntemp-c = 25.0\n"),
+    )
+    .unwrap();
+    let write = |name: &str, label: &dyn Fn(&TruthSegment) -> String| {
+        let mut text = String::from("t,ax,ay,az,gx,gy,gz,part\n");
+        for (line, t) in session.text().lines().zip(&session.truth) {
+            let seg = &session.segments[t.segment as usize];
+            text.push_str(&format!("{},{}\n", line.replace(' ', ","), label(seg)));
+        }
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let run = |csv: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_imu-calibrate"))
+            .arg(csv)
+            .arg("--plan")
+            .arg(&plan)
+            .arg("--truth")
+            .arg(&truth_model)
+            .arg("--json")
+            .output()
+            .unwrap()
+    };
+    let o = run(&write("labelled.csv", &part_label));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["recordings"][0]["static_segments"], 9, "{j}");
+    assert_eq!(j["recordings"][0]["rate_plateaus"], 3, "{j}");
+    let rows = j["truth_comparison"].as_array().unwrap();
+    assert_eq!(rows.len(), 24, "{rows:?}");
+    for r in rows {
+        let z = r["error_in_se"].as_f64().unwrap_or(f64::NAN);
+        assert!(z.abs() < 3.0, "{r}");
+    }
+
+    let wrong = |s: &TruthSegment| {
+        if s.label.contains("rotate 360 deg about +z") {
+            "turn-x".into()
+        } else {
+            part_label(s)
+        }
+    };
+    let o = run(&write("mislabelled.csv", &wrong));
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("part `turn-x`") && err.contains("mostly about +z"),
+        "{err}"
+    );
+}
