@@ -524,46 +524,51 @@ fn open_reference(r: &ReferenceArg, series: &imu_analysis::ImuSeries) -> Result<
     opened.with_context(|| format!("{}: no reference", r.flag()))
 }
 
+/// `--reference-free`: one recording (a file or the files of one imud session).
+fn reference_free(cli: &Cli) -> Result<()> {
+    if !cli.reference_offset_s.is_empty() {
+        bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)");
+    }
+    let (least, _) = recording_count_bounds(&cli.recordings);
+    if least > 1 {
+        bail!(
+            "--reference-free takes one recording, got {least}: the still poses and the \
+             moves between them must come from one power-on; record every pose in one file \
+             or one imud session"
+        );
+    }
+    let hashing = hash_in_background(
+        cli.recordings
+            .iter()
+            .chain(&cli.csv.gyro_csv)
+            .cloned()
+            .collect(),
+    );
+    let mut recordings = read_recordings(cli)?;
+    if recordings.len() != 1 {
+        bail!(
+            "--reference-free takes one recording, got {} ({}): the still poses and the moves \
+             between them must come from one power-on; record every pose in one file or one \
+             imud session",
+            recordings.len(),
+            recordings
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
+    let recording = recordings.pop().expect("one recording");
+    run_reference_free(cli, &recording, hashing)
+}
+
 fn run(cli: &Cli, matches: &ArgMatches) -> Result<()> {
     // (clap's `requires` counts a flag's implicit `false` as present, so this is checked here.)
     if !cli.reference_free && (cli.gravity_m_s2.is_some() || cli.latitude_deg.is_some()) {
         bail!("--gravity-m-s2 and --latitude-deg apply to --reference-free only");
     }
     if cli.reference_free {
-        if !cli.reference_offset_s.is_empty() {
-            bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)");
-        }
-        let (least, _) = recording_count_bounds(&cli.recordings);
-        if least > 1 {
-            bail!(
-                "--reference-free takes one recording, got {least}: the still poses and the \
-                 moves between them must come from one power-on; record every pose in one file \
-                 or one imud session"
-            );
-        }
-        let hashing = hash_in_background(
-            cli.recordings
-                .iter()
-                .chain(&cli.csv.gyro_csv)
-                .cloned()
-                .collect(),
-        );
-        let mut recordings = read_recordings(cli)?;
-        if recordings.len() != 1 {
-            bail!(
-                "--reference-free takes one recording, got {} ({}): the still poses and the moves \
-                 between them must come from one power-on; record every pose in one file or one \
-                 imud session",
-                recordings.len(),
-                recordings
-                    .iter()
-                    .map(|r| r.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            );
-        }
-        let recording = recordings.pop().expect("one recording");
-        return run_reference_free(cli, &recording, hashing);
+        return reference_free(cli);
     }
     let refs = reference_args(cli, matches)?;
     precheck_reference_count(cli, &refs)?;
