@@ -18,6 +18,7 @@ use imu_analysis::calibrate::{
 };
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
+use imu_bus::mcap_read::has_mcap_magic;
 use imu_cli::finite_f64;
 use imu_cli::progress::read_input;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
@@ -36,15 +37,20 @@ use procedures::*;
 #[command(group(ArgGroup::new("procedure").required(true).multiple(true)))]
 struct Cli {
     /// Recordings: imud MCAP logs (the raw stream is fitted), rosbag2 MCAP or directories,
-    /// text in any layout; a directory of imud's rotated files of one session is one recording.
-    /// Several recordings of one unit (e.g. an index-table run and a rate-table run, each in its own
-    /// file) are fitted together into one calibration, each against its own reference.
+    /// text in any layout. imud's rotated files of one session are one recording, given as
+    /// their directory or as files in any order: files told by their metadata to chain (same
+    /// recorder prefix and device, consecutive file indices, each starting after the one before
+    /// ends) are joined in time order, gaps reported. Other files are separate recordings of
+    /// one unit (e.g. an index-table run and a rate-table run), fitted together into one
+    /// calibration, each against its own reference; JSON `recordings[].input.files` lists the
+    /// files of each.
     #[arg(required = true, value_name = "RECORDING")]
     recordings: Vec<PathBuf>,
     /// Test plan: the procedure and its nominal inputs, in order (format imud-plan/1; see
     /// config/plans/). Its steps are matched to the recording's segments and checked. With
     /// several recordings give one --plan or --reference per recording: they go to the
-    /// recordings in the order given on the command line.
+    /// recordings in the order given on the command line (a session of several files counts
+    /// once, at its first file).
     #[arg(long, value_name = "PLAN.toml", group = "procedure")]
     plan: Vec<PathBuf>,
     /// Reference for the true input: the simulator's truth MCAP of this recording, or a
@@ -175,9 +181,7 @@ fn reference_args(cli: &Cli, matches: &ArgMatches) -> Result<Vec<ReferenceArg>> 
         .zip(cli.reference_offset_s.iter().copied())
         .collect();
     attach_offsets(cli, &mut given, offsets)?;
-    let refs: Vec<ReferenceArg> = given.into_iter().map(|(_, r)| r).collect();
-    check_one_per_recording(cli, &refs)?;
-    Ok(refs)
+    Ok(given.into_iter().map(|(_, r)| r).collect())
 }
 
 /// The command-line positions of argument `id`'s values.
@@ -234,9 +238,39 @@ fn attach_offsets(
     Ok(())
 }
 
-/// One reference per recording, or an error naming the first recording without one.
-fn check_one_per_recording(cli: &Cli, refs: &[ReferenceArg]) -> Result<()> {
-    let (n_rec, n_ref) = (cli.recordings.len(), refs.len());
+/// How many recordings `paths` can be, known before reading them: only imud MCAP files can be
+/// joined into sessions (a directory is one recording already, text, a missing path and a
+/// rosbag2 file never join), so at least the others plus one, at most one per path.
+fn recording_count_bounds(paths: &[PathBuf]) -> (usize, usize) {
+    let joinable = paths
+        .iter()
+        .filter(|p| p.is_file() && has_mcap_magic(p).unwrap_or(false))
+        .count();
+    (
+        paths.len() - joinable + usize::from(joinable > 0),
+        paths.len(),
+    )
+}
+
+/// The reference count checked before reading: when it cannot match however the paths group,
+/// the error is the one [`check_one_per_recording`] gives for each path as a recording.
+fn precheck_reference_count(cli: &Cli, refs: &[ReferenceArg]) -> Result<()> {
+    let (least, most) = recording_count_bounds(&cli.recordings);
+    if (least..=most).contains(&refs.len()) {
+        return Ok(());
+    }
+    let names: Vec<String> = cli
+        .recordings
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    check_one_per_recording(&names, refs)
+}
+
+/// One reference per recording (named by `recordings`), or an error naming the first
+/// recording without one.
+fn check_one_per_recording(recordings: &[String], refs: &[ReferenceArg]) -> Result<()> {
+    let (n_rec, n_ref) = (recordings.len(), refs.len());
     let listed = || {
         refs.iter()
             .map(ReferenceArg::flag)
@@ -244,13 +278,14 @@ fn check_one_per_recording(cli: &Cli, refs: &[ReferenceArg]) -> Result<()> {
             .join(", ")
     };
     const HOW: &str = "give one --plan or --reference per recording; they go to the recordings \
-                       in the order given";
+                       in the order given (the rotated files of one imud session are one \
+                       recording)";
     if n_ref < n_rec {
         bail!(
             "recording {} ({}) has no reference: {n_rec} recordings but {n_ref} reference{} ({}); \
              {HOW}",
             n_ref + 1,
-            cli.recordings[n_ref].display(),
+            recordings[n_ref],
             if n_ref == 1 { "" } else { "s" },
             listed()
         );
@@ -440,20 +475,42 @@ fn stamp(
     Ok(())
 }
 
-/// Reads recording `k` (raw stream) and checks it has samples.
-fn read_recording(cli: &Cli, k: usize) -> Result<imu_analysis::ImuSeries> {
-    let path = &cli.recordings[k];
-    let options = cli
-        .csv
-        .input_options(&cli.recordings, k, Source::Raw)
-        .map_err(imu_cli::UsageError)?;
-    let series = read_input(std::slice::from_ref(path), &options)
-        .with_context(|| format!("reading {}", path.display()))?;
-    imu_cli::session::warn("imu-calibrate", &series);
-    if series.is_empty() {
-        bail!("{}: no samples", path.display());
+/// One recording: a file, or the files of one imud session joined.
+pub(crate) struct Recording {
+    /// Its paths as given, `a + b` for a session of several.
+    name: String,
+    series: imu_analysis::ImuSeries,
+}
+
+/// Reads every path (raw stream) and groups them into recordings
+/// ([`imu_analysis::input::group_sessions`]), each checked to have samples.
+fn read_recordings(cli: &Cli) -> Result<Vec<Recording>> {
+    let mut parts = Vec::with_capacity(cli.recordings.len());
+    for (k, path) in cli.recordings.iter().enumerate() {
+        let options = cli
+            .csv
+            .input_options(&cli.recordings, k, Source::Raw)
+            .map_err(imu_cli::UsageError)?;
+        let series = read_input(std::slice::from_ref(path), &options)
+            .with_context(|| format!("reading {}", path.display()))?;
+        parts.push(series);
     }
-    Ok(series)
+    let groups = imu_analysis::input::group_sessions(parts).context("joining the recordings")?;
+    groups
+        .into_iter()
+        .map(|(paths, series)| {
+            let name = paths
+                .iter()
+                .map(|&k| cli.recordings[k].display().to_string())
+                .collect::<Vec<_>>()
+                .join(" + ");
+            imu_cli::session::warn("imu-calibrate", &series);
+            if series.is_empty() {
+                bail!("{name}: no samples");
+            }
+            Ok(Recording { name, series })
+        })
+        .collect()
 }
 
 /// The reference one recording was given, opened against its series.
@@ -467,51 +524,81 @@ fn open_reference(r: &ReferenceArg, series: &imu_analysis::ImuSeries) -> Result<
     opened.with_context(|| format!("{}: no reference", r.flag()))
 }
 
+/// `--reference-free`: one recording (a file or the files of one imud session).
+fn reference_free(cli: &Cli) -> Result<()> {
+    if !cli.reference_offset_s.is_empty() {
+        bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)");
+    }
+    let (least, _) = recording_count_bounds(&cli.recordings);
+    if least > 1 {
+        bail!(
+            "--reference-free takes one recording, got {least}: the still poses and the \
+             moves between them must come from one power-on; record every pose in one file \
+             or one imud session"
+        );
+    }
+    let hashing = hash_in_background(
+        cli.recordings
+            .iter()
+            .chain(&cli.csv.gyro_csv)
+            .cloned()
+            .collect(),
+    );
+    let mut recordings = read_recordings(cli)?;
+    if recordings.len() != 1 {
+        bail!(
+            "--reference-free takes one recording, got {} ({}): the still poses and the moves \
+             between them must come from one power-on; record every pose in one file or one \
+             imud session",
+            recordings.len(),
+            recordings
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
+    let recording = recordings.pop().expect("one recording");
+    run_reference_free(cli, &recording, hashing)
+}
+
 fn run(cli: &Cli, matches: &ArgMatches) -> Result<()> {
     // (clap's `requires` counts a flag's implicit `false` as present, so this is checked here.)
     if !cli.reference_free && (cli.gravity_m_s2.is_some() || cli.latitude_deg.is_some()) {
         bail!("--gravity-m-s2 and --latitude-deg apply to --reference-free only");
     }
     if cli.reference_free {
-        let [recording] = cli.recordings.as_slice() else {
-            bail!(
-                "--reference-free takes one recording, got {}: the still poses and the moves \
-                 between them must come from one power-on; record every pose in one file",
-                cli.recordings.len()
-            );
-        };
-        if !cli.reference_offset_s.is_empty() {
-            bail!("--reference-offset-s applies to a reference log (--reference LOG.csv)");
-        }
-        let hashing = hash_in_background(
-            std::iter::once(recording.clone())
-                .chain(cli.csv.gyro_csv.iter().cloned())
-                .collect(),
-        );
-        let series = read_recording(cli, 0)?;
-        return run_reference_free(cli, recording, &series, hashing);
+        return reference_free(cli);
     }
     let refs = reference_args(cli, matches)?;
+    precheck_reference_count(cli, &refs)?;
     let turn_on = (
         per_axis(&cli.accel_turn_on_bias_m_s2, "--accel-turn-on-bias-m-s2")?,
         per_axis(&cli.gyro_turn_on_bias_rad_s, "--gyro-turn-on-bias-rad-s")?,
     );
-    let inputs = cli
-        .recordings
-        .iter()
-        .zip(&refs)
-        .flat_map(|(rec, r)| [rec.clone(), r.path().to_path_buf()])
+    // Each path next to the reference at its position (as many references as paths unless
+    // files of a session were given one by one).
+    let n = cli.recordings.len().max(refs.len());
+    let inputs = (0..n)
+        .flat_map(|k| {
+            let rec = cli.recordings.get(k).map(PathBuf::as_path);
+            rec.into_iter().chain(refs.get(k).map(ReferenceArg::path))
+        })
+        .map(Path::to_path_buf)
         .chain(cli.csv.gyro_csv.iter().cloned())
         .collect();
     let hashing = hash_in_background(inputs);
+    let recordings = read_recordings(cli)?;
+    let names: Vec<String> = recordings.iter().map(|r| r.name.clone()).collect();
+    check_one_per_recording(&names, &refs)?;
     let mut loaded = Vec::with_capacity(refs.len());
-    for (k, r) in refs.iter().enumerate() {
-        let series = read_recording(cli, k)?;
-        let reference = open_reference(r, &series)?;
-        loaded.push((series, reference));
+    for (recording, r) in recordings.into_iter().zip(&refs) {
+        let reference = open_reference(r, &recording.series)?;
+        loaded.push((recording, reference));
     }
     run_reference(cli, &loaded, &refs, turn_on, hashing)
 }
+
 fn main() -> std::process::ExitCode {
     imu_cli::main_with_matches::<Cli, ()>("imu-calibrate", |matches| {
         let cli = Cli::from_arg_matches(matches).map_err(imu_cli::UsageError::from_clap)?;

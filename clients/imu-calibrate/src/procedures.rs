@@ -3,12 +3,8 @@
 
 use super::*;
 
-pub(super) fn run_reference_free(
-    cli: &Cli,
-    recording: &Path,
-    series: &imu_analysis::ImuSeries,
-    hashing: Hashing,
-) -> Result<()> {
+pub(super) fn run_reference_free(cli: &Cli, recording: &Recording, hashing: Hashing) -> Result<()> {
+    let series = &recording.series;
     let duration_s = series.t_s[series.len() - 1] - series.t_s[0];
     let base = options(cli, duration_s)?;
     let opts = ReferenceFreeOptions {
@@ -21,7 +17,7 @@ pub(super) fn run_reference_free(
         ..ReferenceFreeOptions::default()
     };
     let mut fit = calibrate_reference_free(series, &opts)
-        .with_context(|| format!("calibrating {} (reference-free)", recording.display()))?;
+        .with_context(|| format!("calibrating {} (reference-free)", recording.name))?;
     // The gauge is a convention, not a limit of the data: listed in the notes, not as held.
     let held: Vec<String> = [&fit.accel, &fit.gyro]
         .iter()
@@ -39,7 +35,7 @@ pub(super) fn run_reference_free(
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let truth_rows = reference_free_truth_rows(cli, &fit)?;
-    report_reference_free(cli, recording, series, &fit, truth_rows)
+    report_reference_free(cli, recording, &fit, truth_rows)
 }
 
 /// The reference-free fit against `--truth` (in the accel frame the fit uses), if given.
@@ -66,8 +62,7 @@ fn reference_free_truth_rows(cli: &Cli, fit: &ReferenceFreeFit) -> Result<Option
 /// Prints the reference-free fit as JSON or as tables.
 fn report_reference_free(
     cli: &Cli,
-    recording: &Path,
-    series: &imu_analysis::ImuSeries,
+    recording: &Recording,
     fit: &ReferenceFreeFit,
     truth_rows: Option<Vec<TruthRow>>,
 ) -> Result<()> {
@@ -75,17 +70,13 @@ fn report_reference_free(
     let mut out = stdout.lock();
     if cli.json {
         let j = JsonOutReferenceFree {
-            recording: recording.display().to_string(),
+            recording: recording.name.clone(),
             procedure: "reference-free",
             output: cli.output.as_ref().map(|p| p.display().to_string()),
             fit,
             truth_comparison: truth_rows,
-            inputs_unfinished: series
-                .unfinished
-                .iter()
-                .map(|u| imu_cli::unfinished::json(recording, u))
-                .collect(),
-            input: &series.input,
+            inputs_unfinished: unfinished_json(&recording.series).into_iter().collect(),
+            input: &recording.series.input,
         };
         serde_json::to_writer_pretty(&mut out, &j)?;
         writeln!(out)?;
@@ -101,23 +92,22 @@ fn report_reference_free(
 
 pub(super) fn run_reference(
     cli: &Cli,
-    loaded: &[(imu_analysis::ImuSeries, Reference)],
+    loaded: &[(Recording, Reference)],
     refs: &[ReferenceArg],
     (accel_turn_on_bias_m_s2, gyro_turn_on_bias_rad_s): (Option<[f64; 3]>, Option<[f64; 3]>),
     hashing: Hashing,
 ) -> Result<()> {
     let duration_s = loaded
         .iter()
-        .map(|(s, _)| s.t_s[s.len() - 1] - s.t_s[0])
+        .map(|(r, _)| r.series.t_s[r.series.len() - 1] - r.series.t_s[0])
         .fold(0.0, f64::max);
     let mut opts = options(cli, duration_s)?;
     opts.accel_turn_on_bias_m_s2 = accel_turn_on_bias_m_s2;
     opts.gyro_turn_on_bias_rad_s = gyro_turn_on_bias_rad_s;
-    let pairs: Vec<_> = loaded.iter().map(|(s, r)| (s, r)).collect();
-    let names = cli
-        .recordings
+    let pairs: Vec<_> = loaded.iter().map(|(s, r)| (&s.series, r)).collect();
+    let names = loaded
         .iter()
-        .map(|p| p.display().to_string())
+        .map(|(r, _)| r.name.as_str())
         .collect::<Vec<_>>()
         .join(", ");
     let mut fit =
@@ -137,7 +127,7 @@ pub(super) fn run_reference(
         )
         .collect();
     let cal = &mut fit.calibration;
-    let series: Vec<_> = loaded.iter().map(|(s, _)| s).collect();
+    let series: Vec<_> = loaded.iter().map(|(r, _)| &r.series).collect();
     stamp(cal, (hashing, &series), &fit.notes, held)?;
     if let Some(path) = &cli.output {
         cal.save(path)
@@ -159,10 +149,7 @@ pub(super) fn run_reference(
 
 /// The calibration's description and procedure: what was fitted, from how many segments of how
 /// many recordings, against which references.
-fn describe_reference_fit(
-    fit: &mut CalibrationFit,
-    loaded: &[(imu_analysis::ImuSeries, Reference)],
-) {
+fn describe_reference_fit(fit: &mut CalibrationFit, loaded: &[(Recording, Reference)]) {
     let several = loaded.len() > 1;
     let (n_static, n_plateau) = (
         fit.count(SegmentKind::Static),
@@ -196,7 +183,7 @@ fn describe_reference_fit(
 /// Prints the fit against references as JSON or as tables.
 fn report_reference(
     cli: &Cli,
-    loaded: &[(imu_analysis::ImuSeries, Reference)],
+    loaded: &[(Recording, Reference)],
     refs: &[ReferenceArg],
     fit: &CalibrationFit,
     truth_rows: Option<Vec<TruthRow>>,
@@ -224,7 +211,7 @@ fn report_reference(
 /// one recording its reference also at the top level.
 fn reference_json<'a>(
     cli: &Cli,
-    loaded: &[(imu_analysis::ImuSeries, Reference)],
+    loaded: &[(Recording, Reference)],
     refs: &[ReferenceArg],
     fit: &'a CalibrationFit,
     truth_rows: Option<Vec<TruthRow>>,
@@ -232,12 +219,11 @@ fn reference_json<'a>(
     let recordings: Vec<JsonRecording> = fit
         .recordings
         .iter()
-        .zip(&cli.recordings)
         .zip(refs)
         .zip(loaded)
-        .map(|(((r, path), arg), (series, _))| JsonRecording {
-            recording: path.display().to_string(),
-            input: series.input.clone(),
+        .map(|((r, arg), (recording, _))| JsonRecording {
+            recording: recording.name.clone(),
+            input: recording.series.input.clone(),
             reference: arg.path().display().to_string(),
             reference_description: r.reference.clone(),
             static_segments: r.segmentation.count(SegmentKind::Static),
@@ -265,12 +251,15 @@ fn reference_json<'a>(
         truth_comparison: truth_rows,
         inputs_unfinished: loaded
             .iter()
-            .zip(&cli.recordings)
-            .filter_map(|((s, _), path)| {
-                s.unfinished
-                    .as_ref()
-                    .map(|u| imu_cli::unfinished::json(path, u))
-            })
+            .filter_map(|(r, _)| unfinished_json(&r.series))
             .collect(),
     }
+}
+
+/// The JSON of a recording read without its footer: the file that lacked it and how far the
+/// read got.
+fn unfinished_json(series: &imu_analysis::ImuSeries) -> Option<serde_json::Value> {
+    let u = series.unfinished.as_ref()?;
+    let file = series.input.unfinished_file.clone().unwrap_or_default();
+    Some(imu_cli::unfinished::json(&file, u))
 }

@@ -1,9 +1,11 @@
 //! End-to-end test of raw data without preprocessing: the hand-held-raw scenario (an
 //! uncompensated unit with half-g accel offsets, 5-9 deg/s gyro offsets and percent scale
-//! errors, held still for only 3 s per pose) through the daemon's offline pipeline, calibrated
-//! with `--reference-free` from a neutral model: every still pose is found (the gyro offset
-//! does not make them rate plateaus), the accel fit starts from the closed-form ellipsoid, and
-//! every fitted parameter is within 3 standard errors of the truth.
+//! errors, held still by a trembling hand for only 3 s per pose, each pose tilted off its
+//! nominal by up to 3 degrees) through the daemon's offline pipeline, and as imu-sim's own text
+//! export (two files of raw counts), calibrated with `--reference-free` from a neutral model:
+//! every still pose is found (the gyro offset does not make them rate plateaus), the accel fit
+//! starts from the closed-form ellipsoid, and every fitted parameter is within 3 standard
+//! errors of the truth.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -115,40 +117,43 @@ fn hand_held_raw_poses_calibrate_without_preprocessing() {
     calibrate_and_check(dir.path(), &[rec.as_os_str()]);
 }
 
-/// Raw counts as an unsigned 16-bit ADC gives them: zero rate or force at mid-scale 32768.
-const ACCEL_COUNT_M_S2: f64 = 0.0024;
-const GYRO_COUNT_RAD_S: f64 = 0.0003;
-
 #[test]
 fn raw_counts_in_two_whitespace_text_files_calibrate_with_one_command() {
-    // The same session exported as another tool would: accel and gyro in two files of
-    // whitespace-separated `t x y z`, unsigned 16-bit counts around 32768, no header (the first
-    // line is data), extension .txt.
+    // The same scenario exported by imu-sim as another tool would export a recording: accel
+    // and gyro in two files of whitespace-separated `t x y z`, the device's unsigned 16-bit
+    // counts around 32768, no header (the first line is data), extension .txt.
     let dir = tempfile::tempdir().unwrap();
-    let rec = record_hand_held_raw(dir.path());
-    let s = imu_analysis::input::read_mcap(&rec, imu_analysis::Source::Raw, None).unwrap();
-    let counts = |v: f64, lsb: f64| (v / lsb).round() as i64 + 32768;
-    let write = |name: &str, rows: &[[f64; 3]], lsb: f64| {
-        let mut text = String::new();
-        for (t, v) in s.t_s.iter().zip(rows) {
-            let c = v.map(|x| counts(x, lsb));
-            assert!(c.iter().all(|c| (0..65536).contains(c)), "{c:?}");
-            text.push_str(&format!("{t:.6}  {}  {}  {}\n", c[0], c[1], c[2]));
-        }
-        let path = dir.path().join(name);
-        std::fs::write(&path, text).unwrap();
-        path
-    };
-    let acc = write("acc.txt", &s.accel_m_s2, ACCEL_COUNT_M_S2);
-    let gyro = write("gyro.txt", &s.gyro_rad_s, GYRO_COUNT_RAD_S);
-    let accel_unit = format!("counts:{ACCEL_COUNT_M_S2}@32768");
-    let gyro_unit = format!("counts:{GYRO_COUNT_RAD_S}@32768");
+    let mut sim = imu_sim::SimOptions::from_files(
+        &repo_path("config/scenarios/hand-held-raw.toml"),
+        Some(&repo_path("config/models/raw-uncompensated.toml")),
+    )
+    .unwrap();
+    sim.seed = 23;
+    let hand = sim.scenario.hand;
+    assert!(
+        hand.tremor_deg > 0.0 && hand.tilt_noise_deg >= 3.0,
+        "{hand:?}"
+    );
+    let out = imu_sim::export::export_text(
+        &sim,
+        &dir.path().join("export"),
+        imu_sim::export::ExportUnits::RawCounts,
+    )
+    .unwrap();
+    let first = std::fs::read_to_string(&out.accel).unwrap();
+    let first = first.lines().next().unwrap();
+    assert!(
+        first.split_whitespace().count() == 4 && first.starts_with("0.000000 "),
+        "{first}"
+    );
+    let accel_unit = format!("counts:{}@32768", out.accel_count_m_s2);
+    let gyro_unit = format!("counts:{}@32768", out.gyro_count_rad_s);
     calibrate_and_check(
         dir.path(),
         &[
-            acc.as_os_str(),
+            out.accel.as_os_str(),
             "--gyro-csv".as_ref(),
-            gyro.as_os_str(),
+            out.gyro.as_os_str(),
             "--csv-accel".as_ref(),
             accel_unit.as_ref(),
             "--csv-gyro".as_ref(),

@@ -12,10 +12,12 @@
 //! (`imud --sim`) and tests can embed a simulator; the `imu-sim` binary is a thin front end.
 
 pub mod device;
+pub mod export;
 pub mod link;
 pub mod mip_device;
 pub mod motion;
 pub mod scenario;
+pub mod tremor;
 pub mod virtual_device;
 
 use std::collections::BTreeMap;
@@ -52,6 +54,14 @@ pub enum SimError {
     /// I/O on the pty failed while running.
     #[error("virtual device I/O failed")]
     Io(#[from] std::io::Error),
+    /// A text export could not be made.
+    #[error("{path}: cannot export: {message}")]
+    Export {
+        /// The export directory.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
     /// A stable device link could not be made.
     #[error("{path}: cannot create the device link: {message}")]
     DeviceLink {

@@ -9,6 +9,7 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Parser;
 use imu_proto::DeviceProtocol;
+use imu_sim::export::ExportUnits;
 use imu_sim::{Pacing, SimOptions};
 
 /// A virtual MicroStrain 3DM-GX1 IMU (or, with --protocol mip, a MIP unit like a 3DM-GX5) on a
@@ -64,6 +65,22 @@ struct Args {
     /// Print the scenario's segments and duration and exit without opening a device.
     #[arg(long)]
     describe: bool,
+    /// Instead of opening a device, run the scenario at CPU speed and write it to DIR as two
+    /// whitespace-separated text files without a header, `acc.txt` and `gyro.txt`, one
+    /// `t x y z` line per sample at the scenario rate (t in s from the start): the device's
+    /// replies to raw-sensor-bits polls, with --truth-out their truth. Prints the files and the
+    /// `counts:SCALE@32768` unit that reads them.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["link", "fast", "describe"])]
+    export_text: Option<PathBuf>,
+    /// Units of --export-text: raw-counts (the device's unsigned 16-bit counts, zero at
+    /// 32768, one count GainScale / 32 768 000 g or rad/s) or si (m/s^2 and rad/s).
+    #[arg(
+        long,
+        value_name = "UNITS",
+        default_value = "raw-counts",
+        requires = "export_text"
+    )]
+    export_units: ExportUnits,
 }
 
 fn main() -> std::process::ExitCode {
@@ -83,6 +100,9 @@ fn run(args: Args) -> anyhow::Result<()> {
         return describe(&opts);
     }
     opts.truth_out = args.truth_out;
+    if let Some(dir) = &args.export_text {
+        return export(&opts, dir, args.export_units);
+    }
     opts.link = args.link;
     opts.pacing = if args.fast {
         Pacing::Fast
@@ -145,6 +165,26 @@ fn run(args: Args) -> anyhow::Result<()> {
             String::new()
         }
     );
+    Ok(())
+}
+
+fn export(opts: &SimOptions, dir: &std::path::Path, units: ExportUnits) -> anyhow::Result<()> {
+    let out = imu_sim::export::export_text(opts, dir, units)?;
+    let mut stdout = std::io::stdout().lock();
+    let _ = writeln!(
+        stdout,
+        "{} samples: {} {}",
+        out.samples,
+        out.accel.display(),
+        out.gyro.display()
+    );
+    if units == ExportUnits::RawCounts {
+        let _ = writeln!(
+            stdout,
+            "read with: --csv-accel counts:{}@32768 --csv-gyro counts:{}@32768",
+            out.accel_count_m_s2, out.gyro_count_rad_s
+        );
+    }
     Ok(())
 }
 

@@ -4,9 +4,11 @@
 //! constant angular acceleration (zero for holds and plateaus), so orientation, rate and angular
 //! acceleration are exact at any instant with no numerical integration to drift. On top of the
 //! table motion come the Earth's rotation (at the scenario latitude), gravity, the magnetic field
-//! and optional shock trains.
+//! and optional shock trains, and, for hand-held scenarios, hand tremor (`tremor.rs`).
 
 use imu_model::nalgebra::{Unit, UnitQuaternion, Vector3};
+
+use crate::tremor::Tremor;
 
 /// A train of half-sine specific-force shocks along a sensor axis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,7 +66,8 @@ pub struct Phase {
 pub struct SegmentInfo {
     /// Segment index.
     pub index: u32,
-    /// `static`, `move`, `rate` or `impacts`.
+    /// `static`, `move`, `rate` or `impacts`; `held` for a still pose held by a trembling
+    /// hand (a scenario's `[hand] tremor-deg`): still but for the tremor.
     pub kind: String,
     /// Human-readable label.
     pub label: String,
@@ -109,6 +112,7 @@ pub struct Timeline {
     gravity_m_s2: f64,
     earth_rate_enu_rad_s: Vector3<f64>,
     mag_enu_gauss: Vector3<f64>,
+    tremor: Option<Tremor>,
 }
 
 impl Timeline {
@@ -126,7 +130,14 @@ impl Timeline {
             gravity_m_s2,
             earth_rate_enu_rad_s,
             mag_enu_gauss,
+            tremor: None,
         }
+    }
+
+    /// The same motion with hand tremor on top (see [`Tremor`]).
+    pub fn with_tremor(mut self, tremor: Tremor) -> Self {
+        self.tremor = Some(tremor);
+        self
     }
 
     /// Total duration, seconds (infinite for an endless scenario).
@@ -165,7 +176,7 @@ impl Timeline {
         if let Some(train) = &p.impacts {
             specific_force += train.specific_force(tau);
         }
-        MotionState {
+        let mut state = MotionState {
             segment: p.segment,
             enu_from_sensor: q,
             specific_force_m_s2: specific_force,
@@ -174,7 +185,11 @@ impl Timeline {
             mag_field_gauss: q.inverse_transform_vector(&self.mag_enu_gauss),
             table_angle_rad: p.table_angle0_rad + angle,
             table_rate_rad_s: rate,
+        };
+        if let Some(tremor) = &self.tremor {
+            tremor.apply(t_s, &mut state);
         }
+        state
     }
 }
 

@@ -50,6 +50,22 @@ pub fn read_mcap_with_progress(
     collect.into_series(path, report)
 }
 
+/// The session place of an imud recording file (`None` for other MCAP files).
+fn imud_file(report: &ReadReport) -> Option<super::ImudFile> {
+    let rec = report
+        .metadata
+        .get(imu_bus::recording::RECORDING_METADATA)?;
+    Some(super::ImudFile {
+        prefix: rec.get("prefix")?.clone(),
+        file_index: rec.get("file-index")?.parse().ok()?,
+        device: report
+            .metadata
+            .get("imud.device")
+            .cloned()
+            .unwrap_or_default(),
+    })
+}
+
 /// What a read has gathered so far.
 #[derive(Default)]
 struct Collector {
@@ -216,6 +232,7 @@ impl Collector {
     /// Times from the first sample, the temperatures on the same base, what was read.
     fn into_series(self, path: &Path, report: ReadReport) -> Result<ImuSeries, InputError> {
         let mut series = self.series;
+        let imud_file = imud_file(&report);
         let Some(&t0) = self.abs_ns.first() else {
             return Err(InputError::NoData {
                 path: path.to_path_buf(),
@@ -242,6 +259,7 @@ impl Collector {
             topic: Some(topic),
             gaps: Vec::new(),
             unfinished_file: series.unfinished.as_ref().map(|_| path.to_path_buf()),
+            imud_file,
         };
         Ok(series)
     }

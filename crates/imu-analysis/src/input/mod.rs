@@ -23,7 +23,7 @@ mod text;
 mod units;
 
 pub use mcap::{IMU_SCHEMA, read_mcap, read_mcap_with_progress};
-pub use session::{InputOptions, SessionGap, read_input, session_files};
+pub use session::{InputOptions, SessionGap, group_sessions, read_input, session_files};
 pub use text::{ColumnRef, Columns, CsvOptions, read_csv, read_text};
 pub use units::{AccelUnit, CountsAxes, GyroUnit};
 
@@ -159,6 +159,23 @@ pub struct InputInfo {
     /// The file read without its footer, if one was (the series' `unfinished` is its report).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unfinished_file: Option<PathBuf>,
+    /// Which imud session a single imud recording file belongs to (its metadata), for telling
+    /// the files of one session from separate recordings ([`group_sessions`]).
+    #[serde(skip)]
+    pub imud_file: Option<ImudFile>,
+}
+
+/// An imud recording file's place in its session, from its metadata: the recorder's file
+/// prefix and index (`imud.recording`: 0 at each start of imud, one more at each rotation) and
+/// the device it recorded (`imud.device`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ImudFile {
+    /// `prefix` of `imud.recording`.
+    pub prefix: String,
+    /// `file-index` of `imud.recording`.
+    pub file_index: u32,
+    /// The whole `imud.device` record (model, serial, firmware, gains...).
+    pub device: std::collections::BTreeMap<String, String>,
 }
 
 /// An IMU time series in SI units.

@@ -123,6 +123,58 @@ pub fn read_input(
     join(parts)
 }
 
+/// Recordings read one path each (in command-line order) grouped into sessions: files of one
+/// imud session (same recorder prefix and device metadata, consecutive file indices, each
+/// starting after the one before ends) become one series, joined as [`read_input`] joins a
+/// session's files; every other file stays a recording of its own. Returns each recording with
+/// the indices of its paths (ascending), ordered by the first of them.
+pub fn group_sessions(parts: Vec<ImuSeries>) -> Result<Vec<(Vec<usize>, ImuSeries)>, InputError> {
+    let mut order: Vec<usize> = (0..parts.len()).collect();
+    order.sort_by_key(|&i| (parts[i].t0_ns, i));
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for i in order {
+        let next = groups
+            .iter_mut()
+            .find(|g| continues(&parts[*g.last().expect("a group has a part")], &parts[i]));
+        match next {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    for g in &mut groups {
+        g.sort_unstable();
+    }
+    groups.sort_by_key(|g| g[0]);
+    let mut slots: Vec<Option<ImuSeries>> = parts.into_iter().map(Some).collect();
+    groups
+        .into_iter()
+        .map(|g| {
+            let mut members: Vec<ImuSeries> = g
+                .iter()
+                .map(|&i| slots[i].take().expect("each part in one group"))
+                .collect();
+            let series = if members.len() == 1 {
+                members.pop().expect("one part")
+            } else {
+                join(members)?
+            };
+            Ok((g, series))
+        })
+        .collect()
+}
+
+/// True if `next` is the file imud wrote right after `last` in one session.
+fn continues(last: &ImuSeries, next: &ImuSeries) -> bool {
+    let (Some(a), Some(b)) = (&last.input.imud_file, &next.input.imud_file) else {
+        return false;
+    };
+    let end_ns = |s: &ImuSeries| s.t0_ns as f64 + s.t_s.last().copied().unwrap_or(0.0) * 1e9;
+    a.prefix == b.prefix
+        && a.device == b.device
+        && b.file_index == a.file_index.wrapping_add(1)
+        && next.t0_ns as f64 > end_ns(last)
+}
+
 /// One file, its format told by content.
 fn read_file(
     path: &Path,
@@ -281,4 +333,64 @@ fn origin(info: &InputInfo) -> String {
         _ => names.join(" + "),
     };
     format!("{listed}{topic}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input::ImudFile;
+
+    /// One file of 10 s at 10 Hz starting at `start_s`, written by imud run `prefix` as file
+    /// `index` of device `serial`.
+    fn file(name: &str, prefix: &str, serial: &str, index: u32, start_s: f64) -> ImuSeries {
+        ImuSeries {
+            t_s: (0..100).map(|i| i as f64 * 0.1).collect(),
+            accel_m_s2: vec![[0.0, 0.0, 9.8]; 100],
+            gyro_rad_s: vec![[0.0; 3]; 100],
+            t0_ns: (start_s * 1e9) as u64,
+            input: InputInfo {
+                files: vec![name.into()],
+                imud_file: Some(ImudFile {
+                    prefix: prefix.into(),
+                    file_index: index,
+                    device: [("serial".to_string(), serial.to_string())].into(),
+                }),
+                ..InputInfo::default()
+            },
+            ..ImuSeries::default()
+        }
+    }
+
+    #[test]
+    fn rotated_files_in_any_order_are_one_recording_others_stay_separate() {
+        let parts = vec![
+            file("b1", "imu", "7", 1, 110.0),     // session b, second file
+            file("a0", "imu", "7", 0, 0.0),       // session a
+            file("b0", "imu", "7", 0, 100.0),     // session b, first file
+            file("a1", "imu", "7", 1, 10.05),     // session a, rotated
+            file("other", "imu", "8", 2, 20.1),   // another device
+            file("a4", "imu", "7", 4, 30.0),      // file 3 is missing: separate
+            file("overlap", "imu", "7", 2, 19.0), // starts before a1 ends
+        ];
+        let groups = group_sessions(parts).unwrap();
+        let indices: Vec<Vec<usize>> = groups.iter().map(|(g, _)| g.clone()).collect();
+        assert_eq!(indices, [vec![0, 2], vec![1, 3], vec![4], vec![5], vec![6]]);
+        let (_, b) = &groups[0];
+        assert_eq!(b.len(), 200);
+        assert_eq!(b.input.files, [PathBuf::from("b0"), PathBuf::from("b1")]);
+        assert!((b.t_s[100] - 10.0).abs() < 1e-9);
+        assert!(b.input.gaps.is_empty());
+        let (_, a) = &groups[1];
+        assert_eq!(a.input.files, [PathBuf::from("a0"), PathBuf::from("a1")]);
+        assert!((a.t_s[199] - 19.95).abs() < 1e-6);
+    }
+
+    #[test]
+    fn text_files_are_never_joined() {
+        let mut a = file("a.txt", "", "", 0, 0.0);
+        let mut b = file("b.txt", "", "", 1, 10.1);
+        a.input.imud_file = None;
+        b.input.imud_file = None;
+        assert_eq!(group_sessions(vec![a, b]).unwrap().len(), 2);
+    }
 }

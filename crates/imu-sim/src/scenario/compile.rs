@@ -2,6 +2,7 @@
 //! in order, random poses from the seed.
 
 use super::*;
+use crate::tremor::Tremor;
 
 impl Scenario {
     /// Earth's rotation in East-North-Up at the scenario latitude, rad/s.
@@ -10,27 +11,62 @@ impl Scenario {
         Vector3::new(0.0, north_rad_s, up_rad_s)
     }
 
-    /// Builds the motion timeline. `seed` drives the random poses.
+    /// Builds the motion timeline. `seed` drives the random poses and, for a hand-held
+    /// scenario, the tilts of its poses and its tremor (each from its own stream, so a
+    /// scenario without `[hand]` is unchanged).
     pub fn compile(&self, seed: u64) -> Timeline {
-        let mut b = self.start_builder();
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_0f7a_61e5);
+        let mut tilts = Tilts {
+            max_rad: self.hand.tilt_noise_deg.to_radians(),
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x7117_0ff5_e7e7),
+        };
+        let targets: Vec<Option<UnitQuaternion<f64>>> = self
+            .segments
+            .iter()
+            .map(|seg| match seg {
+                SegmentSpec::Static {
+                    orientation: Some(o),
+                    ..
+                } => Some(tilts.apply(o.enu_from_sensor().expect("validated"))),
+                _ => None,
+            })
+            .collect();
+        let mut b = self.start_builder(targets.first().copied().flatten());
         for (i, seg) in self.segments.iter().enumerate() {
             b.table_angle_rad = 0.0;
-            self.compile_segment(&mut b, i + 1, seg, &mut rng);
+            let target = targets[i];
+            self.compile_segment(&mut b, i + 1, seg, target, (&mut rng, &mut tilts));
         }
-        Timeline::new(
+        if self.hand.tremor_deg > 0.0 {
+            // A trembling hand's still poses are still only nominally: `held`, not `static`
+            // (whose sensor direction of gravity never changes).
+            for seg in b.segments.iter_mut().filter(|s| s.kind == "static") {
+                seg.kind = "held".into();
+            }
+        }
+        let timeline = Timeline::new(
             b.phases,
             b.segments,
             self.gravity_m_s2,
             self.earth_rate_enu_rad_s(),
             Vector3::from(self.mag_field_enu_gauss),
-        )
+        );
+        if self.hand.tremor_deg > 0.0 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7e3e_0b1e_5eed);
+            let tremor = Tremor::new(
+                self.hand.tremor_deg.to_radians(),
+                self.hand.tremor_band_hz,
+                &mut rng,
+            );
+            return timeline.with_tremor(tremor);
+        }
+        timeline
     }
 
     /// An empty timeline at the starting orientation: level (roll = pitch = yaw = 0: x north,
-    /// y east, z down) unless the first segment says otherwise, in which case the sensor
-    /// starts there without a move.
-    fn start_builder(&self) -> Builder {
+    /// y east, z down) unless the first segment is a static one at `first` (its attitude,
+    /// tilted), in which case the sensor starts there without a move.
+    fn start_builder(&self, first: Option<UnitQuaternion<f64>>) -> Builder {
         let mut b = Builder {
             phases: Vec::new(),
             segments: Vec::new(),
@@ -39,28 +75,28 @@ impl Scenario {
             table_angle_rad: 0.0,
             gravity_m_s2: self.gravity_m_s2,
         };
-        b.q = enu_from_ned();
-        if let Some(SegmentSpec::Static {
-            orientation: Some(o),
-            ..
-        }) = self.segments.first()
-        {
-            b.q = o.enu_from_sensor().expect("validated");
-        }
+        b.q = first.unwrap_or_else(enu_from_ned);
         b
     }
 
-    /// Appends segment number `n` (1-based) to the timeline.
-    fn compile_segment(&self, b: &mut Builder, n: usize, seg: &SegmentSpec, rng: &mut ChaCha8Rng) {
+    /// Appends segment number `n` (1-based) to the timeline; `target` is a static segment's
+    /// attitude (tilted), `rng` draws random poses and `tilts` tilts them.
+    fn compile_segment(
+        &self,
+        b: &mut Builder,
+        n: usize,
+        seg: &SegmentSpec,
+        target: Option<UnitQuaternion<f64>>,
+        (rng, tilts): (&mut ChaCha8Rng, &mut Tilts),
+    ) {
         match seg {
             SegmentSpec::Static {
-                orientation,
                 duration_s,
                 move_s,
                 label,
+                ..
             } => {
-                if let Some(o) = orientation {
-                    let target = o.enu_from_sensor().expect("validated");
+                if let Some(target) = target {
                     b.move_to(
                         target,
                         move_s.unwrap_or(self.transition_s),
@@ -122,22 +158,42 @@ impl Scenario {
                 count,
                 dwell_s,
                 move_s,
-            } => random_poses(b, n, *count, *dwell_s, *move_s, rng),
+            } => random_poses(b, n, (*count, *dwell_s, *move_s), rng, tilts),
         }
     }
 }
 
-/// `count` random orientations, each reached in `move_s` and held for `dwell_s`.
+/// The tilt noise of held poses: each attitude off its nominal by a rotation about a random
+/// horizontal axis by an angle uniform in +-`max_rad`.
+pub(super) struct Tilts {
+    max_rad: f64,
+    rng: ChaCha8Rng,
+}
+
+impl Tilts {
+    /// `nominal` (`enu_from_sensor`) tilted; unchanged when there is no tilt noise.
+    fn apply(&mut self, nominal: UnitQuaternion<f64>) -> UnitQuaternion<f64> {
+        if self.max_rad <= 0.0 {
+            return nominal;
+        }
+        let azimuth = self.rng.random_range(0.0..std::f64::consts::TAU);
+        let angle = self.rng.random_range(-self.max_rad..=self.max_rad);
+        let axis = Unit::new_normalize(Vector3::new(azimuth.cos(), azimuth.sin(), 0.0));
+        UnitQuaternion::from_axis_angle(&axis, angle) * nominal
+    }
+}
+
+/// `count` random orientations (tilted by `tilts`), each reached in `move_s` and held for
+/// `dwell_s`.
 fn random_poses(
     b: &mut Builder,
     n: usize,
-    count: u32,
-    dwell_s: f64,
-    move_s: f64,
+    (count, dwell_s, move_s): (u32, f64, f64),
     rng: &mut ChaCha8Rng,
+    tilts: &mut Tilts,
 ) {
     for p in 0..count {
-        let target = random_orientation(rng);
+        let target = tilts.apply(random_orientation(rng));
         b.move_to(
             target,
             move_s,

@@ -2,8 +2,9 @@
 //!
 //! A scenario is a list of segments run in order (static positions, index-table steps, rate-table
 //! plateaus, single rotations, impacts, random poses) plus the environment (latitude, gravity,
-//! magnetic field, temperature profile) and the device's identity. [`Scenario::compile`] turns it
-//! into a [`crate::motion::Timeline`] of analytic motion phases.
+//! magnetic field, temperature profile) and the device's identity, and for a unit held by hand
+//! (`[hand]`, [`HandSpec`]) its tremor and the tilt noise of its poses. [`Scenario::compile`]
+//! turns it into a [`crate::motion::Timeline`] of analytic motion phases.
 //!
 //! Every key is kebab-case and unknown keys are errors that name the file and line, so a typo
 //! never silently changes a test.
@@ -104,9 +105,41 @@ pub struct Scenario {
     /// tests check that the model workbench does not blame a library effect for them.
     #[serde(rename = "disturbance", default)]
     pub disturbances: Vec<Disturbance>,
+    /// Hand-held realism (`[hand]`): tremor throughout and the tilt noise of held poses.
+    #[serde(default)]
+    pub hand: HandSpec,
     /// The motion, in order.
     #[serde(rename = "segment", default)]
     pub segments: Vec<SegmentSpec>,
+}
+
+/// A unit held by hand (`[hand]`), off by default. `tremor-deg`: RMS angle of the hand's
+/// tremor about each sensor axis, degrees (physiological tremor: ~0.05-0.5), band-limited to
+/// `tremor-band-hz` (default 4-12 Hz), throughout the scenario, still poses and moves alike.
+/// `tilt-noise-deg`: each held pose (a `static` segment with an `orientation`, each pose of
+/// `random-poses`) is off its nominal attitude by a random tilt about a random horizontal axis
+/// of up to this many degrees (uniform in +-tilt). Both are seeded (`--seed`) and both are in
+/// the truth: the truth file records the motion the sensor really made, and with tremor its
+/// still segments are of kind `held` (still but for the tremor), not `static`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct HandSpec {
+    /// RMS tremor angle per axis, degrees (0: none).
+    pub tremor_deg: f64,
+    /// Tremor frequency band, Hz.
+    pub tremor_band_hz: [f64; 2],
+    /// Largest tilt of a held pose off its nominal attitude, degrees (0: none).
+    pub tilt_noise_deg: f64,
+}
+
+impl Default for HandSpec {
+    fn default() -> Self {
+        Self {
+            tremor_deg: 0.0,
+            tremor_band_hz: [4.0, 12.0],
+            tilt_noise_deg: 0.0,
+        }
+    }
 }
 
 fn default_rate_hz() -> f64 {

@@ -126,3 +126,67 @@ fn mip_rates_divide_the_base_rate_and_bad_protocols_name_the_line() {
         .to_string();
     assert!(e.starts_with("p.toml:4:") && e.contains("\"gx5\""), "{e}");
 }
+
+/// Four faces held by hand, then a turn: each face's gravity direction off its nominal by at
+/// most the tilt noise (and by some of it), the same tilts for the same seed, the tremor's
+/// rate visible while the unit is "still", and bad `[hand]` values named.
+#[test]
+fn hand_tilts_poses_and_trembles() {
+    let text = |hand: &str| {
+        format!(
+            "name = \"t\"\n{hand}\n[[segment]]\nkind = \"static\"\norientation = {{ x = \"north\", z = \"up\" }}\nduration-s = 2\n\
+             [[segment]]\nkind = \"static\"\norientation = {{ x = \"up\", y = \"north\" }}\nduration-s = 2\n\
+             [[segment]]\nkind = \"static\"\norientation = {{ y = \"up\", z = \"north\" }}\nduration-s = 2\n\
+             [[segment]]\nkind = \"static\"\norientation = {{ x = \"north\", z = \"down\" }}\nduration-s = 2\n"
+        )
+    };
+    let plain = Scenario::from_toml_str(&text(""), "t.toml").unwrap();
+    let hand = Scenario::from_toml_str(
+        &text("[hand]\ntilt-noise-deg = 3.0\ntremor-deg = 0.2\n"),
+        "t.toml",
+    )
+    .unwrap();
+    assert_eq!(hand.hand.tremor_band_hz, [4.0, 12.0]);
+    let (p, h) = (plain.compile(7), hand.compile(7));
+    assert_eq!(h.segments().len(), p.segments().len());
+    let mut largest_deg: f64 = 0.0;
+    for (a, b) in p.segments().iter().zip(h.segments()) {
+        if a.kind != "static" {
+            continue;
+        }
+        let off_deg = a
+            .gravity_dir_sensor
+            .angle(&b.gravity_dir_sensor)
+            .to_degrees();
+        assert!(off_deg <= 3.0 + 1e-9, "{}: {off_deg} deg", b.label);
+        largest_deg = largest_deg.max(off_deg);
+    }
+    assert!(largest_deg > 0.3, "no tilt: {largest_deg}");
+    // With tremor the rests are held, not static.
+    assert!(h.segments().iter().all(|s| s.kind != "static"));
+    assert!(h.segments().iter().any(|s| s.kind == "held"));
+    let again = hand.compile(7);
+    assert_eq!(again.state(3.0), h.state(3.0));
+    // In the middle of the first face: plain is still, the hand trembles (deg/s of rate) and
+    // its specific force keeps gravity's magnitude.
+    let (sp, sh) = (p.state(1.0), h.state(1.0));
+    assert!(sp.angular_rate_rad_s.norm() < 1e-4);
+    let tremor_deg_s = (sh.angular_rate_rad_s - sp.angular_rate_rad_s)
+        .norm()
+        .to_degrees();
+    assert!(tremor_deg_s > 0.1 && tremor_deg_s < 100.0, "{tremor_deg_s}");
+    assert!((sh.specific_force_m_s2.norm() - sp.specific_force_m_s2.norm()).abs() < 1e-9);
+    for (bad, key) in [
+        ("[hand]\ntremor-deg = -1", "hand.tremor-deg"),
+        (
+            "[hand]\ntremor-deg = 0.2\ntremor-band-hz = [4, 80]",
+            "hand.tremor-band-hz",
+        ),
+        ("[hand]\ntilt-noise-deg = 45", "hand.tilt-noise-deg"),
+    ] {
+        let e = Scenario::from_toml_str(&text(bad), "h.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("h.toml: ") && e.contains(key), "{e}");
+    }
+}

@@ -20,7 +20,39 @@ impl Scenario {
         self.validate_environment(&invalid)?;
         self.validate_device(&invalid)?;
         self.validate_temperature(&invalid)?;
+        self.validate_hand(&invalid)?;
         self.validate_segments(&invalid)
+    }
+
+    /// Tremor and tilt noise: small angles, a tremor band the data rate can carry.
+    fn validate_hand(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
+        let h = &self.hand;
+        if !(h.tremor_deg.is_finite() && (0.0..=5.0).contains(&h.tremor_deg)) {
+            return Err(invalid(
+                "hand.tremor-deg".into(),
+                format!(
+                    "{} must be an RMS angle of 0 to 5 degrees (a hand's tremor: ~0.05-0.5)",
+                    h.tremor_deg
+                ),
+            ));
+        }
+        let [lo, hi] = h.tremor_band_hz;
+        if h.tremor_deg > 0.0 && !(positive(lo) && lo < hi && hi <= self.rate_hz / 2.0) {
+            return Err(invalid(
+                "hand.tremor-band-hz".into(),
+                format!(
+                    "[{lo}, {hi}] must be 0 < low < high <= half the data rate ({} Hz)",
+                    self.rate_hz / 2.0
+                ),
+            ));
+        }
+        if !(h.tilt_noise_deg.is_finite() && (0.0..=30.0).contains(&h.tilt_noise_deg)) {
+            return Err(invalid(
+                "hand.tilt-noise-deg".into(),
+                format!("{} must be 0 to 30 degrees", h.tilt_noise_deg),
+            ));
+        }
+        Ok(())
     }
 
     /// Disturbances, data rate, latitude, gravity and transitions.

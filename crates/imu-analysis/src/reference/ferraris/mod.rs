@@ -5,7 +5,14 @@
 //! turn's is 360 degrees about the axis it turned about (recognised from the integrated rate,
 //! after removing the gyro's reading at rest) over the turn's samples. Earth's rate enters with
 //! its vertical part where the latitude is given; the part a heading would fix is carried as a
-//! systematic gyro bias uncertainty, as for a plan without north.
+//! systematic gyro bias uncertainty, as for a plan without north. A labelled session (a
+//! `part`/`label` column) whose parts are named like faces and turns (`+x`, `face-x+`,
+//! `turn-z`, `rot_x`: the grammar is in `labels.rs`) takes its faces and turns from the labels
+//! instead, each checked against what gravity and the rate say.
+
+mod labels;
+
+pub use labels::{PartName, parse_part};
 
 use imu_model::Vec3;
 use imu_model::earth::{
@@ -82,6 +89,20 @@ pub enum FerrarisError {
         /// The tolerance, degrees.
         tolerance_deg: f64,
     },
+    /// A labelled part does not show what its name says.
+    #[error("{file}: part `{part}` ({start_s:.1}-{end_s:.1} s): {message}")]
+    Label {
+        /// The plan file.
+        file: String,
+        /// The part's label as written.
+        part: String,
+        /// Its first sample's time, s.
+        start_s: f64,
+        /// Its last sample's time, s.
+        end_s: f64,
+        /// What the data say instead.
+        message: String,
+    },
     /// A rotating segment given to [`Ferraris::segment_truth`] is not a full turn about one
     /// axis (segments must come from [`Ferraris::segmentation`]).
     #[error(
@@ -141,13 +162,26 @@ impl Ferraris {
     /// The still faces (as detected) and one segment per full turn (the samples between the
     /// two still faces around it, kind [`SegmentKind::Plateau`]), in time order. Detected rate
     /// plateaus inside a turn are replaced by the turn; quiet runs are reported as detection
-    /// reports them.
+    /// reports them. A session labelled with faces and turns (module `labels`) takes them from
+    /// its labels.
     pub fn segmentation(
         &self,
         series: &ImuSeries,
         opts: &SegmentOptions,
     ) -> Result<Segmentation, FerrarisError> {
-        let mut seg = crate::segment::detect(series, opts)?;
+        let detected = crate::segment::detect(series, opts)?;
+        if let Some(labelled) = self.labelled_segmentation(series, &detected)? {
+            return Ok(labelled);
+        }
+        self.recognised_segmentation(series, detected)
+    }
+
+    /// [`Ferraris::segmentation`] by recognition: faces from gravity, turns from the rate.
+    fn recognised_segmentation(
+        &self,
+        series: &ImuSeries,
+        mut seg: Segmentation,
+    ) -> Result<Segmentation, FerrarisError> {
         let statics: Vec<Segment> = seg.of_kind(SegmentKind::Static).cloned().collect();
         for s in &statics {
             let (_, _, angle_deg) = nearest_axis(s.mean_accel());
