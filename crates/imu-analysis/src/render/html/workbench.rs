@@ -3,7 +3,7 @@
 
 use maud::{Markup, html};
 
-use super::{AXIS_NAMES, Section, figures, g, p, table, text, yes_no};
+use super::{AXIS_NAMES, Section, figures, g, g3, p, table, text, yes_no};
 use crate::render::svg::{Chart, Figure, Look, Series, Style, Ticks, axis_colour};
 use crate::workbench::{LadderStep, StepSummary, TriadDiagnosis, VerdictState};
 
@@ -18,7 +18,17 @@ pub fn verdict_section(diagnoses: &[&TriadDiagnosis]) -> Section {
             @if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
                 p {
                     "Add " code { (top.effect.id()) } " to the " (d.triad) " model "
-                    (format!("(p = {}, \u{394}AIC = {:.1}).", p(top.p_value), top.delta_aic))
+                    (format!("(p = {}, \u{394}AIC = {:.1}", p(top.p_value), top.delta_aic))
+                    @if let Some(h) = &top.held_out {
+                        (format!(
+                            "; held-out weighted RMS {} \u{2192} {} {}, {}",
+                            g3(h.held_out_rms_before),
+                            g3(h.held_out_rms_after),
+                            h.rms_unit(d.triad),
+                            h.verdict_text()
+                        ))
+                    }
+                    ")."
                 }
             }
         }
@@ -44,6 +54,9 @@ pub fn verdict_heading(d: &TriadDiagnosis) -> String {
             p(d.p_value_with_drift)
         ),
         VerdictState::MissingEffect => format!("{not}: an effect is missing from the model"),
+        VerdictState::NotConfirmed => {
+            format!("{not}: the best candidate is not confirmed on held-out data (not claimed)")
+        }
         VerdictState::Ambiguous => {
             format!("{not}: two effects explain the excess and this recording cannot tell which")
         }
@@ -72,11 +85,20 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
         "gyro p",
         "gyro ok (drift)",
     ];
-    if steps.iter().any(|s| s.gyro.moves.is_some()) {
+    let moves = steps.iter().any(|s| s.gyro.moves.is_some());
+    if moves {
         // Reference-free: the gyro gains against the moves between poses.
         header.push("gyro gains: direction error / expected after the moves (rad)");
     }
-    let rows: Vec<Vec<Markup>> = steps.iter().enumerate().map(ladder_row).collect();
+    let held_out = steps.iter().any(|s| s.held_out.is_some());
+    if held_out {
+        header.push("added effect: held-out weighted RMS before \u{2192} after");
+    }
+    let rows: Vec<Vec<Markup>> = steps
+        .iter()
+        .enumerate()
+        .map(|(i, s)| ladder_row(i, s, moves, held_out))
+        .collect();
     let body = html! {
         p {
             "From the base model, the workbench adds the best claimed effect of a triad that is \
@@ -90,21 +112,39 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
     Section::new("The ladder", body)
 }
 
-/// Step `i` of the ladder as a table row.
-fn ladder_row((i, s): (usize, &LadderStep)) -> Vec<Markup> {
+/// Step `i` of the ladder as a table row; `moves` and `held_out` say whether the table has
+/// those columns.
+fn ladder_row(i: usize, s: &LadderStep, moves: bool, held_out: bool) -> Vec<Markup> {
     let added = s
         .added
         .map_or("base model".into(), |(t, k)| format!("{t} {}", k.id()));
     let mut r = vec![text(i), text(added)];
     r.extend(step_cells(&s.accel));
     r.extend(step_cells(&s.gyro));
-    if let Some(m) = &s.gyro.moves {
-        r.push(text(format!(
-            "{} / {} (p {})",
-            g(m.residual_rms_rad),
-            g(m.expected_rms_rad),
-            p(m.p_value)
-        )));
+    if moves {
+        r.push(text(s.gyro.moves.as_ref().map_or(String::new(), |m| {
+            format!(
+                "{} / {} (p {})",
+                g(m.residual_rms_rad),
+                g(m.expected_rms_rad),
+                p(m.p_value)
+            )
+        })));
+    }
+    if held_out {
+        let cell = match (&s.held_out, s.added) {
+            (Some(h), Some((t, _))) => format!(
+                "{} \u{2192} {} {} ({}, lower in {} of {} folds)",
+                g3(h.held_out_rms_before),
+                g3(h.held_out_rms_after),
+                h.rms_unit(t),
+                h.scheme_text(),
+                h.folds_improved,
+                h.folds
+            ),
+            _ => String::new(),
+        };
+        r.push(text(cell));
     }
     r
 }
@@ -218,11 +258,13 @@ mod tests {
         let steps = vec![
             LadderStep {
                 added: None,
+                held_out: None,
                 accel: summary(1e-3, 1e-3),
                 gyro: summary(5e-4, 1e-5),
             },
             LadderStep {
                 added: Some((Triad::Gyro, EffectKind::GSensitivity)),
+                held_out: None,
                 accel: summary(1e-3, 1e-3),
                 gyro: summary(1e-5, 1e-5),
             },
