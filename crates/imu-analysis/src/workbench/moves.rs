@@ -241,10 +241,7 @@ impl<'a> Workbench<'a> {
     /// prepared once when its offsets do not vary along a move (a bias), else prepared again
     /// with its offset effects evaluated at every sample.
     fn moves_for(&self, offsets: &TriadModel) -> (std::borrow::Cow<'_, [MoveData]>, usize) {
-        let varies = offsets
-            .kinds()
-            .iter()
-            .any(|k| !k.is_gain() && *k != EffectKind::Bias);
+        let varies = !crate::calibrate::reference_free::varying_offsets(offsets).is_empty();
         match &self.mode {
             Mode::ReferenceFree { setup, .. } if varies => {
                 let (m, skipped) = setup.prepare(self.series, &self.obs, Some(offsets));

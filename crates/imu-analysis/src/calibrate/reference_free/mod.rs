@@ -515,6 +515,7 @@ fn fit_gyro(
         gyro: &f.model,
         accel: &accel.fit.model,
     });
+    notes.extend(offsets.and_then(|o| o.note()));
     let (moves, skipped) = prepare_moves(&inputs, offsets);
     if skipped > 0 {
         notes.push(format!(

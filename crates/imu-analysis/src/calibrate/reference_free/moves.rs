@@ -92,6 +92,16 @@ pub(crate) struct MoveInputs<'p> {
     pub(crate) g_m_s2: f64,
 }
 
+/// The offset effects of `model` that vary along a move (all but a constant bias): those the
+/// rate measured at the poses around a move cannot carry across it.
+pub(crate) fn varying_offsets(model: &TriadModel) -> Vec<EffectKind> {
+    model
+        .kinds()
+        .into_iter()
+        .filter(|k| !k.is_gain() && *k != EffectKind::Bias)
+        .collect()
+}
+
 /// The offset effects of a gyro model, evaluated at every sample of a move: what the rate
 /// measured at the two poses around a move cannot carry across it (a g-sensitivity follows the
 /// specific force as the unit turns, a temperature bias the temperature, a warm-up the time).
@@ -107,10 +117,20 @@ pub(crate) struct MoveOffsets<'m> {
 impl MoveOffsets<'_> {
     /// Whether the offsets vary along a move (anything but a constant bias).
     fn vary(&self) -> bool {
-        self.gyro
-            .kinds()
-            .iter()
-            .any(|k| !k.is_gain() && *k != EffectKind::Bias)
+        !varying_offsets(self.gyro).is_empty()
+    }
+
+    /// How the offsets enter the moves, for the notes (None when they do not vary).
+    pub(crate) fn note(&self) -> Option<String> {
+        let ids: Vec<&str> = varying_offsets(self.gyro).iter().map(|k| k.id()).collect();
+        (!ids.is_empty()).then(|| {
+            format!(
+                "gyro gains: the {} fitted to the still poses is evaluated at every sample of \
+                 each move (specific force, temperature, time) and removed from the rate beyond \
+                 its interpolation between the poses",
+                ids.join(", ")
+            )
+        })
     }
 
     /// The gyro offset at conditions `c`, rad/s: the model applied to a zero rate (the gains,

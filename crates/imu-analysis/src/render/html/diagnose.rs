@@ -398,7 +398,6 @@ fn candidates(d: &TriadDiagnosis) -> Markup {
     let rows: Vec<Vec<Markup>> = d.candidates.iter().map(candidate_row).collect();
     html! {
         h3 { "Candidates" }
-        (held_out_table(d))
         (table(
             &[
                 "effect",
@@ -412,6 +411,7 @@ fn candidates(d: &TriadDiagnosis) -> Markup {
             ],
             &rows,
         ))
+        (held_out_table(d))
     }
 }
 
@@ -475,6 +475,7 @@ fn held_out_table(d: &TriadDiagnosis) -> Markup {
         })
         .collect();
     html! {
+        h3 { "Held-out check" }
         p {
             "A candidate is claimed only if it also lowers the error on observations its fit did \
              not see: the model is refitted without and with it on all but one fold and held \

@@ -134,13 +134,15 @@ fn ladder_row(i: usize, s: &LadderStep, moves: bool, held_out: bool) -> Vec<Mark
     if held_out {
         let cell = match (&s.held_out, s.added) {
             (Some(h), Some((t, _))) => format!(
-                "{} \u{2192} {} {} ({}, lower in {} of {} folds)",
+                "{} \u{2192} {} {} ({}, lower in {} of {} folds; in-sample {} \u{2192} {})",
                 g3(h.held_out_rms_before),
                 g3(h.held_out_rms_after),
                 h.rms_unit(t),
                 h.scheme_text(),
                 h.folds_improved,
-                h.folds
+                h.folds,
+                g3(h.in_sample_rms_before),
+                g3(h.in_sample_rms_after)
             ),
             _ => String::new(),
         };
@@ -277,5 +279,50 @@ mod tests {
         let p = page("workbench", &[s]);
         assert!(p.contains("The ladder"));
         assert!(!p.contains("http://") || p.contains("http://www.w3.org/2000/svg"));
+        // Without a held-out check there is no such column.
+        assert!(!p.contains("held-out"), "{p}");
+    }
+
+    #[test]
+    fn the_ladder_shows_the_held_out_check_of_each_added_effect() {
+        use crate::workbench::{FoldScheme, HeldOut, HeldOutUnit};
+        let h = HeldOut {
+            scheme: FoldScheme::KFold,
+            folds: 5,
+            unit: HeldOutUnit::Segments,
+            n_observations: 24,
+            in_sample_rms_before: [1.0e-3, 8.0e-4, 2.4e-3],
+            in_sample_rms_after: [2.8e-4, 3.1e-4, 2.5e-4],
+            held_out_rms_before: [1.1e-3, 8.3e-4, 2.2e-3],
+            held_out_rms_after: [3.1e-4, 3.6e-4, 2.9e-4],
+            folds_improved: 5,
+            folds_failed: 0,
+            confirmed: true,
+        };
+        let steps = vec![
+            LadderStep {
+                added: None,
+                held_out: None,
+                accel: summary(1e-3, 1e-3),
+                gyro: summary(5e-4, 1e-5),
+            },
+            LadderStep {
+                added: Some((Triad::Gyro, EffectKind::GSensitivity)),
+                held_out: Some(h),
+                accel: summary(1e-3, 1e-3),
+                gyro: summary(1e-5, 1e-5),
+            },
+        ];
+        let s = ladder_section(&steps);
+        assert!(s.html.contains("held-out weighted RMS"), "{}", s.html);
+        assert!(
+            s.html.contains(
+                "1.100e-3/8.300e-4/2.200e-3 \u{2192} 3.100e-4/3.600e-4/2.900e-4 rad/s (5-fold over \
+                 segments, lower in 5 of 5 folds; in-sample 1.000e-3/8.000e-4/2.400e-3 \u{2192} \
+                 2.800e-4/3.100e-4/2.500e-4)"
+            ),
+            "{}",
+            s.html
+        );
     }
 }
