@@ -302,3 +302,60 @@ fn truth_source_arguments_are_checked() {
     assert!(!e.contains("cannot be used with"), "{e}");
     assert!(e.contains("rec.mcap"), "{e}");
 }
+
+/// The claim's held-out check reaches the user: in `--json` (the candidate's `held_out`, with
+/// the held-out RMS lower with the effect than without) and in the text under the candidate.
+#[test]
+fn the_claim_shows_its_held_out_check_in_json_and_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let (rec, truth, model) = record(dir.path());
+    let args = [
+        rec.as_os_str(),
+        "--reference".as_ref(),
+        truth.as_os_str(),
+        "--model".as_ref(),
+        model.as_os_str(),
+    ];
+    let mut json_args = args.to_vec();
+    json_args.push("--json".as_ref());
+    let j = run(&json_args);
+    let c = j["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["claimed"] == true)
+        .unwrap();
+    assert_eq!(c["effect"], "g-sensitivity");
+    let h = &c["held_out"];
+    assert_eq!(h["confirmed"], true, "{h}");
+    assert_eq!(h["scheme"], "k-fold", "{h}");
+    let sq = |k: &str| -> f64 {
+        h[k].as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap().powi(2))
+            .sum()
+    };
+    assert!(sq("held_out_rms_after") < sq("held_out_rms_before"), "{h}");
+    // Candidates that were not put to the test carry no held_out.
+    assert!(
+        j["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| c["claimed"] == false)
+            .all(|c| c.get("held_out").is_none())
+    );
+
+    let out = Command::new(env!("CARGO_BIN_EXE_imu-diagnose"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("held-out (5-fold over segments): weighted RMS")
+            && text.contains("confirmed on held-out data"),
+        "{text}"
+    );
+}

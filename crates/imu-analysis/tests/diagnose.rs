@@ -17,46 +17,7 @@ use imu_model::{Calibration, EffectKind, Triad, TriadModel};
 
 /// The truth every test starts from: bias, scale and misalignment on both triads (the base
 /// model's effects), with the example 3DM-GX1's coloured noise.
-const BASE_TRUTH: &str = r#"
-format = "imud-calibration/1"
-id = "diagnose-base"
-
-[accel.misalignment]
-xy = 1.2e-3
-xz = -0.8e-3
-yx = 0.5e-3
-yz = 1.5e-3
-zx = -1.1e-3
-zy = 0.7e-3
-[accel.scale]
-value = [1.2e-3, -0.8e-3, 1.5e-3]
-[accel.bias]
-value = [0.25, -0.18, 0.32]
-[accel.noise]
-white-density = [1.5e-3, 1.5e-3, 1.8e-3]
-bias-instability = [1.27e-3, 9.8e-4, 4.2e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [2.0e-5, 2.0e-5, 2.0e-5]
-quantization-lsb = [2.1e-3, 2.1e-3, 2.1e-3]
-
-[gyro.misalignment]
-xy = -0.9e-3
-xz = 1.3e-3
-yx = 0.6e-3
-yz = -1.0e-3
-zx = 0.4e-3
-zy = 1.1e-3
-[gyro.scale]
-value = [2.0e-3, -1.5e-3, 3.0e-3]
-[gyro.bias]
-value = [8.7e-3, -6.1e-3, 1.05e-2]
-[gyro.noise]
-white-density = [1.0e-3, 1.0e-3, 1.0e-3]
-bias-instability = [2.4e-4, 2.4e-4, 2.4e-4]
-bias-instability-tau-max-s = 1000.0
-random-walk = [1.0e-5, 1.0e-5, 1.0e-5]
-quantization-lsb = [2.6e-4, 2.6e-4, 2.6e-4]
-"#;
+const BASE_TRUTH: &str = include_str!("data/diagnose-base-truth.toml");
 
 /// Index table about x, then about y: 2 x 12 positions at 30 degrees, 20 s each (paper 3.1.2):
 /// the shipped workbench demo's motion (its own truth model is overridden by each test's).
@@ -231,6 +192,20 @@ fn assert_found_by(wb: &Workbench, triad: Triad, effect: EffectKind, max_ratio: 
     let top = &d.candidates[0];
     assert_eq!(top.effect, effect, "{}", d.verdict);
     assert!(top.p_value < 1e-3 && top.claimed, "{}", d.verdict);
+    // ... and it holds on new data: refitted without the held-out segments (poses), it lowers
+    // their error too.
+    let h = top
+        .held_out
+        .as_ref()
+        .expect("a claim carries its held-out check");
+    let sq = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
+    eprintln!("{}", h.summary(h.rms_unit(triad)));
+    assert!(h.confirmed, "{}", d.verdict);
+    assert!(
+        sq(&h.held_out_rms_after) < sq(&h.held_out_rms_before),
+        "{}",
+        h.summary(h.rms_unit(triad))
+    );
     // (c) the ladder adds it, the residual falls to within 20 % of the floor, and it stops.
     let ladder = wb.ladder(&base_calibration()).unwrap();
     show_ladder(&ladder);
@@ -713,6 +688,18 @@ fn reference_free_finds_hidden_gyro_asymmetric_scale_in_the_moves() {
     let c = d.candidates.iter().find(|c| c.claimed).unwrap();
     assert_eq!(c.effect, EffectKind::AsymmetricScale, "{}", d.verdict);
     assert!(c.p_value < 1e-3, "{}", d.verdict);
+    // Held against moves its fit did not see, the asymmetry lowers their direction error too.
+    let h = c
+        .held_out
+        .as_ref()
+        .expect("a claim carries its held-out check");
+    eprintln!("{}", h.summary(h.rms_unit(Triad::Gyro)));
+    assert!(h.confirmed, "{}", d.verdict);
+    assert!(
+        h.held_out_rms_after[0] < h.held_out_rms_before[0],
+        "{}",
+        d.verdict
+    );
     let ladder = wb.ladder(&base_calibration()).unwrap();
     show_ladder(&ladder);
     let added: Vec<_> = ladder.steps.iter().filter_map(|s| s.added).collect();

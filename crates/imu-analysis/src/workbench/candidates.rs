@@ -119,6 +119,7 @@ pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -
         residual_rms: [f64::NAN; 3],
         significant: false,
         claimed: false,
+        held_out: None,
         explanation: format!(
             "{}: not observable in this recording ({why})",
             k.description()
@@ -216,6 +217,7 @@ impl CandidateScore {
             residual_rms: self.residual_rms,
             significant: self.p_value < alpha,
             claimed: false,
+            held_out: None,
             explanation: self.explanation,
             params: self.params,
             model_change: self.model_change,

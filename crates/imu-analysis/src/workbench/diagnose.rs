@@ -4,17 +4,17 @@
 use super::*;
 
 /// What every candidate is held against: the model's fit and the statistics of its residuals.
-struct CandidateBase<'b> {
+pub(super) struct CandidateBase<'b> {
     /// Which triad.
-    triad: Triad,
+    pub(super) triad: Triad,
     /// The fittable model under test.
     model: &'b TriadModel,
     /// The flicker family of the model's profiled drift, per axis.
-    family: [bool; 3],
+    pub(super) family: [bool; 3],
     /// The model's profiled fit.
-    profiled: &'b Profiled,
+    pub(super) profiled: &'b Profiled,
     /// The triad's fit points.
-    points: &'b [FitPoint],
+    pub(super) points: &'b [FitPoint],
     /// The floor measured in the segments, per axis.
     shared: &'b [SharedNoise; 3],
     /// The model's chi-square against `shared`.
@@ -83,6 +83,7 @@ impl<'a> Workbench<'a> {
         let mut candidates = self.candidates(&context);
         let consistent_before = p_value >= self.opts.alpha;
         let ambiguities = rank_and_claim(&mut candidates, consistent_before, triad, &self.opts);
+        self.confirm_claim(&context, &mut candidates);
         let drift = self.drift_check(triad, &profiled, &base, &shared);
         let (wander, p_value_with_drift) = (drift.wander, drift.p_value);
         let axes = self.axis_verdicts(triad, &base, &chi2_axis, &shared, drift.floor_rms);

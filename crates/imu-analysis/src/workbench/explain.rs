@@ -133,6 +133,7 @@ pub(super) fn verdict_state(facts: &VerdictFacts<'_>) -> VerdictState {
     }
     match facts.candidates.first() {
         Some(c) if c.claimed => VerdictState::MissingEffect,
+        Some(c) if c.held_out.as_ref().is_some_and(|h| !h.confirmed) => VerdictState::NotConfirmed,
         _ if !facts.ambiguities.is_empty() => VerdictState::Ambiguous,
         _ => VerdictState::Unexplained,
     }
@@ -154,6 +155,12 @@ pub(super) fn verdict_text(facts: &VerdictFacts<'_>) -> String {
                 if let Some(c) = facts.candidates.first() {
                     write_missing_effect(&mut s, c)
                 }
+            }
+            (VerdictState::NotConfirmed, _) => {
+                if let Some(c) = facts.candidates.first() {
+                    write_not_confirmed(&mut s, c, facts.triad)
+                }
+                facts.write_unexplained(&mut s, worst)
             }
             (VerdictState::Ambiguous, _) => {
                 if let Some(a) = facts.ambiguities.first() {
@@ -280,15 +287,42 @@ impl VerdictFacts<'_> {
     }
 }
 
-/// The claimed candidate `c` as the missing effect.
+/// The best candidate `c`, which wins in these data but not on held-out observations.
+fn write_not_confirmed(s: &mut String, c: &Candidate, triad: Triad) {
+    if let Some(h) = &c.held_out {
+        let _ = write!(
+            s,
+            " The best candidate, {}, fits these data better (F-test p = {:.1e}, {}) but does \
+             not lower the error on held-out {}: {}; not claimed.",
+            c.effect,
+            c.p_value,
+            c.share_of_excess_text(),
+            h.unit.noun(),
+            h.summary(h.rms_unit(triad))
+        );
+    }
+}
+
+/// The claimed candidate `c` as the missing effect, with its held-out check.
 fn write_missing_effect(s: &mut String, c: &Candidate) {
     let _ = write!(
         s,
-        " Missing effect: {} (F-test p = {:.1e}, {}).",
+        " Missing effect: {} (F-test p = {:.1e}, {}",
         c.explanation,
         c.p_value,
         c.share_of_excess_text()
     );
+    if let Some(h) = &c.held_out {
+        let _ = write!(
+            s,
+            "; held-out weighted RMS {} -> {} {}, {}",
+            fmt3(h.held_out_rms_before),
+            fmt3(h.held_out_rms_after),
+            h.rms_unit(c.triad),
+            h.verdict_text()
+        );
+    }
+    s.push_str(").");
 }
 
 /// Two effects that both explain the excess and this recording cannot tell apart.

@@ -12,6 +12,7 @@ impl<'a> Workbench<'a> {
         let triads = [Triad::Accel, Triad::Gyro];
         let mut steps = Vec::new();
         let mut added: Vec<(Triad, EffectKind)> = Vec::new();
+        let mut held_out: Option<HeldOut> = None;
         let mut base_diagnoses = None;
         loop {
             let diags = [
@@ -23,6 +24,7 @@ impl<'a> Workbench<'a> {
             }
             steps.push(LadderStep {
                 added: added.last().copied(),
+                held_out: held_out.take(),
                 accel: StepSummary::of(&diags[0]),
                 gyro: StepSummary::of(&diags[1]),
             });
@@ -52,6 +54,7 @@ impl<'a> Workbench<'a> {
                 });
             }
             added.push((triads[i], c.effect));
+            held_out = c.held_out.clone();
             models[i] = c
                 .model
                 .clone()

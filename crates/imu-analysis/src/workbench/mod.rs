@@ -51,6 +51,7 @@ use imu_stats::spectral::{Periodogram, lomb_scargle_peak};
 use imu_stats::{descriptive, distributions};
 
 mod candidates;
+mod crossval;
 mod diagnose;
 mod explain;
 mod fit;
@@ -63,9 +64,13 @@ mod profile;
 mod structure;
 
 use candidates::*;
+use crossval::*;
+pub use crossval::{FoldScheme, HeldOut, HeldOutUnit};
+use diagnose::CandidateBase;
 use explain::*;
 pub use floor::*;
 use magnitude::*;
+use observations::MovesSetup;
 use profile::*;
 pub use structure::*;
 
@@ -246,8 +251,13 @@ pub struct Candidate {
     pub residual_rms: [f64; 3],
     /// p < alpha.
     pub significant: bool,
-    /// Significant, explains enough and is not confused with another candidate.
+    /// Significant, explains enough, is not confused with another candidate, and lowers the
+    /// error on held-out observations too ([`HeldOut::confirmed`]).
     pub claimed: bool,
+    /// The cross-validation of a candidate that wins in-sample (the one the workbench would
+    /// claim): held-out RMS before and after, next to the in-sample figures.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOut>,
     /// Plain-words explanation.
     pub explanation: String,
     /// The effect's fitted parameters.
@@ -312,6 +322,9 @@ pub enum VerdictState {
     BiasWander,
     /// Not consistent; a library effect is missing (the claimed candidate).
     MissingEffect,
+    /// Not consistent; the best candidate explains the excess in these data but does not
+    /// lower the error on held-out observations: not confirmed, not claimed.
+    NotConfirmed,
     /// Not consistent; two effects explain the excess alike.
     Ambiguous,
     /// Not consistent, and nothing in the library explains it.
@@ -422,7 +435,10 @@ enum Mode {
     /// Earth's rate, the gyro gains against the rotations integrated over the moves.
     ReferenceFree {
         magnitude: Magnitude,
-        /// The moves between consecutive still poses.
+        /// What the moves are prepared from (again for a model whose offsets vary along a
+        /// move).
+        setup: Box<MovesSetup>,
+        /// The moves between consecutive still poses (the rate corrected by the poses' rates).
         moves: Vec<crate::calibrate::reference_free::MoveData>,
         /// Moves skipped (lost samples).
         moves_skipped: usize,
@@ -467,6 +483,9 @@ fn start_values(kind: EffectKind, span_s: f64) -> Vec<f64> {
 pub struct LadderStep {
     /// The effect added at this step (None for the base model).
     pub added: Option<(Triad, EffectKind)>,
+    /// The held-out check that confirmed its claim.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOut>,
     /// Accel summary after the step.
     pub accel: StepSummary,
     /// Gyro summary after the step.

@@ -2,13 +2,13 @@
 //! poses.
 
 use super::*;
-use crate::calibrate::reference_free::fit_gains;
+use crate::calibrate::reference_free::{MoveData, fit_gains};
 use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution};
 
 /// Gain models fitted to the moves between poses, and their residuals.
-struct MovesFitter<'w, 'a> {
-    /// The workbench with the moves.
-    wb: &'w Workbench<'a>,
+struct MovesFitter<'w> {
+    /// The moves (the rate corrected by the model's offsets).
+    moves: &'w [MoveData],
     /// The whole gyro model (its values seed the gain models).
     full: &'w TriadModel,
     /// Settings of the least-squares engine.
@@ -17,7 +17,7 @@ struct MovesFitter<'w, 'a> {
     n_res: usize,
 }
 
-impl MovesFitter<'_, '_> {
+impl MovesFitter<'_> {
     /// The gain model with effects `kinds`, its values taken from the whole model.
     fn gain_model(&self, kinds: &[EffectKind]) -> TriadModel {
         let mut g = TriadModel::default();
@@ -29,9 +29,7 @@ impl MovesFitter<'_, '_> {
 
     /// Whitened residuals of a gain model (nothing fitted when it has no parameters).
     fn whitened(&self, g: &TriadModel) -> Vec<f64> {
-        self.wb
-            .moves()
-            .0
+        self.moves
             .iter()
             .flat_map(|m| m.residual(g).map(|v| v / m.sigma_rad))
             .collect()
@@ -40,9 +38,7 @@ impl MovesFitter<'_, '_> {
     /// RMS of the direction errors of a gain model, rad.
     fn raw_rms(&self, g: &TriadModel) -> f64 {
         let sq: f64 = self
-            .wb
-            .moves()
-            .0
+            .moves
             .iter()
             .map(|m| m.residual(g).iter().map(|v| v * v).sum::<f64>())
             .sum();
@@ -61,20 +57,21 @@ impl MovesFitter<'_, '_> {
         if g.n_params() == 0 {
             return Ok((g.clone(), None));
         }
-        let sol = fit_gains(self.wb.moves().0, g, &vec![false; g.n_params()], &self.lsq).map_err(
-            |e| match e {
-                LsqError::TooFewResiduals {
-                    n_residuals,
-                    n_free,
-                } => FitError::TooFewObservations {
-                    triad,
-                    n_points: self.wb.moves().0.len(),
-                    n_obs: n_residuals,
-                    n_free,
+        let sol =
+            fit_gains(self.moves, g, &vec![false; g.n_params()], &self.lsq).map_err(
+                |e| match e {
+                    LsqError::TooFewResiduals {
+                        n_residuals,
+                        n_free,
+                    } => FitError::TooFewObservations {
+                        triad,
+                        n_points: self.moves.len(),
+                        n_obs: n_residuals,
+                        n_free,
+                    },
+                    _ => FitError::NothingToFit { triad },
                 },
-                _ => FitError::NothingToFit { triad },
-            },
-        )?;
+            )?;
         let mut m = g.clone();
         m.set_params(&sol.params);
         Ok((m, Some(sol)))
@@ -112,33 +109,19 @@ impl<'a> Workbench<'a> {
     ) -> Result<MovesDiagnosis, DiagnoseError> {
         let triad = Triad::Gyro;
         let kinds: Vec<EffectKind> = full.kinds().into_iter().filter(|k| k.is_gain()).collect();
-        let fitter = MovesFitter {
-            wb: self,
-            full,
-            lsq: LsqOptions {
-                max_iterations: self.opts.fit.max_iterations,
-                tolerance: self.opts.fit.tolerance,
-                min_eigenvalue: self.opts.fit.min_eigenvalue,
-                ..LsqOptions::default()
-            },
-            n_res: 2 * self.moves().0.len(),
-        };
+        let (moves, skipped) = self.moves_for(offsets);
+        let fitter = self.moves_fitter(&moves, full);
         let (gains, sol0) = fitter.fit(&fitter.gain_model(&kinds))?;
         let free0 = sol0.as_ref().map_or(0, |s| s.free.len());
         let chi2_0 = fitter.chi2_of(&gains);
         let dof_0 = fitter.n_res.saturating_sub(free0).max(1);
         let p0 = distributions::chi2_sf(chi2_0, dof_0 as f64);
-        let expected_rms_rad = (self
-            .moves()
-            .0
-            .iter()
-            .map(|m| m.sigma_rad * m.sigma_rad)
-            .sum::<f64>()
-            / self.moves().0.len().max(1) as f64)
+        let expected_rms_rad = (moves.iter().map(|m| m.sigma_rad * m.sigma_rad).sum::<f64>()
+            / moves.len().max(1) as f64)
             .sqrt();
         let verdict = MovesVerdict {
-            n_moves: self.moves().0.len(),
-            skipped: self.moves().1,
+            n_moves: moves.len(),
+            skipped,
             effects: kinds.clone(),
             residual_rms_rad: fitter.raw_rms(&gains),
             expected_rms_rad,
@@ -162,6 +145,10 @@ impl<'a> Workbench<'a> {
             .map(|k| self.moves_candidate(&fitter, &baseline, k))
             .collect();
         let ambiguities = rank_and_claim(&mut candidates, verdict.consistent, triad, &self.opts);
+        for c in candidates.iter_mut().filter(|c| c.claimed) {
+            c.held_out = self.moves_held_out(&fitter, &gains, &kinds, c.effect);
+            c.claimed = c.held_out.as_ref().is_some_and(|h| h.confirmed);
+        }
         let text = moves_text(&kinds, &verdict, &candidates);
         Ok(MovesDiagnosis {
             verdict,
@@ -249,6 +236,76 @@ impl<'a> Workbench<'a> {
     }
 }
 
+impl<'a> Workbench<'a> {
+    /// The moves between poses with the rate corrected for the `offsets` model: the moves
+    /// prepared once when its offsets do not vary along a move (a bias), else prepared again
+    /// with its offset effects evaluated at every sample.
+    fn moves_for(&self, offsets: &TriadModel) -> (std::borrow::Cow<'_, [MoveData]>, usize) {
+        let varies = !crate::calibrate::reference_free::varying_offsets(offsets).is_empty();
+        match &self.mode {
+            Mode::ReferenceFree { setup, .. } if varies => {
+                let (m, skipped) = setup.prepare(self.series, &self.obs, Some(offsets));
+                (std::borrow::Cow::Owned(m), skipped)
+            }
+            _ => {
+                let (m, skipped) = self.moves();
+                (std::borrow::Cow::Borrowed(m), skipped)
+            }
+        }
+    }
+
+    /// The gain fitter over `moves`, seeded from the whole model `full`.
+    fn moves_fitter<'w>(&self, moves: &'w [MoveData], full: &'w TriadModel) -> MovesFitter<'w> {
+        MovesFitter {
+            moves,
+            full,
+            lsq: LsqOptions {
+                max_iterations: self.opts.fit.max_iterations,
+                tolerance: self.opts.fit.tolerance,
+                min_eigenvalue: self.opts.fit.min_eigenvalue,
+                ..LsqOptions::default()
+            },
+            n_res: 2 * moves.len(),
+        }
+    }
+
+    /// Gain effect `k` added to the model's gain effects `kinds` (fitted to all moves:
+    /// `gains`) held against held-out moves: both gain models refitted on the training folds.
+    fn moves_held_out(
+        &self,
+        fitter: &MovesFitter,
+        gains: &TriadModel,
+        kinds: &[EffectKind],
+        k: EffectKind,
+    ) -> Option<HeldOut> {
+        let mut with = kinds.to_vec();
+        with.push(k);
+        let cand = fitter.fit(&fitter.gain_model(&with)).ok()?.0;
+        let sums = |g: &TriadModel, moves: &[MoveData], which: &[usize]| {
+            let mut s = WeightedSums::default();
+            for &i in which {
+                let [a, b] = moves[i].residual(g);
+                // Two components per move: their mean square, alike on the three axes.
+                let r = ((a * a + b * b) / 2.0).sqrt();
+                s.add([r; 3], [moves[i].sigma_rad; 3]);
+            }
+            s
+        };
+        let all: Vec<usize> = (0..fitter.moves.len()).collect();
+        let in_sample = (
+            sums(gains, fitter.moves, &all),
+            sums(&cand, fitter.moves, &all),
+        );
+        cross_validate(all.len(), HeldOutUnit::Moves, in_sample, |train, test| {
+            let moves: Vec<MoveData> = train.iter().map(|&i| fitter.moves[i].clone()).collect();
+            let sub = self.moves_fitter(&moves, fitter.full);
+            let g0 = sub.fit(gains).ok()?.0;
+            let g1 = sub.fit(&cand).ok()?.0;
+            Some((sums(&g0, fitter.moves, test), sums(&g1, fitter.moves, test)))
+        })
+    }
+}
+
 /// ` (name = value +/- error unit)` of the most significant parameter, or empty.
 fn best_param_text(params: &[ParamValue]) -> String {
     most_significant(params)
@@ -284,10 +341,32 @@ fn moves_text(kinds: &[EffectKind], verdict: &MovesVerdict, candidates: &[Candid
     if let Some(c) = candidates.iter().find(|c| c.claimed) {
         let _ = write!(
             text,
-            " Missing gain effect: {} (F-test p = {:.1e}, {}).",
+            " Missing gain effect: {} (F-test p = {:.1e}, {}",
             c.explanation,
             c.p_value,
             c.share_of_excess_text()
+        );
+        if let Some(h) = &c.held_out {
+            let _ = write!(
+                text,
+                "; held-out direction error {:.2e} -> {:.2e} rad, {}",
+                h.held_out_rms_before[0],
+                h.held_out_rms_after[0],
+                h.verdict_text()
+            );
+        }
+        text.push_str(").");
+    } else if let Some((c, h)) = candidates
+        .iter()
+        .find_map(|c| c.held_out.as_ref().map(|h| (c, h)))
+    {
+        let _ = write!(
+            text,
+            " The best gain candidate, {}, fits these moves better (F-test p = {:.1e}) but does \
+             not lower the direction error over held-out moves: {}; not claimed.",
+            c.effect,
+            c.p_value,
+            h.summary(h.rms_unit(Triad::Gyro))
         );
     }
     text

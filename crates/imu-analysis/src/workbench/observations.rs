@@ -108,6 +108,7 @@ impl<'a> Workbench<'a> {
                     gravity_m_s2,
                     latitude_deg,
                 },
+                setup: Box::default(),
                 moves: Vec::new(),
                 moves_skipped: 0,
             },
@@ -118,28 +119,49 @@ impl<'a> Workbench<'a> {
                 GYRO_MOVES_NOTE.into(),
             ],
         };
-        let up = wb.calibrated_up(dirs);
+        let (up, accel) = wb.calibrated_up(dirs);
         wb.set_up(&mut obs, &up, &truth);
         let mut gyro_points = floored_points(&obs.points(Triad::Gyro), &wb.gyro_floor, rate, &n);
         add_unknown_earth_rate(&mut gyro_points, &up, latitude_deg);
         wb.gyro_points = gyro_points;
-        wb.set_moves(&obs, &poses, &up, g_m_s2);
+        let conditions = poses
+            .iter()
+            .map(|&i| {
+                crate::calibrate::reference_free::pose_conditions(
+                    series,
+                    &obs.segmentation.segments[i],
+                )
+            })
+            .collect();
+        wb.set_moves(
+            &obs,
+            MovesSetup {
+                poses,
+                up,
+                conditions,
+                g_m_s2,
+                accel,
+            },
+        );
         wb.obs = obs;
         Ok(wb)
     }
 
     /// The calibrated up direction of each pose, from a bias + scale + misalignment fit of
-    /// the magnitudes (the measured directions `dirs` if that fit fails).
-    fn calibrated_up(&self, dirs: Vec<Vec3>) -> Vec<Vec3> {
+    /// the magnitudes, and that accel model (the measured directions `dirs` and no correction
+    /// if that fit fails).
+    fn calibrated_up(&self, dirs: Vec<Vec3>) -> (Vec<Vec3>, TriadModel) {
         let first = TriadModel::with_effects(&TriadModel::PAPER_BASE);
         let mag = self.reference_free_magnitude().expect("set above").clone();
         match self.fit_magnitude(&mag, &first, None) {
-            Ok(f) => self
-                .accel_points
-                .iter()
-                .map(|p| f.fit.model.inverse(p.measured, &p.conditions).normalize())
-                .collect(),
-            Err(_) => dirs,
+            Ok(f) => (
+                self.accel_points
+                    .iter()
+                    .map(|p| f.fit.model.inverse(p.measured, &p.conditions).normalize())
+                    .collect(),
+                f.fit.model,
+            ),
+            Err(_) => (dirs, TriadModel::default()),
         }
     }
 
@@ -165,34 +187,64 @@ impl<'a> Workbench<'a> {
         }
     }
 
-    /// Prepares the moves between the `poses` (segment indices) with their calibrated `up`
-    /// directions, for the gyro gains.
-    fn set_moves(&mut self, obs: &Observations, poses: &[usize], up: &[Vec3], g_m_s2: f64) {
-        use crate::calibrate::reference_free::pose_conditions;
-        let series = self.series;
-        let pose_segs: Vec<&crate::segment::Segment> = poses
-            .iter()
-            .map(|&i| &obs.segmentation.segments[i])
-            .collect();
-        let conditions: Vec<imu_model::Conditions> = pose_segs
-            .iter()
-            .map(|s| pose_conditions(series, s))
-            .collect();
-        let (prepared, skipped) = crate::calibrate::reference_free::prepare_moves(
-            series,
-            &pose_segs,
-            up,
-            &conditions,
-            g_m_s2,
-        );
+    /// Prepares the moves between the poses of `setup` (the rate corrected by the poses'
+    /// rates only) and keeps the setup for models whose offsets vary along a move.
+    fn set_moves(&mut self, obs: &Observations, setup: MovesSetup) {
+        let (prepared, skipped) = setup.prepare(self.series, obs, None);
         if let Mode::ReferenceFree {
             moves,
             moves_skipped,
+            setup: kept,
             ..
         } = &mut self.mode
         {
-            (*moves, *moves_skipped) = (prepared, skipped);
+            (*moves, *moves_skipped, *kept) = (prepared, skipped, Box::new(setup));
         }
+    }
+}
+
+/// What the moves between the still poses are prepared from (reference-free).
+#[derive(Clone, Debug, Default)]
+pub(super) struct MovesSetup {
+    /// Segment indices of the still poses, in time order.
+    pub(super) poses: Vec<usize>,
+    /// Calibrated up direction of each pose.
+    pub(super) up: Vec<Vec3>,
+    /// Conditions of each pose.
+    pub(super) conditions: Vec<imu_model::Conditions>,
+    /// Local gravity, m/s^2.
+    pub(super) g_m_s2: f64,
+    /// The accel model of the up directions: the specific force of each sample along a move.
+    pub(super) accel: TriadModel,
+}
+
+impl MovesSetup {
+    /// The moves and how many were skipped; with `gyro`, its offset effects are applied along
+    /// each move ([`crate::calibrate::reference_free::MoveOffsets`]).
+    pub(super) fn prepare(
+        &self,
+        series: &ImuSeries,
+        obs: &Observations,
+        gyro: Option<&TriadModel>,
+    ) -> (Vec<crate::calibrate::reference_free::MoveData>, usize) {
+        use crate::calibrate::reference_free::{MoveInputs, MoveOffsets, prepare_moves};
+        let pose_segs: Vec<&crate::segment::Segment> = self
+            .poses
+            .iter()
+            .map(|&i| &obs.segmentation.segments[i])
+            .collect();
+        let inputs = MoveInputs {
+            series,
+            poses: &pose_segs,
+            up: &self.up,
+            conditions: &self.conditions,
+            g_m_s2: self.g_m_s2,
+        };
+        let offsets = gyro.map(|gyro| MoveOffsets {
+            gyro,
+            accel: &self.accel,
+        });
+        prepare_moves(&inputs, offsets)
     }
 }
 

@@ -18,7 +18,9 @@
 //! * **Gyroscope gains** (scale, misalignment, and any other gain effect of the model) from the
 //!   moves: the gyro rate, corrected by the gain model and by the rate measured at the two still
 //!   poses around the move (interpolated in time: it removes bias drift, Earth rate and
-//!   g-sensitivity to first order), is integrated with a quaternion midpoint rule over the
+//!   g-sensitivity to first order) and by the part of the fitted offset effects that the
+//!   interpolation misses (a g-sensitivity follows the specific force of each sample, a
+//!   temperature bias its temperature), is integrated with a quaternion midpoint rule over the
 //!   recording's timestamps; the integrated rotation applied to the previous pose's calibrated
 //!   gravity direction must give the next pose's. Each move gives two residuals (the rotation
 //!   about gravity is invisible to it); many moves about different axes determine all nine
@@ -500,7 +502,21 @@ fn fit_gyro(
     };
     notes.push(gyro_bias_note(opts.latitude_deg));
 
-    let (moves, skipped) = prepare_moves(series, poses, &accel.up, &conditions, g_m_s2);
+    let inputs = MoveInputs {
+        series,
+        poses,
+        up: &accel.up,
+        conditions: &conditions,
+        g_m_s2,
+    };
+    // The offsets fitted to the still poses are applied along each move (a g-sensitivity
+    // follows the specific force as the unit turns).
+    let offsets = gyro_static.as_ref().map(|f| MoveOffsets {
+        gyro: &f.model,
+        accel: &accel.fit.model,
+    });
+    notes.extend(offsets.and_then(|o| o.note()));
+    let (moves, skipped) = prepare_moves(&inputs, offsets);
     if skipped > 0 {
         notes.push(format!(
             "{skipped} move(s) skipped: lost samples (the rate over a gap is unknown)"

@@ -82,69 +82,173 @@ pub(crate) fn fit_gains(
     least_squares(residual, &gains.params(), fixed, &names, lsq)
 }
 
-/// Prepares the moves between consecutive poses; returns them and the number skipped.
+/// What the moves are prepared from: the recording, its still poses in time order with their
+/// calibrated up directions and conditions, and local gravity.
+pub(crate) struct MoveInputs<'p> {
+    pub(crate) series: &'p ImuSeries,
+    pub(crate) poses: &'p [&'p Segment],
+    pub(crate) up: &'p [Vec3],
+    pub(crate) conditions: &'p [Conditions],
+    pub(crate) g_m_s2: f64,
+}
+
+/// The offset effects of `model` that vary along a move (all but a constant bias): those the
+/// rate measured at the poses around a move cannot carry across it.
+pub(crate) fn varying_offsets(model: &TriadModel) -> Vec<EffectKind> {
+    model
+        .kinds()
+        .into_iter()
+        .filter(|k| !k.is_gain() && *k != EffectKind::Bias)
+        .collect()
+}
+
+/// The offset effects of a gyro model, evaluated at every sample of a move: what the rate
+/// measured at the two poses around a move cannot carry across it (a g-sensitivity follows the
+/// specific force as the unit turns, a temperature bias the temperature, a warm-up the time).
+#[derive(Clone, Copy)]
+pub(crate) struct MoveOffsets<'m> {
+    /// The gyro model whose offset effects (bias, g-sensitivity, temperature bias, warm-up)
+    /// are applied; its gains do not enter.
+    pub(crate) gyro: &'m TriadModel,
+    /// The accel model whose inverse turns each accel sample into the specific force.
+    pub(crate) accel: &'m TriadModel,
+}
+
+impl MoveOffsets<'_> {
+    /// Whether the offsets vary along a move (anything but a constant bias).
+    fn vary(&self) -> bool {
+        !varying_offsets(self.gyro).is_empty()
+    }
+
+    /// How the offsets enter the moves, for the notes (None when they do not vary).
+    pub(crate) fn note(&self) -> Option<String> {
+        let ids: Vec<&str> = varying_offsets(self.gyro).iter().map(|k| k.id()).collect();
+        (!ids.is_empty()).then(|| {
+            format!(
+                "gyro gains: the {} fitted to the still poses is evaluated at every sample of \
+                 each move (specific force, temperature, time) and removed from the rate beyond \
+                 its interpolation between the poses",
+                ids.join(", ")
+            )
+        })
+    }
+
+    /// The gyro offset at conditions `c`, rad/s: the model applied to a zero rate (the gains,
+    /// applied first in the canonical order, leave a zero rate zero).
+    fn at(&self, c: &Conditions) -> Vec3 {
+        self.gyro.forward(Vec3::zeros(), c)
+    }
+}
+
+/// Prepares the moves between consecutive poses; returns them and the number skipped. The rate
+/// along each move is corrected by the rate measured at the two poses around it, interpolated
+/// in time (bias drift, Earth's rate); with `offsets` whose effects vary along the move, also
+/// by their part that the interpolation misses (the offsets at each sample's specific force,
+/// temperature and time, less their interpolation between the poses).
 pub(crate) fn prepare_moves(
-    series: &ImuSeries,
-    poses: &[&Segment],
-    up: &[Vec3],
-    conditions: &[Conditions],
-    g_m_s2: f64,
+    inputs: &MoveInputs<'_>,
+    offsets: Option<MoveOffsets<'_>>,
 ) -> (Vec<MoveData>, usize) {
+    let offsets = offsets.filter(MoveOffsets::vary);
     let mut out = Vec::new();
     let mut skipped = 0;
-    for k in 0..poses.len().saturating_sub(1) {
-        let (a, b) = (poses[k], poses[k + 1]);
-        let lo = a.first_sample;
-        let hi = b.first_sample + b.n - 1;
-        let (i0, i1) = (a.first_sample + a.n - 1, b.first_sample);
-        if i1 <= i0 || hi <= lo {
-            skipped += 1;
-            continue;
+    for k in 0..inputs.poses.len().saturating_sub(1) {
+        match prepare_move(inputs, k, offsets) {
+            Some(m) => out.push(m),
+            None => skipped += 1,
         }
-        let t = &series.t_s[lo..=hi];
-        let nominal_s = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-        if t.windows(2)
-            .any(|w| !(w[1] - w[0] > 0.0 && w[1] - w[0] < 1.5 * nominal_s))
-        {
-            // Lost samples: the rate over the gap is unknown.
-            skipped += 1;
-            continue;
-        }
-        let (x_mean, t_mean, period_s) = time_line(t);
-        let time = |i: usize| t_mean + period_s * ((i - lo) as f64 - x_mean);
-        let mid_a = time(a.first_sample) + 0.5 * period_s * (a.n - 1) as f64;
-        let mid_b = time(b.first_sample) + 0.5 * period_s * (b.n - 1) as f64;
-        let (ga, gb) = (a.mean_gyro(), b.mean_gyro());
-        let weight_b = |t_s: f64| (t_s - mid_a) / (mid_b - mid_a);
-        let rate_rad_s: Vec<Vec3> = (i0..=i1)
-            .map(|i| {
-                let w = weight_b(time(i));
-                Vec3::from(series.gyro_rad_s[i]) - (ga * (1.0 - w) + gb * w)
-            })
-            .collect();
-        let duration_s = period_s * (i1 - i0) as f64;
-        // Integrals of the interpolation weights over the move, for the bias error.
-        let (mut int_a, mut int_b) = (0.0, 0.0);
-        for i in i0..i1 {
-            let w = 0.5 * (weight_b(time(i)) + weight_b(time(i + 1)));
-            int_a += (1.0 - w) * period_s;
-            int_b += w * period_s;
-        }
-        let var_rad2 = move_variance_rad2(a, b, period_s, duration_s, [int_a, int_b], g_m_s2);
-        let (e1, e2) = normal_basis(up[k + 1]);
-        out.push(MoveData {
-            from_pose: k,
-            to_pose: k + 1,
-            rate_rad_s,
-            step_s: period_s,
-            up_before: up[k],
-            e1,
-            e2,
-            conditions: conditions[k],
-            sigma_rad: var_rad2.sqrt().max(1e-12),
-        });
     }
     (out, skipped)
+}
+
+/// The move from pose `k` to pose `k + 1`; None when samples were lost over it.
+fn prepare_move(
+    inputs: &MoveInputs<'_>,
+    k: usize,
+    offsets: Option<MoveOffsets<'_>>,
+) -> Option<MoveData> {
+    let (series, up, conditions) = (inputs.series, inputs.up, inputs.conditions);
+    let (a, b) = (inputs.poses[k], inputs.poses[k + 1]);
+    let lo = a.first_sample;
+    let hi = b.first_sample + b.n - 1;
+    let (i0, i1) = (a.first_sample + a.n - 1, b.first_sample);
+    if i1 <= i0 || hi <= lo {
+        return None;
+    }
+    let t = &series.t_s[lo..=hi];
+    let nominal_s = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    if t.windows(2)
+        .any(|w| !(w[1] - w[0] > 0.0 && w[1] - w[0] < 1.5 * nominal_s))
+    {
+        // Lost samples: the rate over the gap is unknown.
+        return None;
+    }
+    let (x_mean, t_mean, period_s) = time_line(t);
+    let time = |i: usize| t_mean + period_s * ((i - lo) as f64 - x_mean);
+    let mid_a = time(a.first_sample) + 0.5 * period_s * (a.n - 1) as f64;
+    let mid_b = time(b.first_sample) + 0.5 * period_s * (b.n - 1) as f64;
+    let (ga, gb) = (a.mean_gyro(), b.mean_gyro());
+    let weight_b = |t_s: f64| (t_s - mid_a) / (mid_b - mid_a);
+    let pose_offsets = offsets.map(|o| {
+        let at_pose = |j: usize| Conditions {
+            specific_force_m_s2: up[j] * inputs.g_m_s2,
+            ..conditions[j]
+        };
+        (o, o.at(&at_pose(k)), o.at(&at_pose(k + 1)))
+    });
+    let rate_rad_s: Vec<Vec3> = (i0..=i1)
+        .map(|i| {
+            let w = weight_b(time(i));
+            let mut r = Vec3::from(series.gyro_rad_s[i]) - (ga * (1.0 - w) + gb * w);
+            if let Some((o, oa, ob)) = &pose_offsets {
+                r -= o.at(&sample_conditions(series, i, o.accel)) - (oa * (1.0 - w) + ob * w);
+            }
+            r
+        })
+        .collect();
+    let duration_s = period_s * (i1 - i0) as f64;
+    // Integrals of the interpolation weights over the move, for the bias error.
+    let (mut int_a, mut int_b) = (0.0, 0.0);
+    for i in i0..i1 {
+        let w = 0.5 * (weight_b(time(i)) + weight_b(time(i + 1)));
+        int_a += (1.0 - w) * period_s;
+        int_b += w * period_s;
+    }
+    let var_rad2 = move_variance_rad2(a, b, period_s, duration_s, [int_a, int_b], inputs.g_m_s2);
+    let (e1, e2) = normal_basis(up[k + 1]);
+    Some(MoveData {
+        from_pose: k,
+        to_pose: k + 1,
+        rate_rad_s,
+        step_s: period_s,
+        up_before: up[k],
+        e1,
+        e2,
+        conditions: conditions[k],
+        sigma_rad: var_rad2.sqrt().max(1e-12),
+    })
+}
+
+/// The conditions at sample `i`: the specific force of its accel sample through the `accel`
+/// model, the temperature then, and the recording time for the time since power-on (as for
+/// the poses).
+fn sample_conditions(series: &ImuSeries, i: usize, accel: &TriadModel) -> Conditions {
+    let t_s = series.t_s[i];
+    let temp_c = series.temp_at(t_s);
+    let temp_c = if temp_c.is_finite() {
+        temp_c
+    } else {
+        imu_model::units::REFERENCE_TEMP_C
+    };
+    let raw = Conditions {
+        temp_c,
+        time_since_power_on_s: t_s,
+        ..Conditions::default()
+    };
+    Conditions {
+        specific_force_m_s2: accel.inverse(Vec3::from(series.accel_m_s2[i]), &raw),
+        ..raw
+    }
 }
 
 /// Straight line of time `t` against sample index: (mean index, mean time, sample period s).

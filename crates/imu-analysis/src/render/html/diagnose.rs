@@ -5,9 +5,9 @@
 
 use maud::{Markup, html};
 
-use super::{AXIS_NAMES, Section, figures, g, p, strong, table, text};
+use super::{AXIS_NAMES, Section, figures, g, g3, p, strong, table, text};
 use crate::render::svg::{Chart, Figure, Look, Series, SeriesLook, Style, Ticks, axis_colour};
-use crate::workbench::{Ambiguity, Candidate, TriadDiagnosis};
+use crate::workbench::{Ambiguity, Candidate, HeldOut, TriadDiagnosis};
 
 /// One triad's diagnosis: verdict, residual RMS against the noise floor per axis, the worst
 /// segments, residual charts (against time and against the signal each axis correlates with
@@ -393,7 +393,7 @@ fn spectral_lines(d: &TriadDiagnosis) -> Markup {
     }
 }
 
-/// The ranked candidate effects.
+/// The ranked candidate effects, and the held-out check of the one that won in-sample.
 fn candidates(d: &TriadDiagnosis) -> Markup {
     let rows: Vec<Vec<Markup>> = d.candidates.iter().map(candidate_row).collect();
     html! {
@@ -411,6 +411,7 @@ fn candidates(d: &TriadDiagnosis) -> Markup {
             ],
             &rows,
         ))
+        (held_out_table(d))
     }
 }
 
@@ -424,6 +425,8 @@ fn candidate_row(c: &Candidate) -> Vec<Markup> {
         text(c.share_of_excess_cell()),
         if c.claimed {
             strong("claimed")
+        } else if c.held_out.is_some() {
+            text("not confirmed on held-out data")
         } else if c.significant {
             text("significant")
         } else {
@@ -431,6 +434,67 @@ fn candidate_row(c: &Candidate) -> Vec<Markup> {
         },
         text(&c.explanation),
     ]
+}
+
+/// The candidates cross-validated (those that won in-sample): weighted RMS of the residuals
+/// before and after adding each, in-sample and on held-out observations, and the verdict.
+fn held_out_table(d: &TriadDiagnosis) -> Markup {
+    let checked: Vec<(&Candidate, &HeldOut)> = d
+        .candidates
+        .iter()
+        .filter_map(|c| c.held_out.as_ref().map(|h| (c, h)))
+        .collect();
+    if checked.is_empty() {
+        return html! {};
+    }
+    let rows: Vec<Vec<Markup>> = checked
+        .iter()
+        .map(|(c, h)| {
+            vec![
+                text(c.effect.id()),
+                text(h.scheme_text()),
+                text(format!(
+                    "{} \u{2192} {} {}",
+                    g3(h.in_sample_rms_before),
+                    g3(h.in_sample_rms_after),
+                    h.rms_unit(c.triad)
+                )),
+                text(format!(
+                    "{} \u{2192} {} {}",
+                    g3(h.held_out_rms_before),
+                    g3(h.held_out_rms_after),
+                    h.rms_unit(c.triad)
+                )),
+                text(format!("{} of {}", h.folds_improved, h.folds)),
+                if h.confirmed {
+                    strong(h.verdict_text())
+                } else {
+                    text(h.verdict_text())
+                },
+            ]
+        })
+        .collect();
+    html! {
+        h3 { "Held-out check" }
+        p {
+            "A candidate is claimed only if it also lowers the error on observations its fit did \
+             not see: the model is refitted without and with it on all but one fold and held \
+             against that fold, for every fold. Claimed when the held-out weighted RMS falls in \
+             a majority of the folds and over all of them. Weighted RMS (weights 1/floor\u{b2}) \
+             per axis x/y/z, before \u{2192} after adding the candidate."
+        }
+        (table(
+            &[
+                "effect",
+                "held out",
+                "in-sample RMS",
+                "held-out RMS",
+                "folds lower",
+                "verdict",
+            ],
+            &rows,
+        ))
+    }
 }
 
 /// Pairs of effects that explain the residual alike, and the recording that separates them.

@@ -118,6 +118,15 @@ fn g(v: f64) -> String {
     number(v)
 }
 
+/// Three per-axis values as `x/y/z` in [`g`]'s format (one value when they are equal).
+fn g3(v: [f64; 3]) -> String {
+    if v[0] == v[1] && v[1] == v[2] {
+        g(v[0])
+    } else {
+        format!("{}/{}/{}", g(v[0]), g(v[1]), g(v[2]))
+    }
+}
+
 /// A p-value for a table cell or a sentence: `< 1e-4`, else two significant digits.
 fn p(v: f64) -> String {
     p_value(v)

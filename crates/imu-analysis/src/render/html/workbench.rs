@@ -3,7 +3,7 @@
 
 use maud::{Markup, html};
 
-use super::{AXIS_NAMES, Section, figures, g, p, table, text, yes_no};
+use super::{AXIS_NAMES, Section, figures, g, g3, p, table, text, yes_no};
 use crate::render::svg::{Chart, Figure, Look, Series, Style, Ticks, axis_colour};
 use crate::workbench::{LadderStep, StepSummary, TriadDiagnosis, VerdictState};
 
@@ -18,7 +18,17 @@ pub fn verdict_section(diagnoses: &[&TriadDiagnosis]) -> Section {
             @if let Some(top) = d.candidates.iter().find(|c| c.claimed) {
                 p {
                     "Add " code { (top.effect.id()) } " to the " (d.triad) " model "
-                    (format!("(p = {}, \u{394}AIC = {:.1}).", p(top.p_value), top.delta_aic))
+                    (format!("(p = {}, \u{394}AIC = {:.1}", p(top.p_value), top.delta_aic))
+                    @if let Some(h) = &top.held_out {
+                        (format!(
+                            "; held-out weighted RMS {} \u{2192} {} {}, {}",
+                            g3(h.held_out_rms_before),
+                            g3(h.held_out_rms_after),
+                            h.rms_unit(d.triad),
+                            h.verdict_text()
+                        ))
+                    }
+                    ")."
                 }
             }
         }
@@ -44,6 +54,9 @@ pub fn verdict_heading(d: &TriadDiagnosis) -> String {
             p(d.p_value_with_drift)
         ),
         VerdictState::MissingEffect => format!("{not}: an effect is missing from the model"),
+        VerdictState::NotConfirmed => {
+            format!("{not}: the best candidate is not confirmed on held-out data (not claimed)")
+        }
         VerdictState::Ambiguous => {
             format!("{not}: two effects explain the excess and this recording cannot tell which")
         }
@@ -72,11 +85,20 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
         "gyro p",
         "gyro ok (drift)",
     ];
-    if steps.iter().any(|s| s.gyro.moves.is_some()) {
+    let moves = steps.iter().any(|s| s.gyro.moves.is_some());
+    if moves {
         // Reference-free: the gyro gains against the moves between poses.
         header.push("gyro gains: direction error / expected after the moves (rad)");
     }
-    let rows: Vec<Vec<Markup>> = steps.iter().enumerate().map(ladder_row).collect();
+    let held_out = steps.iter().any(|s| s.held_out.is_some());
+    if held_out {
+        header.push("added effect: held-out weighted RMS before \u{2192} after");
+    }
+    let rows: Vec<Vec<Markup>> = steps
+        .iter()
+        .enumerate()
+        .map(|(i, s)| ladder_row(i, s, moves, held_out))
+        .collect();
     let body = html! {
         p {
             "From the base model, the workbench adds the best claimed effect of a triad that is \
@@ -90,21 +112,41 @@ pub fn ladder_section(steps: &[LadderStep]) -> Section {
     Section::new("The ladder", body)
 }
 
-/// Step `i` of the ladder as a table row.
-fn ladder_row((i, s): (usize, &LadderStep)) -> Vec<Markup> {
+/// Step `i` of the ladder as a table row; `moves` and `held_out` say whether the table has
+/// those columns.
+fn ladder_row(i: usize, s: &LadderStep, moves: bool, held_out: bool) -> Vec<Markup> {
     let added = s
         .added
         .map_or("base model".into(), |(t, k)| format!("{t} {}", k.id()));
     let mut r = vec![text(i), text(added)];
     r.extend(step_cells(&s.accel));
     r.extend(step_cells(&s.gyro));
-    if let Some(m) = &s.gyro.moves {
-        r.push(text(format!(
-            "{} / {} (p {})",
-            g(m.residual_rms_rad),
-            g(m.expected_rms_rad),
-            p(m.p_value)
-        )));
+    if moves {
+        r.push(text(s.gyro.moves.as_ref().map_or(String::new(), |m| {
+            format!(
+                "{} / {} (p {})",
+                g(m.residual_rms_rad),
+                g(m.expected_rms_rad),
+                p(m.p_value)
+            )
+        })));
+    }
+    if held_out {
+        let cell = match (&s.held_out, s.added) {
+            (Some(h), Some((t, _))) => format!(
+                "{} \u{2192} {} {} ({}, lower in {} of {} folds; in-sample {} \u{2192} {})",
+                g3(h.held_out_rms_before),
+                g3(h.held_out_rms_after),
+                h.rms_unit(t),
+                h.scheme_text(),
+                h.folds_improved,
+                h.folds,
+                g3(h.in_sample_rms_before),
+                g3(h.in_sample_rms_after)
+            ),
+            _ => String::new(),
+        };
+        r.push(text(cell));
     }
     r
 }
@@ -218,11 +260,13 @@ mod tests {
         let steps = vec![
             LadderStep {
                 added: None,
+                held_out: None,
                 accel: summary(1e-3, 1e-3),
                 gyro: summary(5e-4, 1e-5),
             },
             LadderStep {
                 added: Some((Triad::Gyro, EffectKind::GSensitivity)),
+                held_out: None,
                 accel: summary(1e-3, 1e-3),
                 gyro: summary(1e-5, 1e-5),
             },
@@ -235,5 +279,50 @@ mod tests {
         let p = page("workbench", &[s]);
         assert!(p.contains("The ladder"));
         assert!(!p.contains("http://") || p.contains("http://www.w3.org/2000/svg"));
+        // Without a held-out check there is no such column.
+        assert!(!p.contains("held-out"), "{p}");
+    }
+
+    #[test]
+    fn the_ladder_shows_the_held_out_check_of_each_added_effect() {
+        use crate::workbench::{FoldScheme, HeldOut, HeldOutUnit};
+        let h = HeldOut {
+            scheme: FoldScheme::KFold,
+            folds: 5,
+            unit: HeldOutUnit::Segments,
+            n_observations: 24,
+            in_sample_rms_before: [1.0e-3, 8.0e-4, 2.4e-3],
+            in_sample_rms_after: [2.8e-4, 3.1e-4, 2.5e-4],
+            held_out_rms_before: [1.1e-3, 8.3e-4, 2.2e-3],
+            held_out_rms_after: [3.1e-4, 3.6e-4, 2.9e-4],
+            folds_improved: 5,
+            folds_failed: 0,
+            confirmed: true,
+        };
+        let steps = vec![
+            LadderStep {
+                added: None,
+                held_out: None,
+                accel: summary(1e-3, 1e-3),
+                gyro: summary(5e-4, 1e-5),
+            },
+            LadderStep {
+                added: Some((Triad::Gyro, EffectKind::GSensitivity)),
+                held_out: Some(h),
+                accel: summary(1e-3, 1e-3),
+                gyro: summary(1e-5, 1e-5),
+            },
+        ];
+        let s = ladder_section(&steps);
+        assert!(s.html.contains("held-out weighted RMS"), "{}", s.html);
+        assert!(
+            s.html.contains(
+                "1.100e-3/8.300e-4/2.200e-3 \u{2192} 3.100e-4/3.600e-4/2.900e-4 rad/s (5-fold over \
+                 segments, lower in 5 of 5 folds; in-sample 1.000e-3/8.000e-4/2.400e-3 \u{2192} \
+                 2.800e-4/3.100e-4/2.500e-4)"
+            ),
+            "{}",
+            s.html
+        );
     }
 }
