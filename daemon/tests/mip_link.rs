@@ -126,7 +126,11 @@ fn a_streaming_gx5_is_probed_configured_and_every_frame_is_checked() {
         "",
         4.0,
     );
-    assert!(s.log.contains("protocol mip (probed: it streams)"), "{}", s.log);
+    assert!(
+        s.log.contains("protocol mip (probed: it streams)"),
+        "{}",
+        s.log
+    );
     assert_eq!(device_meta(&s.rec, "protocol"), "mip");
     assert_eq!(device_meta(&s.rec, "model"), "3DM-GX5-25");
     assert_eq!(device_meta(&s.rec, "serial-number"), "6251.99");
