@@ -19,12 +19,21 @@
 //! 3. starts a new set when a sample fits no count, and learns again when that keeps happening
 //!    (a changed rate or a device reset).
 //!
+//! Learning costs a search over the step; when it fails or its set soon slips again (several
+//! samples a tick, where the set breaks into more pieces than are kept), each further attempt
+//! waits twice as many learning batches as the last (up to [`MAX_SKIPPED_BATCHES`]), so a stream
+//! the tracker cannot follow costs little CPU rather than a search every 128 samples.
+//!
 //! Losses among the learned samples are counted when learning ends (their `GAP_BEFORE` flags are
 //! not set, they were published already). At more than one sample per tick (`step_ticks < 1`)
 //! one lost sample need not change the ticks, so losses there are a lower bound.
 
 /// Samples used to learn the tick step at the start of a session.
 pub const LEARN_SAMPLES: usize = 128;
+/// Most learning batches skipped between two attempts after repeated failures.
+pub const MAX_SKIPPED_BATCHES: u32 = 511;
+/// A learned set that held for fewer samples than this before learning again was a failure.
+const HELD_SAMPLES: u64 = 16 * LEARN_SAMPLES as u64;
 /// Slack on each sample's tick interval, ticks (rounding only: the device's counter is exact).
 const TOLERANCE_TICKS: f64 = 1e-6;
 /// Inconsistent samples within [`SLIP_WINDOW`] samples that make the tracker learn again.
@@ -278,6 +287,14 @@ pub struct GapTracker {
     last_ticks: Option<u64>,
     slips: u32,
     slip_window_left: u64,
+    /// Learning attempts that failed (or whose set did not hold) in a row.
+    failed_learns: u32,
+    /// Learning batches still to skip before the next attempt.
+    skip_batches: u32,
+    /// Samples placed since the set was learned.
+    since_learned: u64,
+    /// Searches for the step so far.
+    learn_attempts: u64,
 }
 
 impl Default for GapTracker {
@@ -297,7 +314,23 @@ impl GapTracker {
             last_ticks: None,
             slips: 0,
             slip_window_left: 0,
+            failed_learns: 0,
+            skip_batches: 0,
+            since_learned: 0,
+            learn_attempts: 0,
         }
+    }
+
+    /// Searches for the step so far (each costs a search over the learned batch).
+    pub fn learn_attempts(&self) -> u64 {
+        self.learn_attempts
+    }
+
+    /// One more failure: the next attempt waits twice as long.
+    fn back_off(&mut self) {
+        self.failed_learns = self.failed_learns.saturating_add(1);
+        self.skip_batches =
+            ((1u64 << self.failed_learns.min(9)) - 1).min(MAX_SKIPPED_BATCHES as u64) as u32;
     }
 
     /// Ticks per sample interval, once learned.
@@ -333,6 +366,10 @@ impl GapTracker {
             return self.slip(ticks_unwrapped, guess, poly);
         };
         self.tick_slip_window();
+        self.since_learned += 1;
+        if self.since_learned == HELD_SAMPLES {
+            self.failed_learns = 0;
+        }
         self.interval += n;
         self.feasible = Some((poly, anchor));
         let (phase, step) = poly.centre();
@@ -358,7 +395,16 @@ impl GapTracker {
         };
         let mut lost_earlier = 0;
         if self.n_learn == LEARN_SAMPLES {
-            lost_earlier = self.finish_learning();
+            if self.skip_batches > 0 {
+                self.skip_batches -= 1;
+                self.n_learn = 0;
+            } else {
+                self.learn_attempts += 1;
+                lost_earlier = self.finish_learning();
+                if self.feasible.is_none() {
+                    self.back_off();
+                }
+            }
         }
         GapStep {
             lost_before: 0,
@@ -400,6 +446,7 @@ impl GapTracker {
         }
         self.feasible = Some((poly, first));
         self.interval = interval;
+        self.since_learned = 0;
         interval.saturating_sub(learned.len() as u64 - 1)
     }
 
@@ -420,6 +467,9 @@ impl GapTracker {
         self.slips += 1;
         self.slip_window_left = SLIP_WINDOW;
         if self.slips >= MAX_SLIPS {
+            if self.since_learned < HELD_SAMPLES {
+                self.back_off();
+            }
             self.feasible = None;
             self.slips = 0;
             self.learn[0] = ticks_unwrapped;
@@ -476,6 +526,20 @@ mod tests {
         let tail = (0..n).rev().take_while(|&k| drop(k)).count() as u64;
         let head = (0..n).take_while(|&k| drop(k)).count() as u64;
         (lost, dropped - tail - head, g)
+    }
+
+    /// 1 kHz on 6.5536 ms ticks (6.5 samples a tick): the set cannot be held, and learning
+    /// again and again must not cost a search every 128 samples (it did: 57 % of a core).
+    #[test]
+    fn many_samples_a_tick_back_off_from_learning() {
+        let step = 1e-3 / 6.5536e-3;
+        let (_, _, g) = run(step, 0.3, 200_000, |_| false);
+        let batches = 200_000 / LEARN_SAMPLES as u64;
+        assert!(
+            g.learn_attempts() <= 16,
+            "{} searches in {batches} batches",
+            g.learn_attempts()
+        );
     }
 
     #[test]
