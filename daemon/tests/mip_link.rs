@@ -64,6 +64,9 @@ fn check_every_sample(s: &Session, period_s: f64, tick_s: f64, mag: bool) {
     );
     let (_, status) = rec.statuses.last().expect("a status");
     assert_eq!(status.samples_lost, dropped, "{}", s.log);
+    assert_eq!(status.protocol, imu_bus::sample::device_protocol::MIP);
+    // Every data packet of the configured session was a sample, with no field skipped.
+    assert_eq!((status.packets_unusable, status.fields_skipped), (0, 0));
     let g0 = imu_model::units::STANDARD_GRAVITY_M_S2;
     let t0 = rec.raw[0].ticks_unwrapped as f64 * tick_s;
     for (i, r) in rec.raw.iter().enumerate() {

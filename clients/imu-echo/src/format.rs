@@ -3,7 +3,7 @@
 use std::io::{self, Write};
 use std::marker::PhantomData;
 
-use imu_bus::sample::health_state;
+use imu_bus::sample::{device_protocol, health_state};
 use imu_bus::shm::ShmPayload;
 use imu_bus::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
 
@@ -153,6 +153,9 @@ impl Echo for DaemonStatus {
         col("logging", "logging", 7),
         col("health_accel", "accel", 12),
         col("health_gyro", "gyro", 12),
+        col("protocol", "protocol", 8),
+        col("packets_unusable", "unusable", 8),
+        col("fields_skipped", "skipped", 8),
     ];
 
     fn cells(&self, out: &mut Vec<Cell>) {
@@ -180,6 +183,12 @@ impl Echo for DaemonStatus {
         out.push(Cell::U(self.logging.into()));
         out.push(Cell::Text(health_state::name(self.health_accel)));
         out.push(Cell::Text(health_state::name(self.health_gyro)));
+        out.push(Cell::Text(match self.protocol {
+            device_protocol::MIP => "mip",
+            _ => "3dm-gx1",
+        }));
+        out.push(Cell::U(self.packets_unusable));
+        out.push(Cell::U(self.fields_skipped));
     }
 }
 

@@ -15,7 +15,7 @@
 //! |---------------------|-----------------------------|------|-------|
 //! | [`RawSample`]       | `imud::RawSample.v2`        | 176  | 8     |
 //! | [`CorrectedSample`] | `imud::CorrectedSample.v1`  | 128  | 8     |
-//! | [`DaemonStatus`]    | `imud::DaemonStatus.v2`     | 152  | 8     |
+//! | [`DaemonStatus`]    | `imud::DaemonStatus.v3`     | 168  | 8     |
 //! | [`CalibrationHealth`] | `imud::CalibrationHealth.v1` | 176 | 8    |
 //!
 //! The user header is iceoryx2's default `()` (type name `()`, size 0, alignment 1). All
@@ -57,10 +57,12 @@
 //! 112 double   temp_c;             120 uint8_t  device_connected;
 //! 121 uint8_t  logging;            122 uint8_t  gains_fallback;
 //! 123 uint8_t  health_accel;       124 uint8_t  health_gyro;
-//! 125 uint8_t  reserved[3];        128 double   clock_offset_s;
+//! 125 uint8_t  protocol;           126 uint8_t  reserved[2];
+//! 128 double   clock_offset_s;
 //! 136 double   clock_residual_s;   144 uint16_t gain_scale_accel;
 //! 146 uint16_t gain_scale_gyro;    148 uint16_t gain_scale_mag;
-//! 150 uint8_t  reserved_end[2];    152 = sizeof
+//! 150 uint8_t  reserved_end[2];    152 uint64_t packets_unusable;
+//! 160 uint64_t fields_skipped;     168 = sizeof
 //! ```
 //! C layout of `CalibrationHealth`:
 //! ```text
@@ -91,7 +93,7 @@ pub const RAW_SAMPLE_TYPE_NAME: &str = "imud::RawSample.v2";
 /// iceoryx2 type name of [`CorrectedSample`] (see the module docs for the C layout).
 pub const CORRECTED_SAMPLE_TYPE_NAME: &str = "imud::CorrectedSample.v1";
 /// iceoryx2 type name of [`DaemonStatus`] (see the module docs for the C layout).
-pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v2";
+pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v3";
 /// iceoryx2 type name of [`CalibrationHealth`] (see the module docs for the C layout).
 pub const CALIBRATION_HEALTH_TYPE_NAME: &str = "imud::CalibrationHealth.v1";
 
@@ -99,7 +101,7 @@ pub const CALIBRATION_HEALTH_TYPE_NAME: &str = "imud::CalibrationHealth.v1";
 // examples/python/imu_subscriber.py). Offsets are checked in the tests below.
 const _: () = assert!(size_of::<RawSample>() == 176 && align_of::<RawSample>() == 8);
 const _: () = assert!(size_of::<CorrectedSample>() == 128 && align_of::<CorrectedSample>() == 8);
-const _: () = assert!(size_of::<DaemonStatus>() == 152 && align_of::<DaemonStatus>() == 8);
+const _: () = assert!(size_of::<DaemonStatus>() == 168 && align_of::<DaemonStatus>() == 8);
 const _: () =
     assert!(size_of::<CalibrationHealth>() == 176 && align_of::<CalibrationHealth>() == 8);
 
@@ -255,8 +257,10 @@ pub struct DaemonStatus {
     pub health_accel: u8,
     /// The live calibration health of the gyros ([`health_state`]).
     pub health_gyro: u8,
+    /// The protocol the device speaks ([`device_protocol`]; a byte reserved in v2).
+    pub protocol: u8,
     /// Reserved, zero.
-    pub reserved: [u8; 3],
+    pub reserved: [u8; 2],
     /// Host monotonic time, s, at which the device's unwrapped tick count was 0, from the clock
     /// fit (a sample's time is `clock_offset_s + ticks * tick_period_est_s` plus the link's least
     /// latency; NaN until known).
@@ -272,6 +276,19 @@ pub struct DaemonStatus {
     pub gain_scale_mag: u16,
     /// Reserved, zero.
     pub reserved_end: [u8; 2],
+    /// MIP data packets that were no sample: undecodable, or without the configured clock,
+    /// accel or gyro field (0 for a 3DM-GX1).
+    pub packets_unusable: u64,
+    /// MIP data fields skipped: unknown descriptors, or known ones of an unexpected size.
+    pub fields_skipped: u64,
+}
+
+/// [`DaemonStatus::protocol`] codes.
+pub mod device_protocol {
+    /// The 3DM-GX1 (and every v2 status, where the byte was reserved).
+    pub const GX1: u8 = 0;
+    /// A MIP unit.
+    pub const MIP: u8 = 1;
 }
 
 /// The health of one triad's calibration ([`CalibrationHealth`] `accel_state` / `gyro_state`).
@@ -496,14 +513,17 @@ mod tests {
         assert_eq!(offset_of!(DaemonStatus, gains_fallback), 122);
         assert_eq!(offset_of!(DaemonStatus, health_accel), 123);
         assert_eq!(offset_of!(DaemonStatus, health_gyro), 124);
-        assert_eq!(offset_of!(DaemonStatus, reserved), 125);
+        assert_eq!(offset_of!(DaemonStatus, protocol), 125);
+        assert_eq!(offset_of!(DaemonStatus, reserved), 126);
         assert_eq!(offset_of!(DaemonStatus, clock_offset_s), 128);
         assert_eq!(offset_of!(DaemonStatus, clock_residual_s), 136);
         assert_eq!(offset_of!(DaemonStatus, gain_scale_accel), 144);
         assert_eq!(offset_of!(DaemonStatus, gain_scale_gyro), 146);
         assert_eq!(offset_of!(DaemonStatus, gain_scale_mag), 148);
         assert_eq!(offset_of!(DaemonStatus, reserved_end), 150);
-        assert_eq!(size_of::<DaemonStatus>(), 152);
+        assert_eq!(offset_of!(DaemonStatus, packets_unusable), 152);
+        assert_eq!(offset_of!(DaemonStatus, fields_skipped), 160);
+        assert_eq!(size_of::<DaemonStatus>(), 168);
     }
 
     #[test]

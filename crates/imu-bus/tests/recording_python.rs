@@ -219,6 +219,9 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
             ("gain_scale_accel", u64::from(w.gain_scale_accel)),
             ("gain_scale_gyro", u64::from(w.gain_scale_gyro)),
             ("gain_scale_mag", u64::from(w.gain_scale_mag)),
+            ("protocol", u64::from(w.protocol)),
+            ("packets_unusable", w.packets_unusable),
+            ("fields_skipped", w.fields_skipped),
         ] {
             assert_eq!(u(&g[field]), value, "/imud/status {field}");
         }

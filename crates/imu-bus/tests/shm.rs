@@ -94,13 +94,16 @@ fn daemon_status(n: u64) -> DaemonStatus {
         gains_fallback: 7,
         health_accel: 1,
         health_gyro: 3,
-        reserved: [0; 3],
+        protocol: 1,
+        reserved: [0; 2],
         clock_offset_s: -0.0,
         clock_residual_s: f64::NAN,
         gain_scale_accel: 7000,
         gain_scale_gyro: 10_000,
         gain_scale_mag: 2000,
         reserved_end: [0; 2],
+        packets_unusable: u64::MAX,
+        fields_skipped: 13,
     }
 }
 
@@ -176,6 +179,9 @@ fn status_bits(s: &DaemonStatus) -> Vec<u64> {
         s.gain_scale_accel.into(),
         s.gain_scale_gyro.into(),
         s.gain_scale_mag.into(),
+        s.protocol.into(),
+        s.packets_unusable,
+        s.fields_skipped,
     ];
     v.extend(s.reserved.iter().map(|&b| u64::from(b)));
     v.extend(s.reserved_end.iter().map(|&b| u64::from(b)));

@@ -21,7 +21,7 @@ use std::sync::Arc;
 use imu_bus::CalibrationHealth;
 use imu_bus::recording::LogRecord;
 use imu_bus::sample::HealthState;
-use imu_bus::sample::{corrected_flags, raw_flags};
+use imu_bus::sample::{corrected_flags, device_protocol, raw_flags};
 use imu_bus::shm::{Publishers, ShmEvent};
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 use imu_model::Measured;
@@ -594,13 +594,19 @@ impl Pipeline {
             gains_fallback: self.gains.fallback.mask(),
             health_accel: health_accel.code(),
             health_gyro: health_gyro.code(),
-            reserved: [0; 3],
+            protocol: match self.timebase {
+                Timebase::Gx1 { .. } => device_protocol::GX1,
+                Timebase::Mip(_) => device_protocol::MIP,
+            },
+            reserved: [0; 2],
             clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
             clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),
             gain_scale_accel: self.gains.accel,
             gain_scale_gyro: self.gains.gyro,
             gain_scale_mag: self.gains.mag,
             reserved_end: [0; 2],
+            packets_unusable: self.counters.undecodable,
+            fields_skipped: self.counters.fields_skipped,
         }
     }
 }

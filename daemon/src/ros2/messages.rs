@@ -138,6 +138,16 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
         kv("gain_scale_accel", s.gain_scale_accel.to_string()),
         kv("gain_scale_gyro", s.gain_scale_gyro.to_string()),
         kv("gain_scale_mag", s.gain_scale_mag.to_string()),
+        kv(
+            "protocol",
+            match s.protocol {
+                imu_bus::sample::device_protocol::MIP => "mip",
+                _ => "3dm-gx1",
+            }
+            .into(),
+        ),
+        kv("packets_unusable", s.packets_unusable.to_string()),
+        kv("fields_skipped", s.fields_skipped.to_string()),
     ]
 }
 

@@ -124,15 +124,7 @@ impl<'a> Workbench<'a> {
         let mut gyro_points = floored_points(&obs.points(Triad::Gyro), &wb.gyro_floor, rate, &n);
         add_unknown_earth_rate(&mut gyro_points, &up, latitude_deg);
         wb.gyro_points = gyro_points;
-        let conditions = poses
-            .iter()
-            .map(|&i| {
-                crate::calibrate::reference_free::pose_conditions(
-                    series,
-                    &obs.segmentation.segments[i],
-                )
-            })
-            .collect();
+        let conditions = poses_conditions(series, &obs, &poses);
         wb.set_moves(
             &obs,
             MovesSetup {
@@ -377,4 +369,18 @@ impl PoseTruth {
             segmentation,
         }
     }
+}
+
+/// The recording conditions (temperature, time) of each pose.
+fn poses_conditions(
+    series: &ImuSeries,
+    obs: &Observations,
+    poses: &[usize],
+) -> Vec<imu_model::Conditions> {
+    poses
+        .iter()
+        .map(|&i| {
+            crate::calibrate::reference_free::pose_conditions(series, &obs.segmentation.segments[i])
+        })
+        .collect()
 }

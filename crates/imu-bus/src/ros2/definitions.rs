@@ -217,13 +217,16 @@ uint8 logging
 uint8 gains_fallback          # GainScales that are configured fallbacks: 1 accel, 2 gyro, 4 mag
 uint8 health_accel            # live calibration health: 0 unknown, 1 ok, 2 degraded, 3 stale, 4 uncalibrated
 uint8 health_gyro
-uint8[3] reserved
+uint8 protocol                # 0 3dm-gx1, 1 mip (recordings before this field: 0)
+uint8[2] reserved
 float64 clock_offset_s        # host monotonic s at device tick 0, from the clock fit; NaN until known
 float64 clock_residual_s      # RMS residual of the clock fit, s; NaN until known
 uint16 gain_scale_accel       # GainScales in force
 uint16 gain_scale_gyro
 uint16 gain_scale_mag
 uint8[2] reserved_end
+uint64 packets_unusable       # MIP data packets that were no sample (recordings before: absent)
+uint64 fields_skipped         # MIP data fields skipped (unknown descriptors or sizes)
 ",
     uses: &[&HEADER_DEF],
 };

@@ -426,6 +426,7 @@ impl RosMessage for DaemonStatusMsg {
         w.u8(s.gains_fallback);
         w.u8(s.health_accel);
         w.u8(s.health_gyro);
+        w.u8(s.protocol);
         w.u8_array(&s.reserved);
         w.f64(s.clock_offset_s);
         w.f64(s.clock_residual_s);
@@ -433,9 +434,12 @@ impl RosMessage for DaemonStatusMsg {
         w.u16(s.gain_scale_gyro);
         w.u16(s.gain_scale_mag);
         w.u8_array(&s.reserved_end);
+        w.u64(s.packets_unusable);
+        w.u64(s.fields_skipped);
     }
+    /// A record of the v2 schema (before the MIP counters) reads with 0 there.
     fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(Self {
+        let mut msg = Self {
             header: Header::read_fields(r)?,
             status: DaemonStatus {
                 t_host_monotonic_ns: r.u64("t_host_monotonic_ns")?,
@@ -458,6 +462,7 @@ impl RosMessage for DaemonStatusMsg {
                 gains_fallback: r.u8("gains_fallback")?,
                 health_accel: r.u8("health_accel")?,
                 health_gyro: r.u8("health_gyro")?,
+                protocol: r.u8("protocol")?,
                 reserved: r.u8_array("reserved")?,
                 clock_offset_s: r.f64("clock_offset_s")?,
                 clock_residual_s: r.f64("clock_residual_s")?,
@@ -465,8 +470,16 @@ impl RosMessage for DaemonStatusMsg {
                 gain_scale_gyro: r.u16("gain_scale_gyro")?,
                 gain_scale_mag: r.u16("gain_scale_mag")?,
                 reserved_end: r.u8_array("reserved_end")?,
+                packets_unusable: 0,
+                fields_skipped: 0,
             },
-        })
+        };
+        // A v2 message ends at `reserved_end` (8-aligned, so no writer pads after it).
+        if r.remaining() > 0 {
+            msg.status.packets_unusable = r.u64("packets_unusable")?;
+            msg.status.fields_skipped = r.u64("fields_skipped")?;
+        }
+        Ok(msg)
     }
 }
 

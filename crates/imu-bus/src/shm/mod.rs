@@ -10,7 +10,7 @@
 //! |-----------------------|-------------------|--------------------------------------------------|
 //! | `imud/NAME/raw`       | publish-subscribe | [`RawSample`] (`imud::RawSample.v1`)             |
 //! | `imud/NAME/corrected` | publish-subscribe | [`CorrectedSample`] (`imud::CorrectedSample.v1`) |
-//! | `imud/NAME/status`    | publish-subscribe | [`DaemonStatus`] (`imud::DaemonStatus.v2`)       |
+//! | `imud/NAME/status`    | publish-subscribe | [`DaemonStatus`] (`imud::DaemonStatus.v3`)       |
 //! | `imud/NAME/health`    | publish-subscribe | [`CalibrationHealth`] (`imud::CalibrationHealth.v1`) |
 //! | `imud/NAME/event`     | event             | [`ShmEvent`] ids: 1 = samples, 2 = status, 3 = health |
 //!

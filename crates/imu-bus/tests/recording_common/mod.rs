@@ -107,13 +107,16 @@ pub fn status(i: u64) -> LogRecord {
             gains_fallback: 4,
             health_accel: 2,
             health_gyro: 1,
-            reserved: [0; 3],
+            protocol: 1,
+            reserved: [0; 2],
             clock_offset_s: 123.25,
             clock_residual_s: 1.5e-4,
             gain_scale_accel: 8500,
             gain_scale_gyro: 10_000,
             gain_scale_mag: 2000,
             reserved_end: [0; 2],
+            packets_unusable: 3,
+            fields_skipped: 4,
         },
     }
 }
