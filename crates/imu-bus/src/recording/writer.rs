@@ -182,16 +182,36 @@ pub(super) struct WriterThread {
     pub(super) scratch: Vec<u8>,
 }
 
+/// Records taken from the queue at most between two housekeeping passes.
+const BATCH_RECORDS: usize = 4096;
+/// The writer's pause after each pass, so records are taken in batches.
+const BATCH_PAUSE: Duration = Duration::from_millis(2);
+
 impl WriterThread {
     pub(super) fn run(mut self, rx: Receiver<LogRecord>) -> Result<(), RecordingError> {
         loop {
+            let mut batch = 0;
             match rx.recv_timeout(self.next_wakeup()) {
-                Ok(record) => self.handle(record),
+                Ok(record) => {
+                    self.handle(record);
+                    // What else is queued, before the housekeeping (one metadata lock and clock
+                    // read per batch, not per record; bounded, so flushes are never starved).
+                    for record in rx.try_iter().take(BATCH_RECORDS) {
+                        self.handle(record);
+                        batch += 1;
+                    }
+                }
                 Err(RecvTimeoutError::Timeout) => {}
                 // Every queued record has been received: the recorder is finishing.
                 Err(RecvTimeoutError::Disconnected) => break,
             }
             self.housekeeping();
+            // The queue kept up: let records gather, since at the daemon's rates a wake-up per
+            // frame (three or four records) costs more than writing them (imud at 1 kHz,
+            // BENCHMARKS.md). Behind, go straight on.
+            if batch < BATCH_RECORDS {
+                std::thread::sleep(BATCH_PAUSE);
+            }
         }
         self.write_pending_metadata();
         let result = match self.file.take() {
@@ -325,6 +345,9 @@ impl WriterThread {
     }
 
     pub(super) fn rotate(&mut self) {
+        // Metadata set while this file was open belongs in it too, even when the file fills
+        // within one batch of records (the housekeeping pass would come too late).
+        self.write_pending_metadata();
         if let Some(file) = self.file.take() {
             let unflushed = file.unflushed_records;
             match file.finish() {
