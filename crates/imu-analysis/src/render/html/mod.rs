@@ -111,7 +111,8 @@ const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 const PAGE_CSS: &str = "body{font-family:sans-serif;max-width:1100px;margin:auto}\
     table.imu{border-collapse:collapse;font-size:0.85em}\
     table.imu td,table.imu th{border:1px solid #bbb;padding:2px 6px}\
-    figure{margin:1em 0}svg{max-width:100%;height:auto}";
+    figure{margin:1em 0}svg{max-width:100%;height:auto}\
+    pre{white-space:pre-wrap;overflow-wrap:anywhere}";
 
 /// A number for a table cell: the one number format ([`number`]).
 fn g(v: f64) -> String {
