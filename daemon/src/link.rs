@@ -6,7 +6,7 @@
 
 use imu_proto::DeviceProtocol;
 use imu_proto::decoder::{DecodeEvent, DecoderStats, ReplyDecoder};
-use imu_proto::mip::{MipDecoder, MipEvent};
+use imu_proto::mip::MipDecoder;
 
 use crate::pipeline::{Pipeline, Sinks, log_rejected};
 
@@ -102,18 +102,7 @@ impl Link {
             }
             DeviceProtocol::Mip => {
                 while let Some(ev) = self.mip.next_event() {
-                    match ev {
-                        MipEvent::Packet { packet, offset } => {
-                            pipeline.log_frame(packet.as_bytes(), offset, mono_ns, wall_ns, sinks);
-                        }
-                        MipEvent::Rejected {
-                            bytes,
-                            offset,
-                            reason,
-                        } => {
-                            log_rejected(bytes, offset, reason, mono_ns, wall_ns, sinks);
-                        }
-                    }
+                    pipeline.log_mip_event(ev, mono_ns, wall_ns, sinks);
                 }
             }
         }

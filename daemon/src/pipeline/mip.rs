@@ -69,7 +69,7 @@ impl Pipeline {
     ) {
         match ev {
             MipEvent::Packet { packet, offset } => {
-                self.log_mip_packet(&packet, offset, t_mono_ns, t_wall_ns, sinks);
+                self.log_frame(packet.as_bytes(), offset, t_mono_ns, t_wall_ns, sinks);
                 if packet.descriptor_set() != IMU_DATA {
                     return;
                 }
@@ -93,17 +93,29 @@ impl Pipeline {
         }
     }
 
-    /// Logs one good packet as a frame, and counts it (the start-up sequence logs packets so,
-    /// before the session's clock is set; streaming goes through [`Self::on_mip_event`]).
-    pub fn log_mip_packet(
+    /// Logs one MIP event without making a sample of it (the start-up's bytes, before the
+    /// session's clock is set): a packet as a frame, handed back; rejected bytes as such.
+    pub fn log_mip_event(
         &mut self,
-        packet: &Packet,
-        offset: u64,
+        ev: MipEvent,
         t_mono_ns: u64,
         t_wall_ns: u64,
         sinks: &Sinks,
-    ) {
-        self.log_frame(packet.as_bytes(), offset, t_mono_ns, t_wall_ns, sinks);
+    ) -> Option<Packet> {
+        match ev {
+            MipEvent::Packet { packet, offset } => {
+                self.log_frame(packet.as_bytes(), offset, t_mono_ns, t_wall_ns, sinks);
+                Some(packet)
+            }
+            MipEvent::Rejected {
+                bytes,
+                offset,
+                reason,
+            } => {
+                log_rejected(bytes, offset, reason, t_mono_ns, t_wall_ns, sinks);
+                None
+            }
+        }
     }
 
     /// One IMU data packet: its temperature kept, its sample through the shared steps.

@@ -17,7 +17,7 @@ use imu_proto::mip::command::cmd_3dm;
 use imu_proto::mip::data::field;
 use imu_proto::mip::descriptor_set::IMU_DATA;
 use imu_proto::mip::{
-    AckCode, DescriptorRate, MessageFormat, MipCommand, MipEvent, MipReply, Response, Setting,
+    AckCode, DescriptorRate, MessageFormat, MipCommand, MipReply, Response, Setting,
 };
 use tokio::io::AsyncWriteExt;
 use tokio_serial::SerialStream;
@@ -171,12 +171,9 @@ impl Daemon {
     fn log_mip_events(&mut self, awaited: (u8, u8)) -> Option<MipReply> {
         while let Some(ev) = self.link.mip.next_event() {
             let (mono, wall) = now_ns();
-            let MipEvent::Packet { packet, offset } = ev else {
-                self.pipeline.on_mip_event(ev, mono, wall, &mut self.sinks);
+            let Some(packet) = self.pipeline.log_mip_event(ev, mono, wall, &self.sinks) else {
                 continue;
             };
-            self.pipeline
-                .log_mip_packet(&packet, offset, mono, wall, &self.sinks);
             let reply = MipReply::decode_packet(&packet).ok().and_then(|r| {
                 r.into_iter()
                     .find(|r| (r.descriptor_set, r.command) == awaited)
