@@ -309,7 +309,8 @@ pub struct LogConfig {
     pub rotate_size_mib: u64,
     /// Start a new file after this many seconds (0: never).
     pub rotate_interval_s: f64,
-    /// Records queued for the writer thread before new ones are dropped (and counted).
+    /// Records queued for the writer thread before new ones are dropped (and counted). A
+    /// sample with its frame is one record (about 400 bytes a slot, allocated at start).
     pub queue_capacity: usize,
     /// `frame_id` of the ROS messages.
     pub frame_id: String,
@@ -322,7 +323,7 @@ impl Default for LogConfig {
             dir: PathBuf::from("imud-logs"),
             rotate_size_mib: 512,
             rotate_interval_s: 3600.0,
-            queue_capacity: 65_536,
+            queue_capacity: 32_768,
             frame_id: "imu_link".into(),
         }
     }

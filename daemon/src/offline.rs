@@ -459,7 +459,8 @@ impl Run {
         let Some(r) = &self.sinks.recorder else {
             return;
         };
-        let logged = 3 * self.report.samples + 2 * self.report.temperatures;
+        // A sample is one record (with its frame), a temperature two (its frame and itself).
+        let logged = self.report.samples + 2 * self.report.temperatures;
         while {
             let s = r.stats();
             logged.saturating_sub(s.written + s.dropped_queue_full + s.dropped_not_logging)

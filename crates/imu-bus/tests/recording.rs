@@ -17,12 +17,14 @@ use imu_bus::recording::{
 use imu_bus::ros2::RosMessage;
 use recording_common::*;
 
-/// Messages a list of records becomes (a corrected sample is two).
+/// Messages a list of records becomes (a corrected sample is two, a sample three and its
+/// frame).
 fn message_count(records: &[LogRecord]) -> u64 {
     records
         .iter()
         .map(|r| match r {
             LogRecord::Corrected(_) => 2,
+            LogRecord::Sample { frame, .. } => 3 + u64::from(frame.is_some()),
             _ => 1,
         })
         .sum()
@@ -131,6 +133,8 @@ fn streaming_reader_delivers_messages_in_file_order() {
         .map(|r| match r {
             LogRecord::Calibration { .. } => "c",
             LogRecord::RawFrame { .. } => "f",
+            LogRecord::Sample { frame: Some(_), .. } => "frim",
+            LogRecord::Sample { frame: None, .. } => "rim",
             LogRecord::Raw(_) => "r",
             LogRecord::Corrected(_) => "im",
             LogRecord::Temperature { .. } => "t",

@@ -198,7 +198,7 @@ fn big_frame(seq: u64) -> LogRecord {
         stream_offset: seq * 1000,
         accepted: false,
         reject_reason: Some("garbage".into()),
-        bytes: noise_bytes(seq, 1000),
+        bytes: noise_bytes(seq, 1000).into(),
     }
 }
 

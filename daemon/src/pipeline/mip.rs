@@ -69,27 +69,37 @@ impl Pipeline {
     ) {
         match ev {
             MipEvent::Packet { packet, offset } => {
-                self.log_frame(packet.as_bytes(), offset, t_mono_ns, t_wall_ns, sinks);
-                if packet.descriptor_set() != IMU_DATA {
-                    return;
+                self.hold_frame(packet.as_bytes(), offset, t_mono_ns, t_wall_ns, sinks);
+                if packet.descriptor_set() == IMU_DATA {
+                    self.on_mip_data_packet(&packet, t_mono_ns, t_wall_ns, sinks);
                 }
-                match ImuData::decode_packet(&packet) {
-                    Ok(data) => self.on_mip_data(&data, t_mono_ns, t_wall_ns, sinks),
-                    Err(e) => {
-                        self.counters.undecodable += 1;
-                        if self.counters.undecodable == 1 {
-                            warn!(
-                                "an IMU data packet could not be decoded: {e} (counted, skipped)"
-                            );
-                        }
-                    }
-                }
+                // A packet that made no sample is logged on its own.
+                self.flush_frame(t_mono_ns, t_wall_ns, sinks);
             }
             MipEvent::Rejected {
                 bytes,
                 offset,
                 reason,
             } => log_rejected(bytes, offset, reason, t_mono_ns, t_wall_ns, sinks),
+        }
+    }
+
+    /// An IMU data packet: decoded into a sample, or counted as unusable.
+    fn on_mip_data_packet(
+        &mut self,
+        packet: &Packet,
+        t_mono_ns: u64,
+        t_wall_ns: u64,
+        sinks: &mut Sinks,
+    ) {
+        match ImuData::decode_packet(packet) {
+            Ok(data) => self.on_mip_data(&data, t_mono_ns, t_wall_ns, sinks),
+            Err(e) => {
+                self.counters.undecodable += 1;
+                if self.counters.undecodable == 1 {
+                    warn!("an IMU data packet could not be decoded: {e} (counted, skipped)");
+                }
+            }
         }
     }
 
@@ -136,6 +146,8 @@ impl Pipeline {
             {
                 self.temp_logged_ns = Some(t_mono_ns);
                 self.counters.temperatures += 1;
+                // The packet's frame goes into the log before the temperature taken from it.
+                self.flush_frame(t_mono_ns, t_wall_ns, sinks);
                 sinks.log(LogRecord::Temperature {
                     t_wall_ns,
                     temp_c: self.temp_c,

@@ -19,7 +19,7 @@ mod sinks;
 use std::sync::Arc;
 
 use imu_bus::CalibrationHealth;
-use imu_bus::recording::LogRecord;
+use imu_bus::recording::{FrameData, LogRecord, SampleFrame};
 use imu_bus::sample::HealthState;
 use imu_bus::sample::{corrected_flags, device_protocol, raw_flags};
 use imu_bus::shm::{Publishers, ShmEvent};
@@ -170,6 +170,10 @@ pub struct Pipeline {
     health: Option<HealthMonitor>,
     /// The newest health report not yet taken.
     health_report: Option<CalibrationHealth>,
+    /// The accepted frame being handled, until its sample takes it into the one record logged
+    /// per frame ([`LogRecord::Sample`]); a frame that makes no sample is logged on its own
+    /// ([`Pipeline::flush_frame`]) before anything else is, so the log keeps the arrival order.
+    pending_frame: Option<SampleFrame>,
 }
 
 impl Pipeline {
@@ -198,6 +202,7 @@ impl Pipeline {
             health_config: None,
             health: None,
             health_report: None,
+            pending_frame: None,
         }
     }
 
@@ -309,8 +314,9 @@ impl Pipeline {
                 bytes,
                 offset,
             } => {
-                self.log_frame(&bytes, offset, t_mono_ns, t_wall_ns, sinks);
+                self.hold_frame(&bytes, offset, t_mono_ns, t_wall_ns, sinks);
                 self.on_reply(&reply, t_mono_ns, t_wall_ns, sinks);
+                self.flush_frame(t_mono_ns, t_wall_ns, sinks);
             }
             DecodeEvent::Rejected {
                 bytes,
@@ -329,21 +335,48 @@ impl Pipeline {
         t_wall_ns: u64,
         sinks: &Sinks,
     ) {
+        self.hold_frame(bytes, offset, t_mono_ns, t_wall_ns, sinks);
+        self.flush_frame(t_mono_ns, t_wall_ns, sinks);
+    }
+
+    /// Counts one good frame and keeps it for the sample it may make (logged with it, as one
+    /// record); a frame still held from before is logged first.
+    pub(crate) fn hold_frame(
+        &mut self,
+        bytes: &[u8],
+        offset: u64,
+        t_mono_ns: u64,
+        t_wall_ns: u64,
+        sinks: &Sinks,
+    ) {
+        self.flush_frame(t_mono_ns, t_wall_ns, sinks);
         self.counters.frames += 1;
-        sinks.log(LogRecord::RawFrame {
-            t_host_wall_ns: t_wall_ns,
-            t_host_monotonic_ns: t_mono_ns,
+        self.pending_frame = Some(SampleFrame {
             stream_offset: offset,
-            accepted: true,
-            reject_reason: None,
-            bytes: bytes.to_vec(),
+            bytes: FrameData::from_slice(bytes),
         });
+    }
+
+    /// Logs the held frame on its own, if a frame is held (it made no sample, or something
+    /// else is logged before its sample).
+    pub(crate) fn flush_frame(&mut self, t_mono_ns: u64, t_wall_ns: u64, sinks: &Sinks) {
+        if let Some(frame) = self.pending_frame.take() {
+            sinks.log(LogRecord::RawFrame {
+                t_host_wall_ns: t_wall_ns,
+                t_host_monotonic_ns: t_mono_ns,
+                stream_offset: frame.stream_offset,
+                accepted: true,
+                reject_reason: None,
+                bytes: frame.bytes,
+            });
+        }
     }
 
     /// Handles one good reply: a temperature is kept, a data reply becomes a raw and a corrected
     /// sample (gap accounting, time stamp, scaling, correction, publishing).
     pub fn on_reply(&mut self, reply: &Reply, t_mono_ns: u64, t_wall_ns: u64, sinks: &mut Sinks) {
         if let Reply::Temperature { raw, .. } = *reply {
+            self.flush_frame(t_mono_ns, t_wall_ns, sinks);
             self.temp_c = scale::temp_raw_to_c(raw);
             self.counters.temperatures += 1;
             sinks.log(LogRecord::Temperature {
@@ -437,7 +470,7 @@ impl Pipeline {
         };
         let mut corrected = self.correct(m, t_sample_ns, t_device_ns);
         corrected.t_wall_ns = self.wall.stamp(t_sample_ns, t_mono_ns, t_wall_ns);
-        self.watch_health(&mut corrected, sinks);
+        self.watch_health(&mut corrected, (t_mono_ns, t_wall_ns), sinks);
         self.publish(raw, corrected, sinks);
     }
 
@@ -500,7 +533,13 @@ impl Pipeline {
 
     /// Bias tracking's offsets applied, the sample handed to the health monitor, and a report
     /// published, recorded and its state changes logged.
-    fn watch_health(&mut self, corrected: &mut CorrectedSample, sinks: &mut Sinks) {
+    /// `host_ns`: the frame's host times (monotonic, wall).
+    fn watch_health(
+        &mut self,
+        corrected: &mut CorrectedSample,
+        host_ns: (u64, u64),
+        sinks: &mut Sinks,
+    ) {
         let Some(monitor) = &mut self.health else {
             return;
         };
@@ -521,6 +560,8 @@ impl Pipeline {
         ) else {
             return;
         };
+        // The frame goes into the log before the report that its sample closed.
+        self.flush_frame(host_ns.0, host_ns.1, sinks);
         for line in &event.changes {
             if line.contains("-> ok") {
                 info!("{line}");
@@ -553,8 +594,11 @@ impl Pipeline {
                 self.counters.publish_errors += 1;
             }
         }
-        sinks.log(LogRecord::Raw(raw));
-        sinks.log(LogRecord::Corrected(corrected));
+        sinks.log(LogRecord::Sample {
+            frame: self.pending_frame.take(),
+            raw,
+            corrected,
+        });
     }
 
     /// Builds the status record from the pipeline's, the decoder's and the sinks' counters.
@@ -631,7 +675,7 @@ pub fn log_rejected(
             RejectReason::Truncated => "truncated",
             RejectReason::Garbage => "garbage",
         })),
-        bytes,
+        bytes: FrameData::from_vec(bytes),
     });
 }
 
@@ -677,6 +721,78 @@ mod tests {
         assert_eq!(p.counters().samples_lost, 4);
         // Without a calibration the corrected stream is the GainScale conversion: z = +1 g.
         assert!(p.calibration().is_none());
+    }
+
+    /// Each frame reaches the log once, in arrival order: a data frame with its sample (one
+    /// record), a temperature reply's frame before the temperature, rejected bytes as such.
+    #[test]
+    fn every_frame_is_logged_once_in_arrival_order() {
+        use imu_bus::recording::{
+            RecordedMessage, Recorder, RecordingConfig, for_each_record, list_recordings,
+        };
+        use imu_proto::decoder::ReplyDecoder;
+
+        let dir = tempfile::tempdir().unwrap();
+        let recorder = Recorder::start(
+            RecordingConfig {
+                dir: dir.path().to_path_buf(),
+                prefix: "order".into(),
+                ..RecordingConfig::default()
+            },
+            Vec::new(),
+        )
+        .unwrap();
+        let mut sinks = Sinks {
+            recorder: Some(recorder),
+            ..Sinks::default()
+        };
+        let gains = Gains {
+            accel: 7000,
+            gyro: 10000,
+            mag: 2000,
+            fallback: GainFallback::NONE,
+        };
+        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        let mut bytes = Vec::new();
+        raw(10).encode(&mut bytes);
+        Reply::Temperature {
+            raw: 2000,
+            ticks: 11,
+        }
+        .encode(&mut bytes);
+        bytes.extend_from_slice(&[0xAB, 0xCD]); // garbage
+        raw(12).encode(&mut bytes);
+        let mut decoder = ReplyDecoder::default();
+        decoder.push(&bytes);
+        decoder.flush();
+        let mut offsets = Vec::new();
+        while let Some(ev) = decoder.next_event() {
+            offsets.push(ev.offset());
+            p.on_event(ev, 5, 7, &mut sinks);
+        }
+        let stats = sinks.recorder.take().unwrap().finish().unwrap();
+        // Sample + frame, temperature + its frame, garbage, sample + frame.
+        assert_eq!((stats.written, stats.dropped_queue_full), (5, 0));
+        let file = &list_recordings(dir.path(), "order").unwrap()[0];
+        let mut kinds = String::new();
+        let mut frame_offsets = Vec::new();
+        for_each_record(file, |m| {
+            kinds.push(match m {
+                RecordedMessage::Frame(f) => {
+                    frame_offsets.push(f.stream_offset);
+                    if f.accepted { 'f' } else { 'x' }
+                }
+                RecordedMessage::Raw(_) => 'r',
+                RecordedMessage::Imu(_) => 'i',
+                RecordedMessage::MagneticField(_) => 'm',
+                RecordedMessage::Temperature(_) => 't',
+                _ => '?',
+            });
+        })
+        .unwrap();
+        assert_eq!(kinds, "frimftxfrim");
+        assert_eq!(frame_offsets, offsets);
+        assert_eq!(p.counters().frames, 3);
     }
 
     #[test]

@@ -48,6 +48,11 @@ pub enum Ros2Error {
 /// One message for the DDS thread: plain copies, no heap.
 #[derive(Debug, Clone, Copy)]
 enum Item {
+    /// A sample with its raw record (`imu/data`, `imu/mag`, `imu/data_raw`).
+    Sample {
+        raw: RawSample,
+        corrected: CorrectedSample,
+    },
     Raw(RawSample),
     Corrected(CorrectedSample),
     Temperature {
@@ -127,6 +132,10 @@ impl Ros2Sink {
     /// Queues what a topic needs from one logged record; never blocks.
     pub fn offer(&self, record: &LogRecord) {
         let item = match record {
+            LogRecord::Sample { raw, corrected, .. } => Item::Sample {
+                raw: *raw,
+                corrected: *corrected,
+            },
             LogRecord::Raw(raw) => Item::Raw(*raw),
             LogRecord::Corrected(c) => Item::Corrected(*c),
             LogRecord::Temperature { t_wall_ns, temp_c } => Item::Temperature {

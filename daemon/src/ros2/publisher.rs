@@ -166,6 +166,10 @@ impl Publisher {
 
     fn handle(&mut self, item: Item) {
         match item {
+            Item::Sample { raw, corrected } => {
+                self.pending_raw = Some(raw);
+                self.on_corrected(&corrected);
+            }
             Item::Raw(raw) => self.pending_raw = Some(raw),
             Item::Corrected(c) => self.on_corrected(&c),
             Item::Temperature { t_wall_ns, temp_c } => {

@@ -106,8 +106,31 @@ pub struct ImuNoiseVariances {
     pub mag_var_t2: [f64; 3],
 }
 
+/// Bytes of a frame kept inline up to this many (a 3DM-GX1 reply, 23 bytes at most, or a MIP
+/// IMU packet of the fields imud configures, 72 bytes), so logging a frame does not allocate.
+pub const FRAME_INLINE_BYTES: usize = 80;
+
+/// Device bytes in a log record: inline up to [`FRAME_INLINE_BYTES`], on the heap beyond (a long
+/// run of rejected bytes, a large MIP reply).
+pub type FrameData = smallvec::SmallVec<[u8; FRAME_INLINE_BYTES]>;
+
+/// The accepted frame a [`LogRecord::Sample`] was decoded from; its host times are the raw
+/// sample's (`t_host_wall_ns`, `t_host_monotonic_ns`: the read that completed it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleFrame {
+    /// Offset of the frame's first byte in the device byte stream.
+    pub stream_offset: u64,
+    /// The frame, header to checksum.
+    pub bytes: FrameData,
+}
+
 /// One thing to log. Times are host clock nanoseconds (`_wall_ns`: Unix epoch).
 #[derive(Debug, Clone, PartialEq)]
+#[expect(
+    clippy::large_enum_variant,
+    reason = "records travel by value through the writer's queue: boxing the per-frame \
+              `Sample` would put an allocation back on the data path it was made to spare"
+)]
 pub enum LogRecord {
     /// Bytes from the device: a frame with a good checksum, or a run of rejected bytes.
     RawFrame {
@@ -123,7 +146,20 @@ pub enum LogRecord {
         /// `None` when accepted.
         reject_reason: Option<Cow<'static, str>>,
         /// The bytes.
-        bytes: Vec<u8>,
+        bytes: FrameData,
+    },
+    /// A data sample with the accepted frame it was decoded from: the per-frame path's one
+    /// record (one hand-off to the writer per frame instead of three). Written as the frame
+    /// (`/imu/raw_frame`, at the raw sample's host times), then `/imu/raw`, `/imu/data` and
+    /// `/imu/mag`: the same messages as a [`LogRecord::RawFrame`], a [`LogRecord::Raw`] and a
+    /// [`LogRecord::Corrected`] in that order.
+    Sample {
+        /// The frame (`None`: a sample without one, or whose frame was logged already).
+        frame: Option<SampleFrame>,
+        /// The raw sample.
+        raw: RawSample,
+        /// The corrected sample.
+        corrected: CorrectedSample,
     },
     /// A decoded data frame (`/imu/raw`, stamped with its `t_host_wall_ns`).
     Raw(RawSample),
@@ -172,7 +208,8 @@ pub struct RecordingConfig {
     /// Start a new file once the current one is this old, seconds (0: never). Checked when a
     /// record arrives, so an idle recorder makes no empty files.
     pub rotate_interval_s: f64,
-    /// Records queued for the writer thread; beyond it [`Recorder::log`] drops and counts.
+    /// Records queued for the writer thread; beyond it [`Recorder::log`] drops and counts. The
+    /// queue's slots (one [`LogRecord`] each, about 400 bytes) are allocated at start.
     pub queue_capacity: usize,
     /// The longest a logged record waits before it reaches the OS; at most 1 s, so a killed
     /// daemon loses at most that much.
@@ -194,7 +231,7 @@ impl Default for RecordingConfig {
             prefix: "imud".into(),
             rotate_size_bytes: 512 * 1024 * 1024,
             rotate_interval_s: 3600.0,
-            queue_capacity: 65_536,
+            queue_capacity: 32_768,
             flush_interval: Duration::from_millis(500),
             retry_interval: Duration::from_secs(5),
             frame_id: "imu_link".into(),

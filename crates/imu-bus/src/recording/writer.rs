@@ -573,23 +573,31 @@ pub(super) fn write_record(
                 stream_offset,
                 accepted,
                 reject_reason: reject_reason.map(Cow::into_owned).unwrap_or_default(),
-                data: bytes,
+                data: bytes.into_vec(),
             };
             file.write_msg(CH_FRAME, t_host_wall_ns, &msg, scratch)
         }
-        LogRecord::Raw(sample) => {
-            let msg = RawSampleMsg {
-                header: header(sample.t_host_wall_ns, frame_id),
-                sample,
-            };
-            file.write_msg(CH_RAW, sample.t_host_wall_ns, &msg, scratch)
+        LogRecord::Sample {
+            frame,
+            raw,
+            corrected,
+        } => {
+            if let Some(frame) = frame {
+                let msg = RawFrameMsg {
+                    header: header(raw.t_host_wall_ns, frame_id),
+                    t_host_monotonic_ns: raw.t_host_monotonic_ns,
+                    stream_offset: frame.stream_offset,
+                    accepted: true,
+                    reject_reason: String::new(),
+                    data: frame.bytes.into_vec(),
+                };
+                file.write_msg(CH_FRAME, raw.t_host_wall_ns, &msg, scratch)?;
+            }
+            write_raw(file, raw, frame_id, scratch)?;
+            write_corrected(file, &corrected, frame_id, noise, scratch)
         }
-        LogRecord::Corrected(sample) => {
-            let imu = imu_message(&sample, frame_id, noise);
-            file.write_msg(CH_IMU, sample.t_wall_ns, &imu, scratch)?;
-            let mag = magnetic_field_message(&sample, frame_id, noise);
-            file.write_msg(CH_MAG, sample.t_wall_ns, &mag, scratch)
-        }
+        LogRecord::Raw(sample) => write_raw(file, sample, frame_id, scratch),
+        LogRecord::Corrected(sample) => write_corrected(file, &sample, frame_id, noise, scratch),
         LogRecord::Temperature { t_wall_ns, temp_c } => {
             let msg = temperature_message(t_wall_ns, temp_c, frame_id);
             file.write_msg(CH_TEMPERATURE, t_wall_ns, &msg, scratch)
@@ -622,4 +630,32 @@ pub(super) fn write_record(
             file.write_msg(CH_CALIBRATION, t_wall_ns, &msg, scratch)
         }
     }
+}
+
+/// `/imu/raw`: a raw sample.
+fn write_raw(
+    file: &mut OpenFile,
+    sample: RawSample,
+    frame_id: &str,
+    scratch: &mut Vec<u8>,
+) -> Result<(), RecordingError> {
+    let msg = RawSampleMsg {
+        header: header(sample.t_host_wall_ns, frame_id),
+        sample,
+    };
+    file.write_msg(CH_RAW, sample.t_host_wall_ns, &msg, scratch)
+}
+
+/// `/imu/data` and `/imu/mag`: a corrected sample.
+fn write_corrected(
+    file: &mut OpenFile,
+    sample: &CorrectedSample,
+    frame_id: &str,
+    noise: Option<&ImuNoiseVariances>,
+    scratch: &mut Vec<u8>,
+) -> Result<(), RecordingError> {
+    let imu = imu_message(sample, frame_id, noise);
+    file.write_msg(CH_IMU, sample.t_wall_ns, &imu, scratch)?;
+    let mag = magnetic_field_message(sample, frame_id, noise);
+    file.write_msg(CH_MAG, sample.t_wall_ns, &mag, scratch)
 }

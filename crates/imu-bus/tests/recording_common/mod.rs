@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use imu_bus::recording::{
     ImuNoiseVariances, LogRecord, RecordedCalibration, RecordedFrame, Recorder, Recording,
-    RecordingConfig, imu_message, magnetic_field_message,
+    RecordingConfig, SampleFrame, imu_message, magnetic_field_message,
 };
 use imu_bus::sample::{CorrectedSample, DaemonStatus, RawSample, raw_flags};
 use serde_json::Value;
@@ -81,6 +81,34 @@ pub fn frame(i: u64) -> LogRecord {
             .map(|k| (i as u8).wrapping_mul(31).wrapping_add(k))
             .collect(),
     }
+}
+
+/// Sample `seq`'s records: as one [`LogRecord::Sample`] (with its frame, or none every sixth),
+/// or for one in three as a frame, a raw and a corrected record.
+pub fn sample(seq: u64) -> Vec<LogRecord> {
+    if seq.is_multiple_of(3) {
+        return vec![
+            frame(seq),
+            LogRecord::Raw(raw(seq)),
+            LogRecord::Corrected(corrected(seq)),
+        ];
+    }
+    let LogRecord::RawFrame {
+        stream_offset,
+        bytes,
+        ..
+    } = frame(seq)
+    else {
+        unreachable!("frame() makes frames")
+    };
+    vec![LogRecord::Sample {
+        frame: (seq % 6 != 5).then_some(SampleFrame {
+            stream_offset,
+            bytes,
+        }),
+        raw: raw(seq),
+        corrected: corrected(seq),
+    }]
 }
 
 pub fn status(i: u64) -> LogRecord {
@@ -167,8 +195,9 @@ pub fn noise() -> ImuNoiseVariances {
     }
 }
 
-/// Samples `first..first + n` as the daemon logs them: frame, raw, corrected; a temperature
-/// every 10, a status every 50, a health report every 60, a calibration with noise at the first sample and one without
+/// Samples `first..first + n`, two of every three as the daemon logs them (one
+/// [`LogRecord::Sample`] with its frame, or without one every sixth sample) and one as separate
+/// frame, raw and corrected records; a temperature every 10, a status every 50, a health report every 60, a calibration with noise at the first sample and one without
 /// at the middle.
 pub fn mixed(first: u64, n: u64) -> Vec<LogRecord> {
     let mut out = Vec::new();
@@ -179,9 +208,7 @@ pub fn mixed(first: u64, n: u64) -> Vec<LogRecord> {
         if seq == first + n / 2 {
             out.push(calibration(seq, None));
         }
-        out.push(frame(seq));
-        out.push(LogRecord::Raw(raw(seq)));
-        out.push(LogRecord::Corrected(corrected(seq)));
+        out.extend(sample(seq));
         if seq.is_multiple_of(10) {
             out.push(LogRecord::Temperature {
                 t_wall_ns: T0_WALL_NS + seq * DT_NS + 3,
@@ -217,8 +244,30 @@ pub fn expected(records: &[LogRecord], frame_id: &str) -> Recording {
                 stream_offset,
                 accepted,
                 reject_reason: reject_reason.map(Cow::into_owned),
-                bytes,
+                bytes: bytes.to_vec(),
             }),
+            LogRecord::Sample {
+                frame,
+                raw,
+                corrected,
+            } => {
+                // The frame at the raw sample's host times, accepted; then raw, imu, mag.
+                if let Some(f) = frame {
+                    rec.frames.push(RecordedFrame {
+                        t_host_wall_ns: raw.t_host_wall_ns,
+                        t_host_monotonic_ns: raw.t_host_monotonic_ns,
+                        stream_offset: f.stream_offset,
+                        accepted: true,
+                        reject_reason: None,
+                        bytes: f.bytes.to_vec(),
+                    });
+                }
+                rec.raw.push(raw);
+                rec.imu
+                    .push(imu_message(&corrected, frame_id, noise.as_ref()));
+                rec.mag
+                    .push(magnetic_field_message(&corrected, frame_id, noise.as_ref()));
+            }
             LogRecord::Raw(s) => rec.raw.push(s),
             LogRecord::Corrected(c) => {
                 rec.imu.push(imu_message(&c, frame_id, noise.as_ref()));
