@@ -23,9 +23,10 @@ use std::time::{Duration, Instant};
 
 use imu_bus::truth::TruthSample;
 use nix::fcntl::{FcntlArg, OFlag, fcntl};
-use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+use nix::poll::{PollFd, PollFlags, PollTimeout, poll, ppoll};
 use nix::pty::{PtyMaster, grantpt, posix_openpt, ptsname_r, unlockpt};
 use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
+use nix::sys::time::TimeSpec;
 
 use crate::virtual_device::VirtualDevice;
 
@@ -474,6 +475,9 @@ impl Loop<'_> {
     }
 
     fn run(mut self, pty: &mut Pty, stop: &Arc<AtomicBool>) -> std::io::Result<LinkReport> {
+        // Samples leave on time to a few microseconds, not the default 50 us timer slack (best
+        // effort: without it they are only later).
+        let _ = nix::sys::prctl::set_timerslack(1_000);
         let mut end_at: Option<Instant> = None;
         while !stop.load(Ordering::Relaxed) {
             let unplug_ms = self.options.unplug_ms.swap(0, Ordering::Relaxed);
@@ -502,8 +506,11 @@ impl Loop<'_> {
                 flags |= PollFlags::POLLOUT;
             }
             let mut fds = [PollFd::new(pty.master.as_fd(), flags)];
-            let ms = timeout.as_millis().min(50) as u16;
-            match poll(&mut fds, PollTimeout::from(ms)) {
+            // ppoll, not poll: its timeout is not whole milliseconds. At 1 kHz the next sample is
+            // under 1 ms away, which poll rounded to 0: the thread spun a core between samples
+            // (and for the last millisecond before each sample at any rate).
+            let timeout = TimeSpec::from_duration(timeout.min(Duration::from_millis(50)));
+            match ppoll(&mut fds, Some(timeout), None) {
                 Ok(_) | Err(nix::Error::EINTR) => {}
                 Err(e) => return Err(std::io::Error::from(e)),
             }
