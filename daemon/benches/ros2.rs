@@ -129,9 +129,21 @@ fn dds_thread_ticks(pid: u32) -> u64 {
         .sum()
 }
 
+/// Which readers the CPU measurement runs with.
+#[derive(Clone, Copy, PartialEq)]
+enum Readers {
+    /// No `--ros2`, no peer.
+    NoDds,
+    /// `--ros2`, a reader of `imu/data` only (the other topics have none: not sent).
+    ImuOnly,
+    /// `--ros2`, the peer's readers of every topic.
+    Every,
+}
+
 /// imud's CPU over 15 s of a 1 kHz stream (after 5 s of start-up), % of one core: the whole
 /// process and its DDS threads.
-fn cpu(rate_hz: f64, ros2: bool) -> (f64, f64) {
+fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
+    let ros2 = readers != Readers::NoDds;
     let baud = 460_800;
     let started = Started::start(&Options {
         scenario: scenario(rate_hz, 30.0, baud),
@@ -141,7 +153,7 @@ fn cpu(rate_hz: f64, ros2: bool) -> (f64, f64) {
             .replace(";", "\n"),
         ros2,
         peer: ros2,
-        imu_only: true,
+        imu_only: readers == Readers::ImuOnly,
         late_after_s: 1e9,
         end: End::AfterS(22.0),
         baud,
@@ -176,11 +188,16 @@ fn main() {
     if std::env::var_os("ROS2_BENCH_LATENCY_ONLY").is_some() {
         return;
     }
-    let (with, dds) = cpu(1000.0, true);
-    let (without, _) = cpu(1000.0, false);
+    let (with, dds) = cpu(1000.0, Readers::ImuOnly);
+    let (without, _) = cpu(1000.0, Readers::NoDds);
     println!(
         "cpu at 1 kHz, % of one core: imud --sim (simulator included) with --ros2 {with:.1}, \
          without {without:.1} (difference {:.1}); imud's DDS threads alone {dds:.1}",
         with - without
+    );
+    let (every, dds_every) = cpu(1000.0, Readers::Every);
+    println!(
+        "cpu at 1 kHz with readers of every topic (imu/data, data_raw, mag, temperature, \
+         diagnostics): imud --sim {every:.1}, imud's DDS threads alone {dds_every:.1}"
     );
 }

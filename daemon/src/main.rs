@@ -413,8 +413,9 @@ async fn run(args: Args) -> anyhow::Result<()> {
     if let Some(d) = daemon.sinks.ros2.take() {
         let s = d.finish();
         info!(
-            "ROS 2 output finished: {} DDS messages written, {} dropped (queue full), {} refused",
-            s.written, s.dropped_queue_full, s.write_failures
+            "ROS 2 output finished: {} DDS messages written, {} dropped (queue full), {} refused, \
+             {} not sent (no reader matched)",
+            s.written, s.dropped_queue_full, s.write_failures, s.not_sent_unmatched
         );
     }
     result

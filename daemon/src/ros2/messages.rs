@@ -117,6 +117,7 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
         kv("dds_written", dds.written.to_string()),
         kv("dds_dropped_queue_full", dds.dropped_queue_full.to_string()),
         kv("dds_write_failures", dds.write_failures.to_string()),
+        kv("dds_not_sent_unmatched", dds.not_sent_unmatched.to_string()),
         kv("reconnects", s.reconnects.to_string()),
         kv("calibration_id", format!("{:016x}", s.calibration_id)),
         kv("temp_c", s.temp_c.to_string()),

@@ -4,9 +4,12 @@
 //! The per-frame path hands each record it logs to [`Ros2Sink::offer`], which copies the few
 //! plain values a topic needs into a bounded queue and returns: it never blocks and never
 //! allocates; a full queue drops the message and counts it ([`Ros2Sink::drops`], added to the
-//! status's `publish_drops`). A thread (`imud-ros2`) owns the DDS participant (`rustdds`, pure
-//! Rust) and its writers, encodes each message with imu-bus's CDR encoder — the very messages
-//! the MCAP log stores, with the same stamps, frame id and covariances — and writes it.
+//! status's `publish_drops`). The queue is a lock-free single-producer ring (`rtrb`); the thread
+//! parks when it is empty and the producer unparks it only then (`handoff.rs`: one wake a
+//! sample at most, and no lock either side can wait on). A thread (`imud-ros2`) owns the DDS
+//! participant (`rustdds`, pure Rust) and its writers, encodes each message with imu-bus's CDR
+//! encoder — the very messages the MCAP log stores, with the same stamps, frame id and
+//! covariances — and writes it to the topics that have a matched reader.
 //!
 //! Wire names are ROS 2's: topic `rt/<namespace>/imu/data`, type
 //! `sensor_msgs::msg::dds_::Imu_`, payload plain little-endian CDR. `config.rs`: the `[ros2]`
@@ -14,13 +17,13 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
 use imu_bus::recording::{ImuNoiseVariances, LogRecord};
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 
 pub mod config;
+mod handoff;
 mod messages;
 mod publisher;
 
@@ -72,6 +75,7 @@ struct Shared {
     dropped_queue_full: AtomicU64,
     written: AtomicU64,
     write_failures: AtomicU64,
+    not_sent_unmatched: AtomicU64,
 }
 
 /// Counters of the DDS output.
@@ -83,13 +87,16 @@ pub struct Ros2Stats {
     pub dropped_queue_full: u64,
     /// Messages the DDS writer refused (a reliable send window full past its blocking time).
     pub write_failures: u64,
+    /// Messages not written because no reader of their topic was matched (nobody to send to:
+    /// the writers are volatile, so a reader matched later would not have received them either).
+    pub not_sent_unmatched: u64,
 }
 
 /// The daemon's DDS output: a bounded queue to the thread that publishes.
 ///
 /// Dropping it lets the thread write what is queued, then ends the participant.
 pub struct Ros2Sink {
-    tx: Option<SyncSender<Item>>,
+    tx: Option<handoff::Sender<Item>>,
     shared: Arc<Shared>,
     thread: Option<JoinHandle<()>>,
 }
@@ -98,7 +105,7 @@ impl Ros2Sink {
     /// Creates the participant, the topics and their writers (on the DDS thread, whose start-up
     /// result this waits for). `instance` is the daemon's name (in the diagnostics).
     pub fn start(config: &Ros2Config, frame_id: &str, instance: &str) -> Result<Self, Ros2Error> {
-        let (tx, rx) = std::sync::mpsc::sync_channel(config.queue_capacity);
+        let (tx, rx) = handoff::channel(config.queue_capacity);
         let shared = Arc::new(Shared::default());
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let setup = publisher::Setup {
@@ -113,7 +120,7 @@ impl Ros2Sink {
                 move || match publisher::Publisher::new(setup, thread_shared) {
                     Ok(mut p) => {
                         let _ = ready_tx.send(Ok(()));
-                        p.run(&rx);
+                        p.run(rx);
                     }
                     Err(e) => {
                         let _ = ready_tx.send(Err(e));
@@ -122,6 +129,7 @@ impl Ros2Sink {
             )
             .map_err(Ros2Error::Spawn)?;
         ready_rx.recv().map_err(|_| Ros2Error::ThreadGone)??;
+        let tx = tx.bind(thread.thread().clone());
         Ok(Self {
             tx: Some(tx),
             shared,
@@ -164,13 +172,10 @@ impl Ros2Sink {
 
     fn send(&self, item: Item) {
         let Some(tx) = &self.tx else { return };
-        match tx.try_send(item) {
-            Ok(()) => {}
-            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
-                self.shared
-                    .dropped_queue_full
-                    .fetch_add(1, Ordering::Relaxed);
-            }
+        if !tx.try_send(item) {
+            self.shared
+                .dropped_queue_full
+                .fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -193,7 +198,9 @@ impl Ros2Sink {
     }
 
     fn shutdown(&mut self) {
-        drop(self.tx.take());
+        if let Some(tx) = self.tx.take() {
+            tx.close();
+        }
         if let Some(t) = self.thread.take()
             && t.join().is_err()
         {
@@ -207,6 +214,7 @@ fn stats_of(shared: &Shared) -> Ros2Stats {
         written: shared.written.load(Ordering::Relaxed),
         dropped_queue_full: shared.dropped_queue_full.load(Ordering::Relaxed),
         write_failures: shared.write_failures.load(Ordering::Relaxed),
+        not_sent_unmatched: shared.not_sent_unmatched.load(Ordering::Relaxed),
     }
 }
 

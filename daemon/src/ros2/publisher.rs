@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::sync::mpsc::Receiver;
+use std::time::Duration;
 
 use imu_bus::recording::{
     ImuNoiseVariances, imu_message, magnetic_field_message, temperature_message,
@@ -14,11 +14,12 @@ use rustdds::bytes::Bytes;
 use rustdds::no_key::{DataWriter, SerializerAdapter};
 use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{
-    DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
-    RepresentationIdentifier, TopicKind,
+    DataWriterStatus, DomainParticipant, DomainParticipantBuilder, QosPolicies, QosPolicyBuilder,
+    RepresentationIdentifier, StatusEvented, TopicKind,
 };
 
 use super::config::{Ros2Config, Ros2Qos};
+use super::handoff::{Next, Receiver};
 use super::messages::{diagnostics, raw_imu_message};
 use super::{Item, Ros2Error, Shared, stats_of};
 
@@ -40,6 +41,33 @@ impl SerializerAdapter<CdrPayload> for CdrPayloadAdapter {
 
 type Writer = DataWriter<CdrPayload, CdrPayloadAdapter>;
 
+/// How long the thread sleeps with nothing queued before it looks at its writers' reader
+/// matches again (so their status queues, four events deep, are read while no samples flow).
+const IDLE_STATUS_POLL: Duration = Duration::from_millis(50);
+
+/// A topic's writer and how many readers it is matched with.
+struct TopicWriter {
+    writer: Writer,
+    /// Matched readers, from the writer's latest `PublicationMatched` status (which carries the
+    /// current count, so a missed intermediate event is harmless).
+    readers: i32,
+}
+
+impl TopicWriter {
+    fn new(writer: Writer) -> Self {
+        Self { writer, readers: 0 }
+    }
+
+    /// Takes the writer's queued status events.
+    fn poll_status(&mut self) {
+        while let Some(status) = self.writer.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched { current, .. } = status {
+                self.readers = current.count();
+            }
+        }
+    }
+}
+
 /// What the thread needs to start.
 pub(super) struct Setup {
     pub config: Ros2Config,
@@ -49,11 +77,25 @@ pub(super) struct Setup {
 
 /// The writers of the configured topics (`None`: the topic is off).
 struct Writers {
-    imu: Option<Writer>,
-    imu_raw: Option<Writer>,
-    mag: Option<Writer>,
-    temperature: Option<Writer>,
-    diagnostics: Option<Writer>,
+    imu: Option<TopicWriter>,
+    imu_raw: Option<TopicWriter>,
+    mag: Option<TopicWriter>,
+    temperature: Option<TopicWriter>,
+    diagnostics: Option<TopicWriter>,
+}
+
+impl Writers {
+    fn each(&mut self) -> impl Iterator<Item = &mut TopicWriter> {
+        [
+            &mut self.imu,
+            &mut self.imu_raw,
+            &mut self.mag,
+            &mut self.temperature,
+            &mut self.diagnostics,
+        ]
+        .into_iter()
+        .flatten()
+    }
 }
 
 /// The thread's state.
@@ -121,7 +163,7 @@ impl Publisher {
                 .map_err(dds_error(format!("topic {topic_name}")))?;
             publisher
                 .create_datawriter_no_key::<CdrPayload, CdrPayloadAdapter>(&topic, Some(q.clone()))
-                .map(Some)
+                .map(|w| Some(TopicWriter::new(w)))
                 .map_err(dds_error(format!("writer of {topic_name}")))
         };
         let t = &c.topics;
@@ -158,9 +200,13 @@ impl Publisher {
     }
 
     /// Publishes items until the sink is dropped and the queue is empty.
-    pub(super) fn run(&mut self, rx: &Receiver<Item>) {
-        while let Ok(item) = rx.recv() {
-            self.handle(item);
+    pub(super) fn run(&mut self, mut rx: Receiver<Item>) {
+        loop {
+            match rx.next(IDLE_STATUS_POLL) {
+                Next::Item(item) => self.handle(item),
+                Next::Idle => self.writers.each().for_each(TopicWriter::poll_status),
+                Next::Closed => return,
+            }
         }
     }
 
@@ -209,19 +255,27 @@ impl Publisher {
 
     fn write<M: RosMessage>(&mut self, topic: Topic, msg: &M) {
         let writer = match topic {
-            Topic::Imu => &self.writers.imu,
-            Topic::ImuRaw => &self.writers.imu_raw,
-            Topic::Mag => &self.writers.mag,
-            Topic::Temperature => &self.writers.temperature,
-            Topic::Diagnostics => &self.writers.diagnostics,
+            Topic::Imu => &mut self.writers.imu,
+            Topic::ImuRaw => &mut self.writers.imu_raw,
+            Topic::Mag => &mut self.writers.mag,
+            Topic::Temperature => &mut self.writers.temperature,
+            Topic::Diagnostics => &mut self.writers.diagnostics,
         };
         let Some(writer) = writer else { return };
+        writer.poll_status();
+        if writer.readers <= 0 {
+            // Volatile writers: a reader matched later would not get this message either.
+            self.shared
+                .not_sent_unmatched
+                .fetch_add(1, Ordering::Relaxed);
+            return;
+        }
         self.scratch.clear();
         msg.encode_into(&mut self.scratch);
         let payload = CdrPayload(Bytes::copy_from_slice(
             &self.scratch[ros2::CDR_LE_HEADER.len()..],
         ));
-        match writer.write(payload, None) {
+        match writer.writer.write(payload, None) {
             Ok(()) => {
                 self.shared.written.fetch_add(1, Ordering::Relaxed);
             }
