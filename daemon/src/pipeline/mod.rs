@@ -692,15 +692,19 @@ mod tests {
         }
     }
 
-    #[test]
-    fn continuous_gaps_are_counted_and_flagged() {
-        let gains = Gains {
+    /// The 3DM-GX1's usual GainScales.
+    fn test_gains(fallback: GainFallback) -> Gains {
+        Gains {
             accel: 7000,
             gyro: 10000,
             mag: 2000,
-            fallback: GainFallback::NONE,
-        };
-        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+            fallback,
+        }
+    }
+
+    #[test]
+    fn continuous_gaps_are_counted_and_flagged() {
+        let mut p = Pipeline::new(test_gains(GainFallback::NONE), 6.5536e-3, None);
         p.set_continuous(true);
         let mut sinks = Sinks::default();
         let lost = [300u64, 301, 302, 500];
@@ -746,13 +750,7 @@ mod tests {
             recorder: Some(recorder),
             ..Sinks::default()
         };
-        let gains = Gains {
-            accel: 7000,
-            gyro: 10000,
-            mag: 2000,
-            fallback: GainFallback::NONE,
-        };
-        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        let mut p = Pipeline::new(test_gains(GainFallback::NONE), 6.5536e-3, None);
         let mut bytes = Vec::new();
         raw(10).encode(&mut bytes);
         Reply::Temperature {
@@ -797,13 +795,7 @@ mod tests {
 
     #[test]
     fn polled_streams_do_not_count_gaps() {
-        let gains = Gains {
-            accel: 7000,
-            gyro: 10000,
-            mag: 2000,
-            fallback: GainFallback::ALL,
-        };
-        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        let mut p = Pipeline::new(test_gains(GainFallback::ALL), 6.5536e-3, None);
         p.set_continuous(false);
         let mut sinks = Sinks::default();
         for k in 0..300u64 {
