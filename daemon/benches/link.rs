@@ -11,6 +11,9 @@
 //! Run: `cargo bench -p imud --bench link` (`-- mip` for the MIP part alone). Numbers go to
 //! BENCHMARKS.md.
 
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
+
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -69,15 +72,6 @@ fn stop(mut child: Child) {
         .args(["-TERM", &child.id().to_string()])
         .status();
     let _ = child.wait();
-}
-
-fn cpu_ticks(pid: u32) -> u64 {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-    let after = stat.rsplit_once(')').map_or("", |(_, a)| a);
-    let f: Vec<&str> = after.split_whitespace().collect();
-    // Fields 14 and 15 (utime, stime) are at 11 and 12 after the command name.
-    f.get(11).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0)
-        + f.get(12).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0)
 }
 
 fn recorded_raw(dir: &Path) -> usize {
@@ -206,15 +200,14 @@ fn cpu(rate_hz: f64, protocol: DeviceProtocol) {
     let daemon = imud(dir.path(), &name, baud, protocol);
     let sim = sim(dir.path(), &text, Pacing::RealTime);
     std::thread::sleep(Duration::from_secs(3));
-    let (t0, c0) = (Instant::now(), cpu_ticks(daemon.id()));
+    let (t0, c0) = (Instant::now(), cpu_time::cpu_ns(daemon.id()));
     std::thread::sleep(Duration::from_secs(15));
-    let (t1, c1) = (Instant::now(), cpu_ticks(daemon.id()));
-    // USER_HZ is 100 on Linux.
-    let cpu_pct = (c1 - c0) as f64 / 100.0 / (t1 - t0).as_secs_f64() * 100.0;
+    let (t1, c1) = (Instant::now(), cpu_time::cpu_ns(daemon.id()));
+    let cpu_pct = (c1 - c0) as f64 * 1e-9 / (t1 - t0).as_secs_f64() * 100.0;
     drop(sim);
     stop(daemon);
     println!(
-        "cpu: imud ({protocol}) at {rate_hz} Hz uses {cpu_pct:.1} % of one core (user+system, 15 s window, logging and publishing on)"
+        "cpu: imud ({protocol}) at {rate_hz} Hz uses {cpu_pct:.1} % of one core (on-CPU time from schedstat, 15 s window, logging and publishing on)"
     );
 }
 

@@ -4,7 +4,7 @@
 //! 1. Latency from imud reading a frame's last byte (`RawSample::t_host_wall_ns`) to the Cyclone
 //!    reader's listener receiving the `sensor_msgs/Imu` of that sample (wall clock, same host),
 //!    at 500 Hz: p50, p99, p99.9 and the maximum.
-//! 2. The CPU imud adds at 1 kHz: the process's user+system time over the same 15 s window with
+//! 2. The CPU imud adds at 1 kHz: the process's on-CPU time (schedstat) over the same 15 s window with
 //!    `--ros2` and a matched subscriber, and without `--ros2` (the simulator runs in imud's
 //!    process in both, so the difference is the DDS output).
 //!
@@ -12,11 +12,14 @@
 //! adds `[ros2]` lines (`;`-separated, e.g. `depth = 5`); `ROS2_BENCH_LATENCY_ONLY=1` skips the
 //! CPU part.
 
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
 #[path = "../tests/ros2_common/mod.rs"]
 mod ros2_common;
 
 use std::time::{Duration, Instant};
 
+use cpu_time::{cpu_ns, thread_cpu_ns};
 use ros2_common::{End, Options, Started, samples, stamp_ns};
 
 /// A still device for `duration_s` at `rate_hz`; the truth is the identity.
@@ -95,38 +98,11 @@ fn report_drops(run: &ros2_common::Run) {
     );
 }
 
-fn cpu_ticks(pid: u32) -> u64 {
-    cpu_ticks_of(&format!("/proc/{pid}/stat"))
-}
-
-/// utime + stime of a `stat` file, clock ticks.
-fn cpu_ticks_of(path: &str) -> u64 {
-    let stat = std::fs::read_to_string(path).unwrap_or_default();
-    // Fields after the command name (which may hold spaces): utime is the 12th, stime the 13th.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let f: Vec<u64> = rest
-        .split_whitespace()
-        .map(|x| x.parse().unwrap_or(0))
-        .collect();
-    f.get(11).copied().unwrap_or(0) + f.get(12).copied().unwrap_or(0)
-}
-
-/// CPU ticks of imud's DDS threads (the `imud-ros2` thread and rustdds's own).
-fn dds_thread_ticks(pid: u32) -> u64 {
-    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
-        return 0;
-    };
-    tasks
-        .filter_map(Result::ok)
-        .filter(|t| {
-            let comm = std::fs::read_to_string(t.path().join("comm")).unwrap_or_default();
-            comm.starts_with("imud-ros2") || comm.starts_with("RustDDS")
-        })
-        .map(|t| {
-            let tid: u32 = t.file_name().to_string_lossy().parse().unwrap_or(0);
-            cpu_ticks_of(&format!("/proc/{pid}/task/{tid}/stat"))
-        })
-        .sum()
+/// imud's DDS threads (the `imud-ros2` thread and rustdds's own).
+fn dds_thread_ns(pid: u32) -> u64 {
+    thread_cpu_ns(pid, |comm| {
+        comm.starts_with("imud-ros2") || comm.starts_with("RustDDS")
+    })
 }
 
 /// Which readers the CPU measurement runs with.
@@ -162,9 +138,9 @@ fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
         .imud_pid(Duration::from_secs(30))
         .expect("imud started");
     std::thread::sleep(Duration::from_secs(5));
-    let (t0, c0, d0) = (Instant::now(), cpu_ticks(pid), dds_thread_ticks(pid));
+    let (t0, c0, d0) = (Instant::now(), cpu_ns(pid), dds_thread_ns(pid));
     std::thread::sleep(Duration::from_secs(15));
-    let (t1, c1, d1) = (Instant::now(), cpu_ticks(pid), dds_thread_ticks(pid));
+    let (t1, c1, d1) = (Instant::now(), cpu_ns(pid), dds_thread_ns(pid));
     let run = started.finish().expect("cyclonedds and unshare are needed");
     if ros2 {
         let got = samples(&run.peer["early"]["imu"], "imu").len();
@@ -174,8 +150,7 @@ fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
         );
         report_drops(&run);
     }
-    // Clock ticks are 1/100 s on Linux.
-    let pct = |ticks: u64| ticks as f64 / 100.0 / (t1 - t0).as_secs_f64() * 100.0;
+    let pct = |ns: u64| ns as f64 * 1e-9 / (t1 - t0).as_secs_f64() * 100.0;
     (pct(c1 - c0), pct(d1 - d0))
 }
 
