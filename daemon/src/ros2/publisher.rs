@@ -45,26 +45,49 @@ type Writer = DataWriter<CdrPayload, CdrPayloadAdapter>;
 /// matches again (so their status queues, four events deep, are read while no samples flow).
 const IDLE_STATUS_POLL: Duration = Duration::from_millis(50);
 
+/// Depth of a rustdds 0.15 writer's status queue (`sync_status_channel(4)` in
+/// `create_datawriter`); when it is full, rustdds drops the newest event.
+const STATUS_QUEUE_DEPTH: usize = 4;
+
 /// A topic's writer and how many readers it is matched with.
 struct TopicWriter {
     writer: Writer,
-    /// Matched readers, from the writer's latest `PublicationMatched` status (which carries the
-    /// current count, so a missed intermediate event is harmless).
+    /// Matched readers, from the writer's latest `PublicationMatched` status (it carries the
+    /// current count, so only the newest event matters).
     readers: i32,
+    /// The status queue was found full: newer events may have been dropped, so the count may be
+    /// stale. Until an event is read from a queue that was not full, the topic is written
+    /// whatever the count says (a message to nobody costs only CPU; a skipped one to a reader
+    /// would be lost).
+    count_uncertain: bool,
 }
 
 impl TopicWriter {
     fn new(writer: Writer) -> Self {
-        Self { writer, readers: 0 }
+        Self {
+            writer,
+            readers: 0,
+            count_uncertain: false,
+        }
     }
 
     /// Takes the writer's queued status events.
     fn poll_status(&mut self) {
+        let mut events = 0;
         while let Some(status) = self.writer.try_recv_status() {
+            events += 1;
             if let DataWriterStatus::PublicationMatched { current, .. } = status {
                 self.readers = current.count();
             }
         }
+        if events > 0 {
+            self.count_uncertain = events >= STATUS_QUEUE_DEPTH;
+        }
+    }
+
+    /// Whether a message on this topic can reach anybody.
+    fn has_readers(&self) -> bool {
+        self.readers > 0 || self.count_uncertain
     }
 }
 
@@ -263,7 +286,7 @@ impl Publisher {
         };
         let Some(writer) = writer else { return };
         writer.poll_status();
-        if writer.readers <= 0 {
+        if !writer.has_readers() {
             // Volatile writers: a reader matched later would not get this message either.
             self.shared
                 .not_sent_unmatched
