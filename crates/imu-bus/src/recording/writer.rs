@@ -583,15 +583,16 @@ pub(super) fn write_record(
             corrected,
         } => {
             if let Some(frame) = frame {
-                let msg = RawFrameMsg {
-                    header: header(raw.t_host_wall_ns, frame_id),
+                // The accepted frame, at the host times of the read that completed it.
+                let frame = LogRecord::RawFrame {
+                    t_host_wall_ns: raw.t_host_wall_ns,
                     t_host_monotonic_ns: raw.t_host_monotonic_ns,
                     stream_offset: frame.stream_offset,
                     accepted: true,
-                    reject_reason: String::new(),
-                    data: frame.bytes.into_vec(),
+                    reject_reason: None,
+                    bytes: frame.bytes,
                 };
-                file.write_msg(CH_FRAME, raw.t_host_wall_ns, &msg, scratch)?;
+                write_record(file, frame, frame_id, noise, scratch)?;
             }
             write_raw(file, raw, frame_id, scratch)?;
             write_corrected(file, &corrected, frame_id, noise, scratch)
