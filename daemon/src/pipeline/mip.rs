@@ -69,7 +69,7 @@ impl Pipeline {
     ) {
         match ev {
             MipEvent::Packet { packet, offset } => {
-                self.hold_frame(packet.as_bytes(), offset, t_mono_ns, t_wall_ns, sinks);
+                self.hold_frame(packet.as_bytes(), offset);
                 if packet.descriptor_set() == IMU_DATA {
                     self.on_mip_data_packet(&packet, t_mono_ns, t_wall_ns, sinks);
                 }

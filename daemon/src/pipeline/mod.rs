@@ -314,7 +314,7 @@ impl Pipeline {
                 bytes,
                 offset,
             } => {
-                self.hold_frame(&bytes, offset, t_mono_ns, t_wall_ns, sinks);
+                self.hold_frame(&bytes, offset);
                 self.on_reply(&reply, t_mono_ns, t_wall_ns, sinks);
                 self.flush_frame(t_mono_ns, t_wall_ns, sinks);
             }
@@ -335,21 +335,15 @@ impl Pipeline {
         t_wall_ns: u64,
         sinks: &Sinks,
     ) {
-        self.hold_frame(bytes, offset, t_mono_ns, t_wall_ns, sinks);
+        self.hold_frame(bytes, offset);
         self.flush_frame(t_mono_ns, t_wall_ns, sinks);
     }
 
     /// Counts one good frame and keeps it for the sample it may make (logged with it, as one
-    /// record); a frame still held from before is logged first.
-    pub(crate) fn hold_frame(
-        &mut self,
-        bytes: &[u8],
-        offset: u64,
-        t_mono_ns: u64,
-        t_wall_ns: u64,
-        sinks: &Sinks,
-    ) {
-        self.flush_frame(t_mono_ns, t_wall_ns, sinks);
+    /// record). Every event that holds a frame flushes it before it returns, so none is held
+    /// from an earlier event.
+    pub(crate) fn hold_frame(&mut self, bytes: &[u8], offset: u64) {
+        debug_assert!(self.pending_frame.is_none(), "a frame held past its event");
         self.counters.frames += 1;
         self.pending_frame = Some(SampleFrame {
             stream_offset: offset,

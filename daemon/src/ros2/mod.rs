@@ -56,8 +56,6 @@ enum Item {
         raw: RawSample,
         corrected: CorrectedSample,
     },
-    Raw(RawSample),
-    Corrected(CorrectedSample),
     Temperature {
         t_wall_ns: u64,
         temp_c: f64,
@@ -144,8 +142,6 @@ impl Ros2Sink {
                 raw: *raw,
                 corrected: *corrected,
             },
-            LogRecord::Raw(raw) => Item::Raw(*raw),
-            LogRecord::Corrected(c) => Item::Corrected(*c),
             LogRecord::Temperature { t_wall_ns, temp_c } => Item::Temperature {
                 t_wall_ns: *t_wall_ns,
                 temp_c: *temp_c,
@@ -157,7 +153,12 @@ impl Ros2Sink {
             },
             // The health states reach /diagnostics with the status (`health_accel`,
             // `health_gyro`); the per-window reports are on shared memory and in the MCAP.
-            LogRecord::RawFrame { .. } | LogRecord::Health(_) => return,
+            // The pipeline logs every sample as one `Sample`; separate raw and corrected records
+            // are other producers' (the recorder's tests), never the daemon's.
+            LogRecord::RawFrame { .. }
+            | LogRecord::Health(_)
+            | LogRecord::Raw(_)
+            | LogRecord::Corrected(_) => return,
         };
         self.send(item);
     }

@@ -129,8 +129,6 @@ pub(super) struct Publisher {
     setup: Setup,
     shared: Arc<Shared>,
     noise: Option<ImuNoiseVariances>,
-    /// The raw sample waiting for its corrected sample (same `seq`), for the stamp they share.
-    pending_raw: Option<RawSample>,
     scratch: Vec<u8>,
     warned_write_failure: bool,
 }
@@ -216,7 +214,6 @@ impl Publisher {
             setup,
             shared,
             noise: None,
-            pending_raw: None,
             scratch: Vec::with_capacity(512),
             warned_write_failure: false,
         })
@@ -235,12 +232,7 @@ impl Publisher {
 
     fn handle(&mut self, item: Item) {
         match item {
-            Item::Sample { raw, corrected } => {
-                self.pending_raw = Some(raw);
-                self.on_corrected(&corrected);
-            }
-            Item::Raw(raw) => self.pending_raw = Some(raw),
-            Item::Corrected(c) => self.on_corrected(&c),
+            Item::Sample { raw, corrected } => self.on_sample(&raw, &corrected),
             Item::Temperature { t_wall_ns, temp_c } => {
                 let msg = temperature_message(t_wall_ns, temp_c, &self.setup.frame_id);
                 self.write(Topic::Temperature, &msg);
@@ -260,20 +252,15 @@ impl Publisher {
         }
     }
 
-    /// A corrected sample: `imu/data`, `imu/mag` and, with its raw sample, `imu/data_raw`.
-    fn on_corrected(&mut self, c: &CorrectedSample) {
+    /// A sample: `imu/data`, `imu/mag` and `imu/data_raw`.
+    fn on_sample(&mut self, raw: &RawSample, c: &CorrectedSample) {
         let frame_id = &self.setup.frame_id;
         let imu = imu_message(c, frame_id, self.noise.as_ref());
         let mag = magnetic_field_message(c, frame_id, self.noise.as_ref());
-        let raw = match self.pending_raw.take() {
-            Some(raw) if raw.seq == c.seq => Some(raw_imu_message(&raw, c, frame_id)),
-            _ => None,
-        };
+        let raw = raw_imu_message(raw, c, frame_id);
         self.write(Topic::Imu, &imu);
         self.write(Topic::Mag, &mag);
-        if let Some(raw) = raw {
-            self.write(Topic::ImuRaw, &raw);
-        }
+        self.write(Topic::ImuRaw, &raw);
     }
 
     fn write<M: RosMessage>(&mut self, topic: Topic, msg: &M) {
