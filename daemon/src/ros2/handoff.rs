@@ -17,7 +17,7 @@ use std::cell::RefCell;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering, fence};
 use std::thread::Thread;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Flags both ends share.
 #[derive(Debug, Default)]
@@ -109,24 +109,35 @@ pub(super) enum Next<T> {
 }
 
 impl<T> Receiver<T> {
-    /// The next item, waiting for one up to `timeout`.
+    /// The next item, waiting for one up to `timeout`. [`Next::Idle`] means the whole timeout
+    /// passed with nothing queued: a park that returns early (an unpark token left by a wake-up
+    /// the consumer did not need, or a spurious return) parks again for the time left.
     pub(super) fn next(&mut self, timeout: Duration) -> Next<T> {
         if let Ok(item) = self.consumer.pop() {
             return Next::Item(item);
         }
-        self.flags.parked.store(true, Ordering::SeqCst);
-        // Orders the flag before looking at the ring again (see the module comment).
-        fence(Ordering::SeqCst);
-        if self.consumer.is_empty() && !self.flags.closed.load(Ordering::SeqCst) {
-            std::thread::park_timeout(timeout);
-        }
-        self.flags.parked.store(false, Ordering::SeqCst);
-        match self.consumer.pop() {
-            Ok(item) => Next::Item(item),
-            Err(_) if self.flags.closed.load(Ordering::SeqCst) && self.consumer.is_empty() => {
-                Next::Closed
+        let deadline = Instant::now() + timeout;
+        loop {
+            if self.flags.closed.load(Ordering::SeqCst) {
+                // The producer pushed everything before it closed.
+                return match self.consumer.pop() {
+                    Ok(item) => Next::Item(item),
+                    Err(_) => Next::Closed,
+                };
             }
-            Err(_) => Next::Idle,
+            let Some(left) = deadline.checked_duration_since(Instant::now()) else {
+                return Next::Idle;
+            };
+            self.flags.parked.store(true, Ordering::SeqCst);
+            // Orders the flag before looking at the ring again (see the module comment).
+            fence(Ordering::SeqCst);
+            if self.consumer.is_empty() && !self.flags.closed.load(Ordering::SeqCst) {
+                std::thread::park_timeout(left);
+            }
+            self.flags.parked.store(false, Ordering::SeqCst);
+            if let Ok(item) = self.consumer.pop() {
+                return Next::Item(item);
+            }
         }
     }
 }
@@ -166,6 +177,10 @@ mod tests {
                     std::thread::sleep(Duration::from_micros(50));
                 }
             } else {
+                if consumer.is_finished() {
+                    // It failed and left the ring full: its join below says why.
+                    break;
+                }
                 std::thread::yield_now();
             }
         }
@@ -186,5 +201,23 @@ mod tests {
         }
         assert_eq!(got, [1, 2]);
         assert!(matches!(rx.next(Duration::from_millis(1)), Next::Closed));
+    }
+
+    /// An unpark token left over from a wake-up the consumer did not need (the producer saw the
+    /// flag of a park that found an item) makes the next park return at once; `next` parks again
+    /// for the rest of the timeout instead of reporting an idle timeout that did not happen.
+    #[test]
+    fn a_leftover_wake_up_is_not_an_idle_timeout() {
+        let (tx, mut rx) = channel::<u32>(2);
+        let _tx = tx.bind(std::thread::current());
+        std::thread::current().unpark();
+        let timeout = Duration::from_millis(20);
+        let start = Instant::now();
+        assert!(matches!(rx.next(timeout), Next::Idle));
+        assert!(
+            start.elapsed() >= timeout,
+            "idle after {:?}",
+            start.elapsed()
+        );
     }
 }
