@@ -21,17 +21,19 @@ impl Lcg {
     }
 }
 
-/// A continuous 100 Hz raw-bits stream from a device whose clock runs `drift_ppm` fast.
+/// A continuous raw-bits stream (100 Hz unless said) from a device whose clock runs
+/// `drift_ppm` fast.
 struct Link {
     drift_ppm: f64,
     rng: Lcg,
+    period_s: f64,
 }
 
 impl Link {
     /// True host time of sample `k`, s, and its frame.
     fn sample(&self, k: u64) -> (f64, Vec<u8>) {
-        let device_s = 3.0 + k as f64 * 0.01;
-        let host_s = 50.0 + k as f64 * 0.01 / (1.0 + self.drift_ppm * 1e-6);
+        let device_s = 3.0 + k as f64 * self.period_s;
+        let host_s = 50.0 + k as f64 * self.period_s / (1.0 + self.drift_ppm * 1e-6);
         let ticks = ((device_s / TICK_S).floor() as u64 % 65_536) as u16;
         let w = |i: u64| 32_768 + ((k * 7 + i * 13) % 50) as u16;
         let mut bytes = Vec::with_capacity(23);
@@ -88,6 +90,7 @@ fn ten_clean_minutes_with_20_ms_of_host_jitter_lose_nothing() {
     let mut link = Link {
         drift_ppm: 80.0,
         rng: Lcg(1),
+        period_s: 0.01,
     };
     let mut p = pipeline();
     let mut decoder = ReplyDecoder::new();
@@ -120,11 +123,46 @@ fn ten_clean_minutes_with_20_ms_of_host_jitter_lose_nothing() {
     );
 }
 
+/// Several samples a tick (200 Hz to 1 kHz on 6.5536 ms ticks): a clean link with host jitter
+/// loses nothing (the tracker counted 6 to 516 phantom losses in 30 000 samples there before),
+/// and the stamps keep the device's spacing.
+#[test]
+fn clean_links_above_one_sample_a_tick_lose_nothing() {
+    for (rate_hz, seed) in [(200.0, 4), (333.0, 5), (500.0, 6), (1000.0, 7)] {
+        let period_s = 1.0 / rate_hz;
+        let mut link = Link {
+            drift_ppm: 60.0,
+            rng: Lcg(seed),
+            period_s,
+        };
+        let mut p = pipeline();
+        let mut decoder = ReplyDecoder::new();
+        let mut stamps = Vec::new();
+        let mut arrival_s = 0.0f64;
+        let n = 30_000;
+        for k in 0..n {
+            let (t_s, bytes) = link.sample(k);
+            arrival_s = arrival_s.max(t_s + 0.0005 + 0.003 * link.rng.unit());
+            deliver(&mut p, &mut decoder, &bytes, arrival_s, &mut stamps);
+        }
+        assert_eq!(p.counters().samples, n, "{rate_hz} Hz");
+        assert_eq!(p.counters().samples_lost, 0, "{rate_hz} Hz");
+        assert!(stamps.windows(2).all(|w| w[1] > w[0]), "stamps repeat");
+        let spacing_s =
+            (stamps[n as usize - 1] - stamps[n as usize / 2]) as f64 * 1e-9 / (n / 2 - 1) as f64;
+        assert!(
+            (spacing_s / period_s - 1.0).abs() < 1e-3,
+            "{rate_hz} Hz: mean spacing {spacing_s} s"
+        );
+    }
+}
+
 #[test]
 fn three_percent_byte_corruption_and_bursts_count_the_lost_frames() {
     let mut link = Link {
         drift_ppm: -40.0,
         rng: Lcg(2),
+        period_s: 0.01,
     };
     let mut p = pipeline();
     let mut decoder = ReplyDecoder::new();
@@ -170,6 +208,7 @@ fn stamps_and_drift_are_not_bent_by_one_second_stalls() {
     let link = Link {
         drift_ppm: 150.0,
         rng: Lcg(3),
+        period_s: 0.01,
     };
     let mut p = pipeline();
     let mut decoder = ReplyDecoder::new();
