@@ -14,6 +14,8 @@
 
 #[path = "common/cpu_time.rs"]
 mod cpu_time;
+#[path = "common/handoff_floor.rs"]
+mod handoff_floor;
 #[path = "../tests/ros2_common/mod.rs"]
 mod ros2_common;
 
@@ -163,6 +165,15 @@ fn main() {
     if std::env::var_os("ROS2_BENCH_LATENCY_ONLY").is_some() {
         return;
     }
+    let floor = |hops| handoff_floor::measure(hops, 1000.0, Duration::from_secs(10));
+    let (two, one) = (
+        floor(handoff_floor::Hops::Two),
+        floor(handoff_floor::Hops::One),
+    );
+    println!(
+        "hand-off floor at 1 kHz (no encoding, no DDS; one 400-byte datagram a sample), % of one \
+         core: two hops (imud's shape) {two:.2}, one hop {one:.2}"
+    );
     let (with, dds) = cpu(1000.0, Readers::ImuOnly);
     let (without, _) = cpu(1000.0, Readers::NoDds);
     println!(

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use imu_bus::recording::{
     ImuNoiseVariances, imu_message, magnetic_field_message, temperature_message,
@@ -45,6 +45,12 @@ type Writer = DataWriter<CdrPayload, CdrPayloadAdapter>;
 /// matches again (so their status queues, four events deep, are read while no samples flow).
 const IDLE_STATUS_POLL: Duration = Duration::from_millis(50);
 
+/// How often a writer that has readers looks at its status queue while samples flow. Each look is
+/// a syscall (rustdds drains its status channel's wake-up socket on every `try_recv`), and a
+/// count that lags by this much can only send messages to nobody for that long; a writer without
+/// readers looks before every write, so a reader that matches gets every message from then on.
+const MATCHED_STATUS_POLL: Duration = Duration::from_millis(100);
+
 /// Depth of a rustdds 0.15 writer's status queue (`sync_status_channel(4)` in
 /// `create_datawriter`); when it is full, rustdds drops the newest event.
 const STATUS_QUEUE_DEPTH: usize = 4;
@@ -60,6 +66,8 @@ struct TopicWriter {
     /// whatever the count says (a message to nobody costs only CPU; a skipped one to a reader
     /// would be lost).
     count_uncertain: bool,
+    /// When a writer with readers next looks at its status queue before a write.
+    next_status_poll: Instant,
 }
 
 impl TopicWriter {
@@ -68,7 +76,19 @@ impl TopicWriter {
             writer,
             readers: 0,
             count_uncertain: false,
+            next_status_poll: Instant::now(),
         }
+    }
+
+    /// Reads the status queue if the reader count may have changed in a way that matters before
+    /// a write: always while there are no readers, every [`MATCHED_STATUS_POLL`] otherwise.
+    fn poll_status_before_write(&mut self) {
+        let now = Instant::now();
+        if self.has_readers() && now < self.next_status_poll {
+            return;
+        }
+        self.poll_status();
+        self.next_status_poll = now + MATCHED_STATUS_POLL;
     }
 
     /// Takes the writer's queued status events.
@@ -272,7 +292,7 @@ impl Publisher {
             Topic::Diagnostics => &mut self.writers.diagnostics,
         };
         let Some(writer) = writer else { return };
-        writer.poll_status();
+        writer.poll_status_before_write();
         if !writer.has_readers() {
             // Volatile writers: a reader matched later would not get this message either.
             self.shared
