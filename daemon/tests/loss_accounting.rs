@@ -85,6 +85,21 @@ fn deliver(
     }
 }
 
+/// `n` samples of an uncorrupted link, each arriving `late_s` plus up to `jitter_s` after it was
+/// sent (bytes still in order): the pipeline after them and the samples' stamps.
+fn clean_run(link: &mut Link, n: u64, late_s: f64, jitter_s: f64) -> (Pipeline, Vec<u64>) {
+    let mut p = pipeline();
+    let mut decoder = ReplyDecoder::new();
+    let mut stamps = Vec::new();
+    let mut arrival_s = 0.0f64;
+    for k in 0..n {
+        let (t_s, bytes) = link.sample(k);
+        arrival_s = arrival_s.max(t_s + late_s + jitter_s * link.rng.unit());
+        deliver(&mut p, &mut decoder, &bytes, arrival_s, &mut stamps);
+    }
+    (p, stamps)
+}
+
 #[test]
 fn ten_clean_minutes_with_20_ms_of_host_jitter_lose_nothing() {
     let mut link = Link {
@@ -92,17 +107,9 @@ fn ten_clean_minutes_with_20_ms_of_host_jitter_lose_nothing() {
         rng: Lcg(1),
         period_s: 0.01,
     };
-    let mut p = pipeline();
-    let mut decoder = ReplyDecoder::new();
-    let mut stamps = Vec::new();
-    let mut arrival_s = 0.0f64;
     let n = 60_000;
-    for k in 0..n {
-        let (t_s, bytes) = link.sample(k);
-        // Late by 1 ms plus up to 20 ms; bytes still arrive in order.
-        arrival_s = arrival_s.max(t_s + 0.001 + 0.02 * link.rng.unit());
-        deliver(&mut p, &mut decoder, &bytes, arrival_s, &mut stamps);
-    }
+    // Late by 1 ms plus up to 20 ms.
+    let (p, stamps) = clean_run(&mut link, n, 0.001, 0.02);
     assert_eq!(p.counters().samples, n);
     assert_eq!(p.counters().samples_lost, 0);
     assert!(stamps.windows(2).all(|w| w[1] > w[0]), "stamps repeat");
@@ -135,16 +142,8 @@ fn clean_links_above_one_sample_a_tick_lose_nothing() {
             rng: Lcg(seed),
             period_s,
         };
-        let mut p = pipeline();
-        let mut decoder = ReplyDecoder::new();
-        let mut stamps = Vec::new();
-        let mut arrival_s = 0.0f64;
         let n = 30_000;
-        for k in 0..n {
-            let (t_s, bytes) = link.sample(k);
-            arrival_s = arrival_s.max(t_s + 0.0005 + 0.003 * link.rng.unit());
-            deliver(&mut p, &mut decoder, &bytes, arrival_s, &mut stamps);
-        }
+        let (p, stamps) = clean_run(&mut link, n, 0.0005, 0.003);
         assert_eq!(p.counters().samples, n, "{rate_hz} Hz");
         assert_eq!(p.counters().samples_lost, 0, "{rate_hz} Hz");
         assert!(stamps.windows(2).all(|w| w[1] > w[0]), "stamps repeat");
