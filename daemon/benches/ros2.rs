@@ -112,6 +112,8 @@ fn dds_thread_ns(pid: u32) -> u64 {
 enum Readers {
     /// No `--ros2`, no peer.
     NoDds,
+    /// `--ros2`, no reader of any topic (nothing is written).
+    Nobody,
     /// `--ros2`, a reader of `imu/data` only (the other topics have none: not sent).
     ImuOnly,
     /// `--ros2`, the peer's readers of every topic.
@@ -122,6 +124,7 @@ enum Readers {
 /// process and its DDS threads.
 fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
     let ros2 = readers != Readers::NoDds;
+    let peer = matches!(readers, Readers::ImuOnly | Readers::Every);
     let baud = 460_800;
     let started = Started::start(&Options {
         scenario: scenario(rate_hz, 30.0, baud),
@@ -130,7 +133,7 @@ fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
             .unwrap_or_default()
             .replace(";", "\n"),
         ros2,
-        peer: ros2,
+        peer,
         imu_only: readers == Readers::ImuOnly,
         late_after_s: 1e9,
         end: End::AfterS(22.0),
@@ -144,7 +147,7 @@ fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
     std::thread::sleep(Duration::from_secs(15));
     let (t1, c1, d1) = (Instant::now(), cpu_ns(pid), dds_thread_ns(pid));
     let run = started.finish().expect("cyclonedds and unshare are needed");
-    if ros2 {
+    if peer {
         let got = samples(&run.peer["early"]["imu"], "imu").len();
         println!(
             "  (subscriber received {got} of {} samples)",
@@ -180,6 +183,10 @@ fn main() {
         "cpu at 1 kHz, % of one core: imud --sim (simulator included) with --ros2 {with:.1}, \
          without {without:.1} (difference {:.1}); imud's DDS threads alone {dds:.1}",
         with - without
+    );
+    let (_, dds_nobody) = cpu(1000.0, Readers::Nobody);
+    println!(
+        "cpu at 1 kHz with --ros2 and no reader of any topic: imud's DDS threads {dds_nobody:.1}"
     );
     let (every, dds_every) = cpu(1000.0, Readers::Every);
     println!(
