@@ -22,7 +22,7 @@ mod ros2_common;
 use std::time::{Duration, Instant};
 
 use cpu_time::{cpu_ns, thread_cpu_ns};
-use ros2_common::{End, Options, Started, samples, stamp_ns};
+use ros2_common::{End, Options, PeerTopics, Started, samples, stamp_ns};
 
 /// A still device for `duration_s` at `rate_hz`; the truth is the identity.
 fn scenario(rate_hz: f64, duration_s: f64, baud: u32) -> String {
@@ -49,7 +49,7 @@ fn latency(rate_hz: f64, duration_s: f64) {
             .replace(";", "\n"),
         ros2: true,
         peer: true,
-        imu_only: true,
+        topics: PeerTopics::Only(&["imu"]),
         late_after_s: 1e9,
         end: End::PeerIdle,
         baud,
@@ -134,7 +134,11 @@ fn cpu(rate_hz: f64, readers: Readers) -> (f64, f64) {
             .replace(";", "\n"),
         ros2,
         peer,
-        imu_only: readers == Readers::ImuOnly,
+        topics: if readers == Readers::ImuOnly {
+            PeerTopics::Only(&["imu"])
+        } else {
+            PeerTopics::Every
+        },
         late_after_s: 1e9,
         end: End::AfterS(22.0),
         baud,

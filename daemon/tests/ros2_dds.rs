@@ -4,7 +4,8 @@
 //! the MCAP file the same run recorded: every sample, the same values, stamps, covariances and
 //! frame id. Also: a reliable reader does not match the default best-effort writer (gets nothing,
 //! and Cyclone reports the incompatible QoS), a reader that starts late gets every sample from
-//! its first one on, and with `qos = "reliable"` the reliable reader gets every sample.
+//! its first one on, with `qos = "reliable"` the reliable reader gets every sample, and a topic
+//! nobody reads is not written (counted in `/diagnostics`).
 //!
 //! Network confinement: daemon and peer run inside a network namespace this test creates
 //! (`ros2_common`: `unshare -rn`, a new user and network namespace with only `lo`, up, multicast
@@ -15,7 +16,7 @@ mod ros2_common;
 
 use imu_bus::recording::Recording;
 use imu_bus::ros2::Imu;
-use ros2_common::{End, Options, Run, Started, samples, stamp_ns};
+use ros2_common::{End, Options, PeerTopics, Run, Started, samples, stamp_ns};
 use serde_json::Value;
 
 const MODEL: &str = r#"
@@ -57,7 +58,7 @@ duration-s = 2.0
 /// A confined run of the scenario with the `[ros2]` QoS profile `qos` and frame id
 /// `imu_front` (the log keeps `imu_link`); `None` (a skip) when confinement or the peer is
 /// missing, unless `IMUD_REQUIRE_PEERS` is set.
-fn confined_run(qos: &str) -> Option<Run> {
+fn confined_run(qos: &str, topics: PeerTopics) -> Option<Run> {
     let skip = |why: String| {
         assert!(
             std::env::var_os("IMUD_REQUIRE_PEERS").is_none(),
@@ -75,7 +76,7 @@ fn confined_run(qos: &str) -> Option<Run> {
         ros2_config: format!("qos = \"{qos}\"\nframe-id = \"imu_front\""),
         ros2: true,
         peer: true,
-        imu_only: false,
+        topics,
         late_after_s: 1.5,
         end: End::PeerIdle,
         baud: 115_200,
@@ -274,7 +275,7 @@ fn cyclone_dds_receives_every_sample_as_ros2_imu() {
         peer,
         rec,
         imud_log,
-    }) = confined_run("sensor-data")
+    }) = confined_run("sensor-data", PeerTopics::Every)
     else {
         return;
     };
@@ -313,7 +314,7 @@ fn cyclone_dds_receives_every_sample_as_ros2_imu() {
 
 #[test]
 fn a_reliable_writer_serves_reliable_and_late_readers() {
-    let Some(Run { peer, rec, .. }) = confined_run("reliable") else {
+    let Some(Run { peer, rec, .. }) = confined_run("reliable", PeerTopics::Every) else {
         return;
     };
     assert!(rec.imu.len() >= 450);
@@ -323,4 +324,59 @@ fn a_reliable_writer_serves_reliable_and_late_readers() {
     // A best-effort reader matches a reliable writer too.
     assert_every_sample(samples(&peer["early"]["imu"], "imu"), &rec, "early reader");
     assert_late_tail(samples(&peer["late"], "late"), &rec);
+}
+
+/// A topic nobody reads is not written, and `/diagnostics` counts what was skipped: with readers
+/// of `imu/data` and `/diagnostics` only, every sample's `imu/mag` and `imu/data_raw` (and the
+/// temperatures) are skipped while `imu/data` still reaches its reader whole.
+#[test]
+fn topics_without_a_reader_are_not_written_and_are_counted() {
+    let Some(Run { peer, rec, .. }) =
+        confined_run("sensor-data", PeerTopics::Only(&["imu", "diagnostics"]))
+    else {
+        return;
+    };
+    let early = &peer["early"];
+    assert!(early.get("mag").is_none() && early.get("imu_raw").is_none());
+    assert_every_sample(samples(&early["imu"], "imu"), &rec, "early reader");
+    let diag = samples(&early["diagnostics"], "diagnostics");
+    // The last status while streaming; it was made on the DDS thread after the samples it
+    // counts had been handled there (one queue, in order), and before its own write.
+    let (k, streaming) = diag
+        .iter()
+        .enumerate()
+        .filter_map(|(k, d)| {
+            d["status"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|s| s["values"]["device_connected"] == "1")
+                .map(|s| (k, s))
+        })
+        .next_back()
+        .expect("a status while streaming");
+    let value = |key: &str| -> u64 {
+        streaming["values"][key]
+            .as_str()
+            .unwrap_or_else(|| panic!("no {key} in {streaming}"))
+            .parse()
+            .unwrap()
+    };
+    let samples_then = value("samples");
+    assert!(samples_then >= 100, "{streaming}");
+    assert_eq!(value("publish_drops"), 0);
+    let (written, unmatched) = (value("dds_written"), value("dds_not_sent_unmatched"));
+    assert!(
+        unmatched >= 2 * samples_then,
+        "{unmatched} skipped for {samples_then} samples (mag and data_raw each)"
+    );
+    // imu/data for each sample, at most, plus the diagnostics received before this one.
+    assert!(
+        written <= samples_then + k as u64,
+        "{written} written for {samples_then} samples and {k} diagnostics"
+    );
+    assert!(
+        written >= samples_then,
+        "{written} written for {samples_then} samples"
+    );
 }

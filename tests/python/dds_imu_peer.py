@@ -198,7 +198,11 @@ def main():
     ap.add_argument("--idle-s", type=float, default=2.0)
     ap.add_argument("--timeout-s", type=float, default=60.0)
     ap.add_argument("--late-after-s", type=float, default=1.0)
-    ap.add_argument("--imu-only", action="store_true", help="only the early imu/data reader (benchmarks)")
+    ap.add_argument(
+        "--topics",
+        help="comma-separated keys of the only early readers to make (imu, imu_raw, mag, temperature, "
+        "diagnostics; imu must be one), and no reliable reader; default: every topic",
+    )
     args = ap.parse_args()
 
     ns = args.namespace.strip("/")
@@ -226,16 +230,21 @@ def main():
         collectors.append(c)
         return c
 
-    early = {}
-    for key, name, ty, conv, qos in [
+    only = set(args.topics.split(",")) if args.topics else None
+    every = [
         ("imu", rel("imu/data"), Imu, imu_json, best_effort),
         ("imu_raw", rel("imu/data_raw"), Imu, imu_json, best_effort),
         ("mag", rel("imu/mag"), MagneticField, mag_json, best_effort),
         ("temperature", rel("imu/temperature"), Temperature, temperature_json, best_effort),
         ("diagnostics", "rt/diagnostics", DiagnosticArray, diagnostics_json, reliable),
-    ][: 1 if args.imu_only else None]:
-        early[key] = reader(name, ty, conv, qos)
-    rel_c = None if args.imu_only else reader(rel("imu/data"), Imu, imu_json, reliable)
+    ]
+    if only is not None and ("imu" not in only or not only <= {e[0] for e in every}):
+        ap.error(f"--topics {args.topics}: the keys are {[e[0] for e in every]}, imu among them")
+    early = {}
+    for key, name, ty, conv, qos in every:
+        if only is None or key in only:
+            early[key] = reader(name, ty, conv, qos)
+    rel_c = None if only is not None else reader(rel("imu/data"), Imu, imu_json, reliable)
     with open(args.ready, "w") as f:
         f.write("ready\n")
 

@@ -21,6 +21,16 @@ pub enum End {
     AfterS(f64),
 }
 
+/// Which readers the peer makes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PeerTopics {
+    /// An early reader of every topic, plus a reliable and a late reader of `imu/data`.
+    Every,
+    /// Early readers of these topics only, by the peer's keys (`imu`, `imu_raw`, `mag`,
+    /// `temperature`, `diagnostics`; `imu` must be one), and the late reader.
+    Only(&'static [&'static str]),
+}
+
 /// One confined run.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -34,8 +44,8 @@ pub struct Options {
     pub ros2: bool,
     /// Run the peer.
     pub peer: bool,
-    /// The peer reads only `imu/data` (benchmarks).
-    pub imu_only: bool,
+    /// Which readers the peer makes.
+    pub topics: PeerTopics,
     /// The peer's late reader starts this long after its first sample.
     pub late_after_s: f64,
     /// How the run ends.
@@ -90,7 +100,10 @@ done
 "#,
             peer = peer.display(),
             late = o.late_after_s,
-            only = if o.imu_only { " --imu-only" } else { "" },
+            only = match o.topics {
+                PeerTopics::Every => String::new(),
+                PeerTopics::Only(keys) => format!(" --topics {}", keys.join(",")),
+            },
         )
     } else {
         String::new()
