@@ -496,7 +496,9 @@ impl GapTracker {
         let (Some(&first), Some(&last)) = (learned.first(), learned.last()) else {
             return 0;
         };
-        let span = (last - first) as f64;
+        // Unwrapped ticks do not go back; saturating all the same, so a counter that did
+        // cannot underflow here (it only makes a set that soon slips and learns again).
+        let span = last.saturating_sub(first) as f64;
         if span < 1.0 {
             return 0; // a counter that did not move: try again with the next samples
         }
@@ -505,13 +507,13 @@ impl GapTracker {
         let mut intervals = [0u64; LEARN_SAMPLES];
         let mut interval = 0;
         for (k, w) in learned.windows(2).enumerate() {
-            interval += 1 + certain_losses(w[1] - w[0], step_hi);
+            interval += 1 + certain_losses(w[1].saturating_sub(w[0]), step_hi);
             intervals[k + 1] = interval;
         }
         let n = interval as f64;
         let mut poly = Polygon::new(((span - 1.0) / n).max(f64::MIN_POSITIVE), (span + 1.0) / n);
         for (k, &t) in learned.iter().enumerate().skip(1) {
-            if let Some(p) = poly.clip(intervals[k] as f64, (t - first) as f64) {
+            if let Some(p) = poly.clip(intervals[k] as f64, t.saturating_sub(first) as f64) {
                 poly = p;
             }
         }
