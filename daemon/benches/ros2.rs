@@ -6,7 +6,10 @@
 //!    at 500 Hz: p50, p99, p99.9 and the maximum.
 //! 2. The CPU imud adds at 1 kHz: the process's on-CPU time (schedstat) over the same 15 s window with
 //!    `--ros2` and a matched subscriber, and without `--ros2` (the simulator runs in imud's
-//!    process in both, so the difference is the DDS output).
+//!    process in both, so the difference is the DDS output), and the DDS threads alone with a
+//!    reader of `imu/data`, with no reader at all and with readers of every topic.
+//! 3. The floor under that: the same thread hand-offs with no encoding and no DDS
+//!    (`common/handoff_floor.rs`), two hops as imud's path has and one.
 //!
 //! Run: `cargo bench -p imud --bench ros2`. Numbers go to BENCHMARKS.md. `ROS2_BENCH_CONFIG`
 //! adds `[ros2]` lines (`;`-separated, e.g. `depth = 5`); `ROS2_BENCH_LATENCY_ONLY=1` skips the
