@@ -192,9 +192,9 @@ fn certain_losses(tick_jump: u64, step_hi: f64) -> u64 {
     ((tick_jump - 1) as f64 / step_hi).floor() as u64
 }
 
-/// Most counts tried for one sample at more than one sample a tick (a longer gap than that
-/// many intervals beyond the certain count is a slip).
-const MAX_DENSE_CANDIDATES: usize = 64;
+/// Most counts tried for one sample (a gap longer than that many intervals beyond the count its
+/// tick jump proves is a slip; above one tick a sample the range is about 3 counts).
+const MAX_CANDIDATES: usize = 64;
 
 /// Half-width of the exact search around the first step estimate, ticks.
 const SEARCH_TICKS: f64 = 0.1;
@@ -377,22 +377,15 @@ impl GapTracker {
         };
         let (_, step_hi) = poly.step_range();
         let certain = certain_losses(spacing_quantized as u64, step_hi);
-        // The smallest count whose predicted positions reach the tick: once the set is narrow
-        // and the step above one tick only one does; before, fewer losses is the likelier
-        // story (a step of nearly 2 ticks cannot tell a late wrap of its phase from a loss).
-        // Below one tick a sample several counts reach the tick, so every count from the
-        // certain one up is tried, smallest first (losses there are a lower bound).
-        let clipped = if step_hi < 1.0 {
-            let first = certain + 1;
-            (first..=first.max(guess + 1))
-                .take(MAX_DENSE_CANDIDATES)
-                .find_map(|n| poly.clip((self.interval + n) as f64, t).map(|p| (n, p)))
-        } else {
-            [guess.saturating_sub(1), guess, guess + 1]
-                .into_iter()
-                .filter(|&n| n >= 1)
-                .find_map(|n| poly.clip((self.interval + n) as f64, t).map(|p| (n, p)))
-        };
+        // The smallest count whose predicted positions reach the tick, from the count the tick
+        // jump proves up to one past the set's guess: once the set is narrow and the step above
+        // one tick only one does; before, fewer losses is the likelier story (a step of nearly 2
+        // ticks cannot tell a late wrap of its phase from a loss). Below one tick a sample
+        // several counts reach the tick, and the smallest is a lower bound.
+        let first = certain + 1;
+        let clipped = (first..=first.max(guess + 1))
+            .take(MAX_CANDIDATES)
+            .find_map(|n| poly.clip((self.interval + n) as f64, t).map(|p| (n, p)));
         let Some((n, poly)) = clipped else {
             return self.slip(ticks_unwrapped, certain, poly);
         };
