@@ -254,36 +254,46 @@ impl Publisher {
         match item {
             Item::Sample { raw, corrected } => self.on_sample(&raw, &corrected),
             Item::Temperature { t_wall_ns, temp_c } => {
-                let msg = temperature_message(t_wall_ns, temp_c, &self.setup.frame_id);
-                self.write(Topic::Temperature, &msg);
+                self.write(Topic::Temperature, |setup, _, _| {
+                    temperature_message(t_wall_ns, temp_c, &setup.frame_id)
+                });
             }
             Item::Noise(noise) => self.noise = noise,
             Item::Status { t_wall_ns, status } => {
-                let c = &self.setup.config;
-                let msg = diagnostics(
-                    t_wall_ns,
-                    &status,
-                    stats_of(&self.shared),
-                    &c.node,
-                    &self.setup.instance,
-                );
-                self.write(Topic::Diagnostics, &msg);
+                self.write(Topic::Diagnostics, |setup, _, shared| {
+                    let c = &setup.config;
+                    diagnostics(
+                        t_wall_ns,
+                        &status,
+                        stats_of(shared),
+                        &c.node,
+                        &setup.instance,
+                    )
+                });
             }
         }
     }
 
     /// A sample: `imu/data`, `imu/mag` and `imu/data_raw`.
     fn on_sample(&mut self, raw: &RawSample, c: &CorrectedSample) {
-        let frame_id = &self.setup.frame_id;
-        let imu = imu_message(c, frame_id, self.noise.as_ref());
-        let mag = magnetic_field_message(c, frame_id, self.noise.as_ref());
-        let raw = raw_imu_message(raw, c, frame_id);
-        self.write(Topic::Imu, &imu);
-        self.write(Topic::Mag, &mag);
-        self.write(Topic::ImuRaw, &raw);
+        self.write(Topic::Imu, |setup, noise, _| {
+            imu_message(c, &setup.frame_id, noise)
+        });
+        self.write(Topic::Mag, |setup, noise, _| {
+            magnetic_field_message(c, &setup.frame_id, noise)
+        });
+        self.write(Topic::ImuRaw, |setup, _, _| {
+            raw_imu_message(raw, c, &setup.frame_id)
+        });
     }
 
-    fn write<M: RosMessage>(&mut self, topic: Topic, msg: &M) {
+    /// Writes the message `make` builds to `topic`, if the topic is on and has a reader (the
+    /// message is only built then).
+    fn write<M: RosMessage>(
+        &mut self,
+        topic: Topic,
+        make: impl FnOnce(&Setup, Option<&ImuNoiseVariances>, &Shared) -> M,
+    ) {
         let writer = match topic {
             Topic::Imu => &mut self.writers.imu,
             Topic::ImuRaw => &mut self.writers.imu_raw,
@@ -300,6 +310,7 @@ impl Publisher {
                 .fetch_add(1, Ordering::Relaxed);
             return;
         }
+        let msg = make(&self.setup, self.noise.as_ref(), &self.shared);
         self.scratch.clear();
         msg.encode_into(&mut self.scratch);
         let payload = CdrPayload(Bytes::copy_from_slice(
