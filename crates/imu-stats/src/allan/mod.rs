@@ -41,7 +41,7 @@ use kernels::{
     LongArray, PARALLEL_MIN_PHASE_POINTS, integrate_into, oadev_sums, second_difference_sum_sq,
     sum_by,
 };
-pub use noise_id::autocorrelation_alpha;
+pub use noise_id::{autocorrelation_alpha, b1_alpha};
 pub use streaming::StreamingOadev;
 pub use taus::TauSet;
 
@@ -296,9 +296,9 @@ fn check(n_y: usize, tau0_s: f64) -> Result<(), AllanError> {
     Ok(())
 }
 
-/// Variance and number of terms of one deviation at one m, from phase `x` (and `cx`, the
-/// cumulative sum of `x` with a leading 0, for MDEV/TDEV). Returns `None` if m is out of range.
-fn variance_at(kind: Kind, x: &[f64], cx: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usize)> {
+/// Variance and number of terms of one deviation at one m, from phase `x`. Returns `None` if m
+/// is out of range.
+fn variance_at(kind: Kind, x: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usize)> {
     let n = x.len();
     if m == 0 || m > kind.max_m(n) {
         return None;
@@ -330,14 +330,8 @@ fn variance_at(kind: Kind, x: &[f64], cx: &[f64], m: usize, tau0_s: f64) -> Opti
             (s / (6.0 * terms as f64 * tau * tau), terms)
         }
         Kind::Mdev | Kind::Tdev => {
-            // sum_{i=j}^{j+m-1} (x[i+2m] - 2x[i+m] + x[i]) from the cumulative sum cx.
             let terms = n - 3 * m + 1;
-            let s = sum_by(0..terms, |j| {
-                let d = (cx[j + 3 * m] - cx[j + 2 * m]) - 2.0 * (cx[j + 2 * m] - cx[j + m])
-                    + (cx[j + m] - cx[j]);
-                d * d
-            });
-            let mvar = s / (2.0 * (m * m) as f64 * tau * tau * terms as f64);
+            let mvar = modified_sum_sq(x, m) / (2.0 * (m * m) as f64 * tau * tau * terms as f64);
             if kind == Kind::Tdev {
                 (mvar * tau * tau / 3.0, terms)
             } else {
@@ -366,6 +360,24 @@ fn variance_at(kind: Kind, x: &[f64], cx: &[f64], m: usize, tau0_s: f64) -> Opti
             (s / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
         }
     })
+}
+
+/// Sum over j of v_j^2, v_j = sum_{i=j}^{j+m-1} (x[i+2m] - 2 x[i+m] + x[i]): the modified
+/// Allan variance's numerator. Each v_j is the previous one plus a third difference of `x` (the
+/// recurrence allantools uses), so the sum only ever adds small phase differences. The
+/// alternative, differences of the running sum of `x`, cancels catastrophically: that running
+/// sum grows like N^2 times the frequency offset, and on a 10 M-sample record with a random-walk
+/// rate it left MDEV/TDEV 4.2e-6 (relative) from an extended-precision reference, where this
+/// recurrence and allantools stay within 1e-12 (BENCHMARKS.md, issue 24).
+fn modified_sum_sq(x: &[f64], m: usize) -> f64 {
+    let terms = x.len() - 3 * m + 1;
+    let mut v = sum_by(0..m, |i| x[i + 2 * m] - 2.0 * x[i + m] + x[i]);
+    let mut s = v * v;
+    for j in 0..terms - 1 {
+        v += (x[j + 3 * m] - 3.0 * x[j + 2 * m]) + (3.0 * x[j + m] - x[j]);
+        s += v * v;
+    }
+    s
 }
 
 /// Computes one deviation of rate data `y` (sample period `tau0_s`) at the tau set in `options`.
@@ -410,8 +422,7 @@ pub fn deviation_from_phase_with_noise(
 ) -> Result<(DevCurve, Vec<NoiseType>), AllanError> {
     check(x.len().saturating_sub(1), tau0_s)?;
     let factors = averaging_factors(kind, x.len(), &options.taus)?;
-    let cx = phase_cumulative_sum(kind, x);
-    let mut points = deviation_points(kind, x, &cx, tau0_s, &factors);
+    let mut points = deviation_points(kind, x, tau0_s, &factors);
     let noise = assign_intervals(kind, x, &mut points, options);
     let curve = DevCurve {
         kind,
@@ -438,30 +449,8 @@ fn averaging_factors(kind: Kind, n_phase: usize, taus: &TauSet) -> Result<Vec<us
     Ok(factors)
 }
 
-/// The cumulative sum of `x` with a leading 0 for MDEV/TDEV (their m-term inner sums become
-/// differences of it); empty for the other kinds.
-fn phase_cumulative_sum(kind: Kind, x: &[f64]) -> Vec<f64> {
-    if !matches!(kind, Kind::Mdev | Kind::Tdev) {
-        return Vec::new();
-    }
-    let mut c = Vec::with_capacity(x.len() + 1);
-    c.push(0.0);
-    let mut s = 0.0;
-    for &v in x {
-        s += v;
-        c.push(s);
-    }
-    c
-}
-
 /// The deviation at every factor, intervals not yet set.
-fn deviation_points(
-    kind: Kind,
-    x: &[f64],
-    cx: &[f64],
-    tau0_s: f64,
-    factors: &[usize],
-) -> Vec<DevPoint> {
+fn deviation_points(kind: Kind, x: &[f64], tau0_s: f64, factors: &[usize]) -> Vec<DevPoint> {
     let n = x.len();
     // OADEV: every tau in one blocked pass (see `oadev_sums`).
     let fused: Vec<(usize, f64)> = if kind == Kind::Oadev {
@@ -481,7 +470,7 @@ fn deviation_points(
                 let tau = m as f64 * tau0_s;
                 (sum / (2.0 * terms as f64 * tau * tau), terms)
             }
-            None => variance_at(kind, x, cx, m, tau0_s)?,
+            None => variance_at(kind, x, m, tau0_s)?,
         };
         Some(DevPoint {
             m,
@@ -538,7 +527,7 @@ fn assign_intervals(
     let noise: Vec<NoiseType> = match (options.noise, options.edf) {
         (Some(t), _) => vec![t; points.len()],
         (None, EdfMethod::Sp1065) => slope_noise_types(kind, points),
-        (None, EdfMethod::Greenhall) => autocorrelation_noise_types(kind, x, points),
+        (None, EdfMethod::Greenhall) => identified_noise_types(kind, x, points),
     };
     for (p, &t) in points.iter_mut().zip(&noise) {
         p.edf = match options.edf {
@@ -576,22 +565,44 @@ fn slope_noise_types(kind: Kind, points: &[DevPoint]) -> Vec<NoiseType> {
         .collect()
 }
 
-/// Noise type per tau by the lag-1 autocorrelation of the decimated phase. Where the decimated
-/// series is too short to identify (the longest taus), the nearest identified tau's type is
-/// carried over; a series too short at every tau is taken as white FM.
-fn autocorrelation_noise_types(kind: Kind, x: &[f64], points: &[DevPoint]) -> Vec<NoiseType> {
+/// Noise type per tau as Stable32 identifies it for the EDF (`noise_id.rs`):
+/// - at least 30 points of the phase decimated by m: the lag-1 autocorrelation of the m-averaged
+///   frequency;
+/// - fewer, for the non-overlapping ADEV and HDEV (whose own analysis points are then fewer than
+///   30 too): the B1 ratio with R(n), down to `noise_id::B1_MIN_POINTS` averages;
+/// - otherwise (the overlapping kinds and TOTDEV, whose analysis points stay many, and the last
+///   few taus of every kind): the type of the nearest identified tau, which at the long end is the
+///   previous one. A series too short to identify anywhere is taken as white FM.
+///
+/// Checked against the two long Stable32 tables distributed with allantools (a Cs 5071A, 556,990
+/// phase points at decade taus to m = 100,000, and a GPS receiver, 241,218 points at octave taus
+/// to m = 32,768; `tests/allan_stable32_long.rs`): the identified type equals Stable32's at every
+/// tau of every kind but the GPS TOTDEV's last two (see that test).
+fn identified_noise_types(kind: Kind, x: &[f64], points: &[DevPoint]) -> Vec<NoiseType> {
     let d_max = kind.estimator().map_or(2, |e| e.d);
+    let non_overlapping = matches!(kind, Kind::Adev | Kind::Hdev);
     let ids: Vec<Option<i32>> = points
         .iter()
-        .map(|p| autocorrelation_alpha(x, p.m, d_max))
+        .map(|p| {
+            noise_id::autocorrelation_alpha(x, p.m, d_max).or_else(|| {
+                if !non_overlapping {
+                    return None;
+                }
+                noise_id::b1_alpha(x, p.m, d_max, || {
+                    let mvar = variance_at(Kind::Mdev, x, p.m, 1.0).map_or(0.0, |v| v.0);
+                    let avar = variance_at(Kind::Adev, x, p.m, 1.0).map_or(0.0, |v| v.0);
+                    if avar > 0.0 { mvar / avar } else { 0.0 }
+                })
+            })
+        })
         .collect();
     let lowest = kind.estimator().map_or(-2, |e| greenhall::min_alpha(e.d));
     (0..ids.len())
         .map(|i| {
             let nearest = (0..ids.len())
-                .filter_map(|j| ids[j].map(|a| (i.abs_diff(j), a)))
-                .min_by_key(|&(dist, _)| dist)
-                .map_or(0, |(_, a)| a);
+                .filter_map(|j| ids[j].map(|a| (i.abs_diff(j), j > i, a)))
+                .min_by_key(|&(dist, later, _)| (dist, later))
+                .map_or(0, |(_, _, a)| a);
             NoiseType::from_alpha(nearest.clamp(lowest, 2))
         })
         .collect()
