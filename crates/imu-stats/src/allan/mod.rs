@@ -339,27 +339,30 @@ fn variance_at(kind: Kind, x: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usi
             }
         }
         Kind::Totdev => {
-            // Phase reflected about both end points: x*(-j) = 2x(0) - x(j),
-            // x*(n-1+j) = 2x(n-1) - x(n-1-j), for j = 1..n-2.
-            let xs = |k: isize| -> f64 {
-                let last = n as isize - 1;
-                if k < 0 {
-                    2.0 * x[0] - x[(-k) as usize]
-                } else if k > last {
-                    2.0 * x[n - 1] - x[(2 * last - k) as usize]
-                } else {
-                    x[k as usize]
-                }
-            };
-            let mi = m as isize;
-            let s = sum_by(1..n - 1, |i| {
-                let i = i as isize;
-                let d = xs(i - mi) - 2.0 * xs(i) + xs(i + mi);
-                d * d
-            });
+            let s = second_difference_sum_sq(x, m) + totdev_edge_sum_sq(x, m);
             (s / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
         }
     })
+}
+
+/// The total variance's sum over i in 1..=n-2 of (x*(i-m) - 2 x(i) + x*(i+m))^2 on the phase
+/// reflected about both end points (x*(-j) = 2x(0) - x(j), x*(n-1+j) = 2x(n-1) - x(n-1-j)),
+/// less its interior: for i in m..=n-1-m every point is a real one and the terms are exactly
+/// the overlapping Allan variance's sum, which the caller takes from the OADEV kernel. What is
+/// left are the 2(m-1) terms whose window reaches past an end (m <= (n-1)/2, so none reaches
+/// past both).
+fn totdev_edge_sum_sq(x: &[f64], m: usize) -> f64 {
+    let n = x.len();
+    let (first, last) = (x[0], x[n - 1]);
+    let low = sum_by(1..m, |i| {
+        let d = (2.0 * first - x[m - i]) - 2.0 * x[i] + x[i + m];
+        d * d
+    });
+    let high = sum_by(n - m..n - 1, |i| {
+        let d = x[i - m] - 2.0 * x[i] + (2.0 * last - x[2 * (n - 1) - i - m]);
+        d * d
+    });
+    low + high
 }
 
 /// Sum over j of v_j^2, v_j = sum_{i=j}^{j+m-1} (x[i+2m] - 2 x[i+m] + x[i]): the modified
@@ -452,8 +455,8 @@ fn averaging_factors(kind: Kind, n_phase: usize, taus: &TauSet) -> Result<Vec<us
 /// The deviation at every factor, intervals not yet set.
 fn deviation_points(kind: Kind, x: &[f64], tau0_s: f64, factors: &[usize]) -> Vec<DevPoint> {
     let n = x.len();
-    // OADEV: every tau in one blocked pass (see `oadev_sums`).
-    let fused: Vec<(usize, f64)> = if kind == Kind::Oadev {
+    // OADEV, and TOTDEV's interior: every tau in one blocked pass (see `oadev_sums`).
+    let fused: Vec<(usize, f64)> = if matches!(kind, Kind::Oadev | Kind::Totdev) {
         let ms: Vec<usize> = factors
             .iter()
             .copied()
@@ -465,10 +468,15 @@ fn deviation_points(kind: Kind, x: &[f64], tau0_s: f64, factors: &[usize]) -> Ve
     };
     let point = |m: usize| {
         let (var, n_terms) = match fused.iter().find(|(fm, _)| *fm == m) {
-            Some(&(_, sum)) => {
+            Some(&(_, sum)) if kind == Kind::Oadev => {
                 let terms = n - 2 * m;
                 let tau = m as f64 * tau0_s;
                 (sum / (2.0 * terms as f64 * tau * tau), terms)
+            }
+            Some(&(_, sum)) => {
+                let tau = m as f64 * tau0_s;
+                let total = sum + totdev_edge_sum_sq(x, m);
+                (total / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
             }
             None => variance_at(kind, x, m, tau0_s)?,
         };
@@ -482,7 +490,7 @@ fn deviation_points(kind: Kind, x: &[f64], tau0_s: f64, factors: &[usize]) -> Ve
             dev_hi: 0.0,
         })
     };
-    if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && kind != Kind::Oadev {
+    if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && fused.is_empty() {
         on_two_threads(factors, point)
     } else {
         factors.iter().filter_map(|&m| point(m)).collect()
@@ -581,21 +589,45 @@ fn slope_noise_types(kind: Kind, points: &[DevPoint]) -> Vec<NoiseType> {
 fn identified_noise_types(kind: Kind, x: &[f64], points: &[DevPoint]) -> Vec<NoiseType> {
     let d_max = kind.estimator().map_or(2, |e| e.d);
     let non_overlapping = matches!(kind, Kind::Adev | Kind::Hdev);
-    let ids: Vec<Option<i32>> = points
-        .iter()
-        .map(|p| {
-            noise_id::autocorrelation_alpha(x, p.m, d_max).or_else(|| {
-                if !non_overlapping {
-                    return None;
-                }
-                noise_id::b1_alpha(x, p.m, d_max, || {
-                    let mvar = variance_at(Kind::Mdev, x, p.m, 1.0).map_or(0.0, |v| v.0);
-                    let avar = variance_at(Kind::Adev, x, p.m, 1.0).map_or(0.0, |v| v.0);
-                    if avar > 0.0 { mvar / avar } else { 0.0 }
-                })
+    let identify = |m: usize| {
+        noise_id::autocorrelation_alpha(x, m, d_max).or_else(|| {
+            if !non_overlapping {
+                return None;
+            }
+            noise_id::b1_alpha(x, m, d_max, || {
+                let mvar = variance_at(Kind::Mdev, x, m, 1.0).map_or(0.0, |v| v.0);
+                let avar = variance_at(Kind::Adev, x, m, 1.0).map_or(0.0, |v| v.0);
+                if avar > 0.0 { mvar / avar } else { 0.0 }
             })
         })
-        .collect();
+    };
+    let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
+    // Each identification is a strided pass over the phase: long records split the taus over
+    // two threads, as the deviations do.
+    let ids: Vec<Option<i32>> = if x.len() >= PARALLEL_MIN_PHASE_POINTS && ms.len() > 1 {
+        std::thread::scope(|scope| {
+            let other = scope.spawn(|| {
+                ms.iter()
+                    .skip(1)
+                    .step_by(2)
+                    .map(|&m| identify(m))
+                    .collect::<Vec<_>>()
+            });
+            let mine: Vec<_> = ms.iter().step_by(2).map(|&m| identify(m)).collect();
+            let theirs = other.join().expect("noise identification worker panicked");
+            let mut all = Vec::with_capacity(ms.len());
+            for i in 0..ms.len() {
+                all.push(if i % 2 == 0 {
+                    mine[i / 2]
+                } else {
+                    theirs[i / 2]
+                });
+            }
+            all
+        })
+    } else {
+        ms.iter().map(|&m| identify(m)).collect()
+    };
     let lowest = kind.estimator().map_or(-2, |e| greenhall::min_alpha(e.d));
     (0..ids.len())
         .map(|i| {

@@ -53,50 +53,76 @@ fn averaged_frequency(x: &[f64], m: usize) -> Vec<f64> {
 /// most `d_max - 1` times). `None` if the decimated phase has fewer than [`MIN_POINTS`] points
 /// (fewer than `MIN_POINTS - 1` averages).
 pub fn autocorrelation_alpha(x: &[f64], m: usize, d_max: u32) -> Option<i32> {
-    let mut z = averaged_frequency(x, m);
-    if z.len() + 1 < MIN_POINTS {
+    let m = m.max(1);
+    let n = x.len().saturating_sub(1) / m;
+    if n + 1 < MIN_POINTS {
         return None;
     }
-    remove_line(&mut z);
-    let d_freq = d_max.saturating_sub(1);
+    let r1 = lag1_of_differences(x, m, n);
+    let d_freq = d_max.saturating_sub(1).min(2);
     let mut d = 0u32;
     loop {
-        let r1 = crate::descriptive::lag1_autocorrelation(&z);
-        let delta = r1 / (1.0 + r1);
+        let delta = r1[d as usize] / (1.0 + r1[d as usize]);
         if delta < 0.25 || d >= d_freq {
             let alpha = -(2.0 * delta).round() - 2.0 * f64::from(d);
             // r1 = -1 (a constant difference) gives an infinite delta: clamp before the cast.
             return Some(alpha.clamp(-8.0, 8.0) as i32);
         }
-        // In-place first difference: z[k] = z[k + 1] - z[k], one shorter.
-        for k in 0..z.len() - 1 {
-            z[k] = z[k + 1] - z[k];
-        }
-        z.pop();
         d += 1;
     }
 }
 
-/// `z` minus its least-squares line in the index (centred abscissa, so the fit is exact to
-/// rounding for any length).
-fn remove_line(z: &mut [f64]) {
-    let n = z.len();
-    if n < 2 {
-        return;
-    }
+/// The lag-1 autocorrelations of the `n` m-averages z of phase `x` with their least-squares
+/// line removed (e), of its first difference (e[k+1] - e[k] = z[k+1] - z[k] - slope) and of its
+/// second (z[k+2] - 2 z[k+1] + z[k]), each about its own mean as `lag1_autocorrelation`
+/// defines it (e's mean is zero: the line has an intercept). Two strided passes over `x` and no
+/// copy: the first finds the line, the second accumulates all three levels, whose means
+/// telescope to (last - first) / count.
+fn lag1_of_differences(x: &[f64], m: usize, n: usize) -> [f64; 3] {
+    let z = |k: usize| x[(k + 1) * m] - x[k * m];
     let centre = (n - 1) as f64 / 2.0;
-    let mean = z.iter().sum::<f64>() / n as f64;
-    let (stt, sty) = z
-        .iter()
-        .enumerate()
-        .fold((0.0, 0.0), |(stt, sty), (k, &v)| {
-            let t = k as f64 - centre;
-            (stt + t * t, sty + t * v)
-        });
-    let slope = sty / stt;
-    for (k, v) in z.iter_mut().enumerate() {
-        *v -= mean + slope * (k as f64 - centre);
+    let (mut sz, mut stz) = (0.0, 0.0);
+    for k in 0..n {
+        let v = z(k);
+        sz += v;
+        stz += (k as f64 - centre) * v;
     }
+    let nf = n as f64;
+    let mean = sz / nf;
+    let slope = stz / (nf * (nf * nf - 1.0) / 12.0);
+    let e = |k: usize| z(k) - mean - slope * (k as f64 - centre);
+    let mean1 = (e(n - 1) - e(0)) / (nf - 1.0);
+    let w = |k: usize| e(k + 1) - e(k);
+    let mean2 = if n > 2 {
+        (w(n - 2) - w(0)) / (nf - 2.0)
+    } else {
+        0.0
+    };
+    // (sum of products with the next, sum of squares) per level.
+    let mut sums = [(0.0f64, 0.0f64); 3];
+    let (mut e_prev, mut w_prev, mut v_prev) = (0.0, 0.0, 0.0);
+    for k in 0..n {
+        let e_k = e(k);
+        sums[0].1 += e_k * e_k;
+        if k >= 1 {
+            sums[0].0 += e_prev * e_k;
+            let w_k = (e_k - e_prev) - mean1;
+            sums[1].1 += w_k * w_k;
+            if k >= 2 {
+                sums[1].0 += w_prev * w_k;
+                let v_k = (w_k - w_prev) - mean2;
+                sums[2].1 += v_k * v_k;
+                if k >= 3 {
+                    sums[2].0 += v_prev * v_k;
+                }
+                v_prev = v_k;
+            }
+            w_prev = w_k;
+        }
+        e_prev = e_k;
+    }
+    // A level with no variation has no autocorrelation (`lag1_autocorrelation`'s convention).
+    sums.map(|(cross, square)| if square > 0.0 { cross / square } else { 0.0 })
 }
 
 /// The expected B1 ratio for `n` frequency averages and Allan-variance tau exponent `mu`
@@ -187,6 +213,48 @@ mod tests {
                 Some(*a)
             })
             .collect()
+    }
+
+    /// The fused two-pass lag-1 autocorrelations equal the plain ones of the materialised
+    /// series (line removed by a least-squares fit, then differenced), at each level.
+    #[test]
+    fn fused_levels_equal_the_materialised_series() {
+        let mut s = 5u64;
+        let walk = cumsum(&cumsum(
+            &(0..5000).map(|_| uniform(&mut s)).collect::<Vec<_>>(),
+        ));
+        let x: Vec<f64> = walk
+            .iter()
+            .enumerate()
+            .map(|(i, w)| w + 1e3 + 0.5 * i as f64 + uniform(&mut s))
+            .collect();
+        for m in [1, 3, 40] {
+            let mut z = averaged_frequency(&x, m);
+            let n = z.len();
+            let t: Vec<f64> = (0..n).map(|k| k as f64).collect();
+            let (tm, zm) = (
+                t.iter().sum::<f64>() / n as f64,
+                z.iter().sum::<f64>() / n as f64,
+            );
+            let b = t
+                .iter()
+                .zip(&z)
+                .map(|(t, z)| (t - tm) * (z - zm))
+                .sum::<f64>()
+                / t.iter().map(|t| (t - tm).powi(2)).sum::<f64>();
+            for (k, v) in z.iter_mut().enumerate() {
+                *v -= zm + b * (k as f64 - tm);
+            }
+            let fused = lag1_of_differences(&x, m, n);
+            for (level, got) in fused.iter().enumerate() {
+                let want = crate::descriptive::lag1_autocorrelation(&z);
+                assert!(
+                    (got - want).abs() < 1e-9,
+                    "m {m} level {level}: {got} vs {want}"
+                );
+                z = z.windows(2).map(|w| w[1] - w[0]).collect();
+            }
+        }
     }
 
     /// White PM (phase white), white FM (phase a random walk) and random-walk FM (phase
