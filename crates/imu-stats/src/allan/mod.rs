@@ -12,8 +12,9 @@
 //! `unsafe`); the build itself stays baseline x86-64.
 //!
 //! Confidence intervals ([`EdfMethod`]): either Greenhall's EDF algorithm with the noise type
-//! identified per tau by the lag-1 autocorrelation of the phase, as Stable32 and allantools
-//! compute them (`greenhall.rs`, `noise_id.rs`; total deviation by NIST SP 1065 Table 7), or
+//! identified per tau as Stable32 does (the lag-1 autocorrelation of the m-averaged frequency,
+//! the B1 ratio or the previous tau's type, by how many averages remain), as Stable32 computes
+//! them (`greenhall.rs`, `noise_id.rs`; total deviation by NIST SP 1065 Table 7), or
 //! the closed-form NIST SP 1065 Table 5 approximations with the noise type from the local ADEV
 //! slope (the default, because the bounded-memory [`StreamingOadev`] can compute it too; other
 //! kinds than OADEV then get a plain count of difference terms). The chi-squared bounds use
@@ -21,7 +22,7 @@
 //!
 //! Files: `taus.rs` (tau sets), `kernels.rs` (phase integration, the blocked SIMD OADEV sums),
 //! `confidence.rs` (SP 1065 EDF and the bounds), `greenhall.rs` (Greenhall's EDF),
-//! `noise_id.rs` (lag-1 autocorrelation noise identification), `streaming.rs`
+//! `noise_id.rs` (lag-1 autocorrelation and B1 noise identification), `streaming.rs`
 //! (bounded-memory OADEV).
 
 mod confidence;
@@ -222,7 +223,7 @@ pub enum EdfMethod {
     /// computes in bounded memory.
     #[default]
     Sp1065,
-    /// Greenhall's EDF algorithm with lag-1 autocorrelation noise identification per tau, as
+    /// Greenhall's EDF algorithm with Stable32's noise identification per tau, as
     /// Stable32 and allantools; the total deviation by SP 1065 Table 7.
     Greenhall,
 }

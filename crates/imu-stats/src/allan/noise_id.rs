@@ -35,8 +35,9 @@ pub const MIN_POINTS: usize = 30;
 /// variances each with a handful of degrees of freedom cannot tell neighbouring types apart, and
 /// Stable32 keeps the type of the previous tau: in the GPS table shipped with allantools
 /// (`tests/gps/stable32_HDEV_octave.txt`) the HDEV at m = 32,768 (7 averages) keeps the previous
-/// tau's white FM where the ratio would say flicker PM, while at 13 averages (the Cs 5071A ADEV
-/// at m = 40,000) Stable32 prints the ratio's flicker FM.
+/// tau's white FM where the ratio would say flicker PM, while at 27 averages (the Cs 5071A ADEV
+/// and HDEV at m = 20,000) Stable32 prints the ratio's flicker FM where the previous tau had
+/// white FM. The tables place the limit between 8 and 27; 10 is our choice within that.
 pub const B1_MIN_POINTS: usize = 10;
 
 /// The m-averaged frequency (in units of the phase step, i.e. not divided by m tau0: the
