@@ -11,9 +11,9 @@
 //!   non-overlapping variances when fewer averages remain (see `mod.rs` for which kind uses
 //!   which).
 //!
-//! Both read only the m-averaged frequency, which is the differenced phase decimated by m: one
-//! O(N / m) pass per averaging factor, so identifying every octave tau costs about two passes
-//! over the record (what allantools' `autocorr_noise_id(..., data_type="freq")` and `b1`
+//! Both read only the m-averaged frequency, which is the differenced phase decimated by m: two
+//! strided passes over the phase per averaging factor, O(N / m) arithmetic each, and no copy for
+//! the autocorrelation (what allantools' `autocorr_noise_id(..., data_type="freq")` and `b1`
 //! compute, without their copies).
 //!
 //! Why the averaged frequency rather than the decimated phase (allantools' default for phase
