@@ -55,9 +55,10 @@ struct Cli {
     /// Two-sided confidence level of the bounds (0.683 is "1 sigma", Stable32's default).
     #[arg(long, default_value = "0.683", value_parser = confidence_level)]
     confidence: f64,
-    /// How the bounds' degrees of freedom are computed: `greenhall` (Greenhall's EDF with
-    /// lag-1 autocorrelation noise identification, as Stable32) or `sp1065` (closed forms with
-    /// the noise type from the local slope).
+    /// How the bounds' degrees of freedom are computed: `greenhall` (Greenhall's EDF with the
+    /// noise type identified per tau as Stable32 does: lag-1 autocorrelation, then the B1 ratio
+    /// or the previous tau's type at the longest taus) or `sp1065` (closed forms with the noise
+    /// type from the local slope).
     #[arg(long, value_enum, default_value = "greenhall")]
     edf: EdfArg,
     /// Which stream of an imud recording to analyse.

@@ -1,9 +1,11 @@
 //! What `imu-noise` computes per axis, on a 10-million-sample rate series, against Python
-//! allantools in the same run (issue 17 item 8): every deviation kind at octave taus, and the
+//! allantools in the same run (issues 17 and 24): every deviation kind at octave taus, and the
 //! OADEV at 9,999 log-spaced taus (allan_variance_ros' tau count), ours with Greenhall's EDF and
-//! lag-1 autocorrelation noise identification at every tau (`--edf greenhall`, imu-noise's
-//! default; the `sp1065` column: the closed-form EDF, no noise identification), allantools'
-//! deviations alone (its `ci` module is not called).
+//! Stable32's noise identification at every tau (`--edf greenhall`, imu-noise's default; the
+//! `sp1065` column: the closed-form EDF, no noise identification, i.e. the deviation alone).
+//! allantools: its deviation alone, and the same plus what its bounds need
+//! (`ci.autocorr_noise_id` and `ci.edf_greenhall` at every tau, timed once per difference order
+//! and charged to every kind of that order: the work does not depend on the kind).
 //!
 //! `pip install -r requirements-dev.txt && cargo bench -p imu-stats --bench noise_vs_allantools`
 //!
@@ -11,7 +13,8 @@
 //! `tests/python/allantools_bench_peer.py` into a temporary file, never stored. allantools needs
 //! about 0.1 s per tau on 10 M samples, so at 9,999 taus it is timed on every 50th tau and scaled
 //! to all of them (the cost of one tau does not depend on the tau); set
-//! `IMU_BENCH_FULL_PEER=1` to time it on all 9,999 (about half an hour).
+//! `IMU_BENCH_FULL_PEER=1` to time it on all 9,999 (about half an hour). `IMU_BENCH_OURS_ONLY=1`
+//! times ours only (no Python).
 
 use std::path::Path;
 use std::process::Command;
@@ -97,6 +100,22 @@ fn theirs(dir: &Path, data: &Path, kind: Kind, ms: &[usize], ours: &DevCurve) ->
     (r["compute_s"].as_f64().expect("compute_s"), max_rel)
 }
 
+/// allantools' noise identification and Greenhall EDF at these factors for difference order
+/// `d`: its time.
+fn theirs_ci(dir: &Path, data: &Path, d: u32, ms: &[usize]) -> f64 {
+    let factors = dir.join(format!("ci{d}.txt"));
+    let text: String = ms.iter().map(|m| format!("{m}\n")).collect();
+    std::fs::write(&factors, text).expect("write factors");
+    let out = python(&[
+        "time_ci",
+        data.to_str().expect("utf-8"),
+        &d.to_string(),
+        factors.to_str().expect("utf-8"),
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&out).expect("peer json");
+    v["compute_s"].as_f64().expect("compute_s")
+}
+
 fn main() {
     let dir = tempfile::tempdir().expect("temp dir");
     let data = dir.path().join("y.f64");
@@ -109,25 +128,59 @@ fn main() {
         .collect();
     drop(bytes);
     println!("series: {} samples, white + random walk, 1 Hz", y.len());
+    let ours_only = std::env::var("IMU_BENCH_OURS_ONLY").is_ok_and(|v| v == "1");
+    // allantools' noise identification + EDF, once per difference order, at the longest
+    // octave set of that order (ADEV's and HDEV's).
+    let mut ci_s = std::collections::BTreeMap::new();
+    if !ours_only {
+        for (d, kind) in [(2u32, Kind::Oadev), (3, Kind::Ohdev)] {
+            let ms = TauSet::Octave.factors(kind.max_m(y.len() + 1));
+            ci_s.insert(d, theirs_ci(dir.path(), &data, d, &ms));
+        }
+        println!(
+            "allantools ci.autocorr_noise_id + ci.edf_greenhall at the octave taus: {:.3} s (d = 2), \
+             {:.3} s (d = 3)",
+            ci_s[&2], ci_s[&3]
+        );
+    }
     println!(
-        "{:<8}{:>6}{:>14}{:>14}{:>16}{:>9}{:>14}",
-        "kind", "taus", "ours [s]", "sp1065 [s]", "allantools [s]", "ratio", "max rel diff"
+        "{:<8}{:>6}{:>12}{:>12}{:>12}{:>12}{:>10}{:>10}{:>13}",
+        "kind",
+        "taus",
+        "ours [s]",
+        "dev [s]",
+        "at dev [s]",
+        "at+ci [s]",
+        "bounds x",
+        "dev x",
+        "max rel diff"
     );
     for kind in Kind::ALL {
         let ms = TauSet::Octave.factors(kind.max_m(y.len() + 1));
         let (ours_s, curve) = ours(kind, EdfMethod::Greenhall, &y, &ms, 2);
         let (sp1065_s, _) = ours(kind, EdfMethod::Sp1065, &y, &ms, 2);
-        let (peer_s, rel) = theirs(dir.path(), &data, kind, &ms, &curve);
+        let (peer_s, rel) = if ours_only {
+            (f64::NAN, f64::NAN)
+        } else {
+            theirs(dir.path(), &data, kind, &ms, &curve)
+        };
+        let d = kind.estimator().map_or(2, |e| e.d);
+        let with_ci = peer_s + ci_s.get(&d).copied().unwrap_or(f64::NAN);
         println!(
-            "{:<8}{:>6}{:>14.3}{:>14.3}{:>16.3}{:>8.1}x{:>14.2e}",
+            "{:<8}{:>6}{:>12.3}{:>12.3}{:>12.3}{:>12.3}{:>9.1}x{:>9.1}x{:>13.2e}",
             kind.name(),
             ms.len(),
             ours_s,
             sp1065_s,
             peer_s,
-            peer_s / ours_s,
+            with_ci,
+            with_ci / ours_s,
+            peer_s / sp1065_s,
             rel
         );
+    }
+    if ours_only {
+        return;
     }
     let ms = log_factors(LOG_TAUS, Kind::Oadev.max_m(y.len() + 1));
     let (ours_s, curve) = ours(Kind::Oadev, EdfMethod::Greenhall, &y, &ms, 1);

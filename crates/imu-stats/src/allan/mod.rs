@@ -12,8 +12,9 @@
 //! `unsafe`); the build itself stays baseline x86-64.
 //!
 //! Confidence intervals ([`EdfMethod`]): either Greenhall's EDF algorithm with the noise type
-//! identified per tau by the lag-1 autocorrelation of the phase, as Stable32 and allantools
-//! compute them (`greenhall.rs`, `noise_id.rs`; total deviation by NIST SP 1065 Table 7), or
+//! identified per tau as Stable32 does (the lag-1 autocorrelation of the m-averaged frequency,
+//! the B1 ratio or the previous tau's type, by how many averages remain), as Stable32 computes
+//! them (`greenhall.rs`, `noise_id.rs`; total deviation by NIST SP 1065 Table 7), or
 //! the closed-form NIST SP 1065 Table 5 approximations with the noise type from the local ADEV
 //! slope (the default, because the bounded-memory [`StreamingOadev`] can compute it too; other
 //! kinds than OADEV then get a plain count of difference terms). The chi-squared bounds use
@@ -21,7 +22,7 @@
 //!
 //! Files: `taus.rs` (tau sets), `kernels.rs` (phase integration, the blocked SIMD OADEV sums),
 //! `confidence.rs` (SP 1065 EDF and the bounds), `greenhall.rs` (Greenhall's EDF),
-//! `noise_id.rs` (lag-1 autocorrelation noise identification), `streaming.rs`
+//! `noise_id.rs` (lag-1 autocorrelation and B1 noise identification), `streaming.rs`
 //! (bounded-memory OADEV).
 
 mod confidence;
@@ -41,7 +42,7 @@ use kernels::{
     LongArray, PARALLEL_MIN_PHASE_POINTS, integrate_into, oadev_sums, second_difference_sum_sq,
     sum_by,
 };
-pub use noise_id::autocorrelation_alpha;
+pub use noise_id::{autocorrelation_alpha, b1_alpha};
 pub use streaming::StreamingOadev;
 pub use taus::TauSet;
 
@@ -222,7 +223,7 @@ pub enum EdfMethod {
     /// computes in bounded memory.
     #[default]
     Sp1065,
-    /// Greenhall's EDF algorithm with lag-1 autocorrelation noise identification per tau, as
+    /// Greenhall's EDF algorithm with Stable32's noise identification per tau, as
     /// Stable32 and allantools; the total deviation by SP 1065 Table 7.
     Greenhall,
 }
@@ -296,9 +297,9 @@ fn check(n_y: usize, tau0_s: f64) -> Result<(), AllanError> {
     Ok(())
 }
 
-/// Variance and number of terms of one deviation at one m, from phase `x` (and `cx`, the
-/// cumulative sum of `x` with a leading 0, for MDEV/TDEV). Returns `None` if m is out of range.
-fn variance_at(kind: Kind, x: &[f64], cx: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usize)> {
+/// Variance and number of terms of one deviation at one m, from phase `x`. Returns `None` if m
+/// is out of range.
+fn variance_at(kind: Kind, x: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usize)> {
     let n = x.len();
     if m == 0 || m > kind.max_m(n) {
         return None;
@@ -330,14 +331,8 @@ fn variance_at(kind: Kind, x: &[f64], cx: &[f64], m: usize, tau0_s: f64) -> Opti
             (s / (6.0 * terms as f64 * tau * tau), terms)
         }
         Kind::Mdev | Kind::Tdev => {
-            // sum_{i=j}^{j+m-1} (x[i+2m] - 2x[i+m] + x[i]) from the cumulative sum cx.
             let terms = n - 3 * m + 1;
-            let s = sum_by(0..terms, |j| {
-                let d = (cx[j + 3 * m] - cx[j + 2 * m]) - 2.0 * (cx[j + 2 * m] - cx[j + m])
-                    + (cx[j + m] - cx[j]);
-                d * d
-            });
-            let mvar = s / (2.0 * (m * m) as f64 * tau * tau * terms as f64);
+            let mvar = modified_sum_sq(x, m) / (2.0 * (m * m) as f64 * tau * tau * terms as f64);
             if kind == Kind::Tdev {
                 (mvar * tau * tau / 3.0, terms)
             } else {
@@ -345,27 +340,49 @@ fn variance_at(kind: Kind, x: &[f64], cx: &[f64], m: usize, tau0_s: f64) -> Opti
             }
         }
         Kind::Totdev => {
-            // Phase reflected about both end points: x*(-j) = 2x(0) - x(j),
-            // x*(n-1+j) = 2x(n-1) - x(n-1-j), for j = 1..n-2.
-            let xs = |k: isize| -> f64 {
-                let last = n as isize - 1;
-                if k < 0 {
-                    2.0 * x[0] - x[(-k) as usize]
-                } else if k > last {
-                    2.0 * x[n - 1] - x[(2 * last - k) as usize]
-                } else {
-                    x[k as usize]
-                }
-            };
-            let mi = m as isize;
-            let s = sum_by(1..n - 1, |i| {
-                let i = i as isize;
-                let d = xs(i - mi) - 2.0 * xs(i) + xs(i + mi);
-                d * d
-            });
+            let s = second_difference_sum_sq(x, m) + totdev_edge_sum_sq(x, m);
             (s / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
         }
     })
+}
+
+/// The total variance's sum over i in 1..=n-2 of (x*(i-m) - 2 x(i) + x*(i+m))^2 on the phase
+/// reflected about both end points (x*(-j) = 2x(0) - x(j), x*(n-1+j) = 2x(n-1) - x(n-1-j)),
+/// less its interior: for i in m..=n-1-m every point is a real one and the terms are exactly
+/// the overlapping Allan variance's sum, which the caller takes from the OADEV kernel. What is
+/// left are the 2(m-1) terms whose window reaches past an end (m <= (n-1)/2, so none reaches
+/// past both).
+fn totdev_edge_sum_sq(x: &[f64], m: usize) -> f64 {
+    let n = x.len();
+    let (first, last) = (x[0], x[n - 1]);
+    let low = sum_by(1..m, |i| {
+        let d = (2.0 * first - x[m - i]) - 2.0 * x[i] + x[i + m];
+        d * d
+    });
+    let high = sum_by(n - m..n - 1, |i| {
+        let d = x[i - m] - 2.0 * x[i] + (2.0 * last - x[2 * (n - 1) - i - m]);
+        d * d
+    });
+    low + high
+}
+
+/// Sum over j of v_j^2, v_j = sum_{i=j}^{j+m-1} (x[i+2m] - 2 x[i+m] + x[i]): the modified
+/// Allan variance's numerator. Each v_j is the previous one plus a third difference of `x` (the
+/// recurrence allantools uses), so the sum only ever adds small phase differences. The
+/// alternative, differences of the running sum of `x`, cancels catastrophically: that running
+/// sum grows like N^2 times the frequency offset, and on a 10 M-sample record with a random-walk
+/// rate it left MDEV/TDEV 4.2e-6 (relative) from allantools, which agrees with an
+/// extended-precision reference to 1e-12; this recurrence agrees with allantools to 2e-11
+/// (BENCHMARKS.md, issue 24).
+fn modified_sum_sq(x: &[f64], m: usize) -> f64 {
+    let terms = x.len() - 3 * m + 1;
+    let mut v = sum_by(0..m, |i| x[i + 2 * m] - 2.0 * x[i + m] + x[i]);
+    let mut s = v * v;
+    for j in 0..terms - 1 {
+        v += (x[j + 3 * m] - 3.0 * x[j + 2 * m]) + (3.0 * x[j + m] - x[j]);
+        s += v * v;
+    }
+    s
 }
 
 /// Computes one deviation of rate data `y` (sample period `tau0_s`) at the tau set in `options`.
@@ -410,8 +427,7 @@ pub fn deviation_from_phase_with_noise(
 ) -> Result<(DevCurve, Vec<NoiseType>), AllanError> {
     check(x.len().saturating_sub(1), tau0_s)?;
     let factors = averaging_factors(kind, x.len(), &options.taus)?;
-    let cx = phase_cumulative_sum(kind, x);
-    let mut points = deviation_points(kind, x, &cx, tau0_s, &factors);
+    let mut points = deviation_points(kind, x, tau0_s, &factors);
     let noise = assign_intervals(kind, x, &mut points, options);
     let curve = DevCurve {
         kind,
@@ -438,33 +454,11 @@ fn averaging_factors(kind: Kind, n_phase: usize, taus: &TauSet) -> Result<Vec<us
     Ok(factors)
 }
 
-/// The cumulative sum of `x` with a leading 0 for MDEV/TDEV (their m-term inner sums become
-/// differences of it); empty for the other kinds.
-fn phase_cumulative_sum(kind: Kind, x: &[f64]) -> Vec<f64> {
-    if !matches!(kind, Kind::Mdev | Kind::Tdev) {
-        return Vec::new();
-    }
-    let mut c = Vec::with_capacity(x.len() + 1);
-    c.push(0.0);
-    let mut s = 0.0;
-    for &v in x {
-        s += v;
-        c.push(s);
-    }
-    c
-}
-
 /// The deviation at every factor, intervals not yet set.
-fn deviation_points(
-    kind: Kind,
-    x: &[f64],
-    cx: &[f64],
-    tau0_s: f64,
-    factors: &[usize],
-) -> Vec<DevPoint> {
+fn deviation_points(kind: Kind, x: &[f64], tau0_s: f64, factors: &[usize]) -> Vec<DevPoint> {
     let n = x.len();
-    // OADEV: every tau in one blocked pass (see `oadev_sums`).
-    let fused: Vec<(usize, f64)> = if kind == Kind::Oadev {
+    // OADEV, and TOTDEV's interior: every tau in one blocked pass (see `oadev_sums`).
+    let fused: Vec<(usize, f64)> = if matches!(kind, Kind::Oadev | Kind::Totdev) {
         let ms: Vec<usize> = factors
             .iter()
             .copied()
@@ -476,12 +470,17 @@ fn deviation_points(
     };
     let point = |m: usize| {
         let (var, n_terms) = match fused.iter().find(|(fm, _)| *fm == m) {
-            Some(&(_, sum)) => {
+            Some(&(_, sum)) if kind == Kind::Oadev => {
                 let terms = n - 2 * m;
                 let tau = m as f64 * tau0_s;
                 (sum / (2.0 * terms as f64 * tau * tau), terms)
             }
-            None => variance_at(kind, x, cx, m, tau0_s)?,
+            Some(&(_, sum)) => {
+                let tau = m as f64 * tau0_s;
+                let total = sum + totdev_edge_sum_sq(x, m);
+                (total / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
+            }
+            None => variance_at(kind, x, m, tau0_s)?,
         };
         Some(DevPoint {
             m,
@@ -493,7 +492,7 @@ fn deviation_points(
             dev_hi: 0.0,
         })
     };
-    if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && kind != Kind::Oadev {
+    if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && fused.is_empty() {
         on_two_threads(factors, point)
     } else {
         factors.iter().filter_map(|&m| point(m)).collect()
@@ -538,7 +537,7 @@ fn assign_intervals(
     let noise: Vec<NoiseType> = match (options.noise, options.edf) {
         (Some(t), _) => vec![t; points.len()],
         (None, EdfMethod::Sp1065) => slope_noise_types(kind, points),
-        (None, EdfMethod::Greenhall) => autocorrelation_noise_types(kind, x, points),
+        (None, EdfMethod::Greenhall) => identified_noise_types(kind, x, points),
     };
     for (p, &t) in points.iter_mut().zip(&noise) {
         p.edf = match options.edf {
@@ -576,22 +575,68 @@ fn slope_noise_types(kind: Kind, points: &[DevPoint]) -> Vec<NoiseType> {
         .collect()
 }
 
-/// Noise type per tau by the lag-1 autocorrelation of the decimated phase. Where the decimated
-/// series is too short to identify (the longest taus), the nearest identified tau's type is
-/// carried over; a series too short at every tau is taken as white FM.
-fn autocorrelation_noise_types(kind: Kind, x: &[f64], points: &[DevPoint]) -> Vec<NoiseType> {
+/// Noise type per tau as Stable32 identifies it for the EDF (`noise_id.rs`):
+/// - at least 30 points of the phase decimated by m: the lag-1 autocorrelation of the m-averaged
+///   frequency;
+/// - fewer, for the non-overlapping ADEV and HDEV (whose own analysis points are then fewer than
+///   30 too): the B1 ratio with R(n), down to `noise_id::B1_MIN_POINTS` averages;
+/// - otherwise (the overlapping kinds and TOTDEV, whose analysis points stay many, and the last
+///   few taus of every kind): the type of the nearest identified tau, which at the long end is the
+///   previous one. A series too short to identify anywhere is taken as white FM.
+///
+/// Checked against the two long Stable32 tables distributed with allantools (a Cs 5071A, 556,990
+/// phase points at decade taus to m = 100,000, and a GPS receiver, 241,218 points at octave taus
+/// to m = 32,768; `tests/allan_stable32_long.rs`): the identified type equals Stable32's at every
+/// tau of every kind but the GPS TOTDEV's last two (see that test).
+fn identified_noise_types(kind: Kind, x: &[f64], points: &[DevPoint]) -> Vec<NoiseType> {
     let d_max = kind.estimator().map_or(2, |e| e.d);
-    let ids: Vec<Option<i32>> = points
-        .iter()
-        .map(|p| autocorrelation_alpha(x, p.m, d_max))
-        .collect();
+    let non_overlapping = matches!(kind, Kind::Adev | Kind::Hdev);
+    let identify = |m: usize| {
+        noise_id::autocorrelation_alpha(x, m, d_max).or_else(|| {
+            if !non_overlapping {
+                return None;
+            }
+            noise_id::b1_alpha(x, m, d_max, || {
+                let mvar = variance_at(Kind::Mdev, x, m, 1.0).map_or(0.0, |v| v.0);
+                let avar = variance_at(Kind::Adev, x, m, 1.0).map_or(0.0, |v| v.0);
+                if avar > 0.0 { mvar / avar } else { 0.0 }
+            })
+        })
+    };
+    let ms: Vec<usize> = points.iter().map(|p| p.m).collect();
+    // Each identification is a strided pass over the phase: long records split the taus over
+    // two threads, as the deviations do.
+    let ids: Vec<Option<i32>> = if x.len() >= PARALLEL_MIN_PHASE_POINTS && ms.len() > 1 {
+        std::thread::scope(|scope| {
+            let other = scope.spawn(|| {
+                ms.iter()
+                    .skip(1)
+                    .step_by(2)
+                    .map(|&m| identify(m))
+                    .collect::<Vec<_>>()
+            });
+            let mine: Vec<_> = ms.iter().step_by(2).map(|&m| identify(m)).collect();
+            let theirs = other.join().expect("noise identification worker panicked");
+            let mut all = Vec::with_capacity(ms.len());
+            for i in 0..ms.len() {
+                all.push(if i % 2 == 0 {
+                    mine[i / 2]
+                } else {
+                    theirs[i / 2]
+                });
+            }
+            all
+        })
+    } else {
+        ms.iter().map(|&m| identify(m)).collect()
+    };
     let lowest = kind.estimator().map_or(-2, |e| greenhall::min_alpha(e.d));
     (0..ids.len())
         .map(|i| {
             let nearest = (0..ids.len())
-                .filter_map(|j| ids[j].map(|a| (i.abs_diff(j), a)))
-                .min_by_key(|&(dist, _)| dist)
-                .map_or(0, |(_, a)| a);
+                .filter_map(|j| ids[j].map(|a| (i.abs_diff(j), j > i, a)))
+                .min_by_key(|&(dist, later, _)| (dist, later))
+                .map_or(0, |(_, _, a)| a);
             NoiseType::from_alpha(nearest.clamp(lowest, 2))
         })
         .collect()

@@ -114,3 +114,45 @@ fn errors_say_what_is_wrong() {
         Err(AllanError::BadPeriod { .. })
     ));
 }
+
+/// MDEV of a rate with a large offset (an accelerometer's 1 g): the m-sample sums of second
+/// differences are formed from small phase differences, so the result equals the direct sum to
+/// rounding. Forming them as differences of the running sum of the phase (which grows like
+/// g N^2 / 2, here 2e11) left errors of 4e-6 to 4e-4 of the deviation on such a record (issue 24).
+#[test]
+fn mdev_of_a_large_offset_equals_the_direct_sum() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let y: Vec<f64> = (0..200_000)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            9.81 + 1e-3 * ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+        })
+        .collect();
+    let x = phase_from_rate(&y, 1.0);
+    let direct = |m: usize| -> f64 {
+        let s: Vec<f64> = (0..x.len() - 2 * m)
+            .map(|i| (x[i + 2 * m] - x[i + m]) - (x[i + m] - x[i]))
+            .collect();
+        let terms = x.len() - 3 * m + 1;
+        let sum: f64 = (0..terms)
+            .map(|j| s[j..j + m].iter().sum::<f64>().powi(2))
+            .sum();
+        (sum / (2.0 * (m * m * m * m) as f64 * terms as f64)).sqrt()
+    };
+    let opts = Options {
+        taus: TauSet::Factors(vec![1, 7, 64]),
+        ..Options::default()
+    };
+    let curve = deviation_from_phase(Kind::Mdev, &x, 1.0, &opts).expect("mdev");
+    for p in &curve.points {
+        let want = direct(p.m);
+        assert!(
+            (p.dev / want - 1.0).abs() < 1e-9,
+            "m {}: {:e} vs {want:e}",
+            p.m,
+            p.dev
+        );
+    }
+}
