@@ -4,8 +4,9 @@
 //! 100,000) and a GPS receiver's 1 PPS (241,218 points, 1 s, octave taus to m = 32,768). The
 //! Stable32 tables and both records are allantools' test data (`tests/Cs5071A`, `tests/gps` of
 //! github.com/aewallin/allantools at 599dc9e); the tables are copied into `tests/data/stable32_long/`
-//! (the records, 2.9 MB and 0.7 MB compressed, are not): set `IMUD_ALLANTOOLS_TESTS` to a
-//! checkout's `tests` directory to run it (skipped otherwise).
+//! (the records, 2.9 MB and 0.7 MB compressed, are not): `IMUD_ALLANTOOLS_TESTS` names a
+//! `tests` directory holding them; `scripts/test` unpacks the one in allantools' sdist from PyPI
+//! and sets it. Skipped without it, except under CI (`IMUD_REQUIRE_PEERS`), where it fails.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -92,6 +93,12 @@ fn compare(x: &[f64], tables: &[(Kind, &str)]) -> (f64, Vec<(Kind, usize, i32, i
 fn data_dir() -> Option<PathBuf> {
     let dir = std::env::var_os("IMUD_ALLANTOOLS_TESTS").map(PathBuf::from);
     if dir.is_none() {
+        // scripts/test unpacks allantools' sdist from PyPI and sets the variable; CI
+        // (IMUD_REQUIRE_PEERS) must not pass by skipping the comparison.
+        assert!(
+            std::env::var_os("IMUD_REQUIRE_PEERS").is_none(),
+            "IMUD_ALLANTOOLS_TESTS is not set (scripts/test sets it to allantools' sdist tests/)"
+        );
         eprintln!("skipping: set IMUD_ALLANTOOLS_TESTS to allantools' tests directory");
     }
     dir
