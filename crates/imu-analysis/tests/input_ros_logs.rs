@@ -325,3 +325,30 @@ fn rusqlite_free_sqlite(path: &Path) -> bool {
         .status()
         .is_ok_and(|s| s.success())
 }
+
+#[path = "../../../tests/ros_formats/mod.rs"]
+mod ros_formats;
+
+#[test]
+fn a_recording_converted_to_every_format_gives_identical_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = ros_formats::record(dir.path());
+    let Some(converted) = ros_formats::convert(&recording, dir.path()) else {
+        return;
+    };
+    let original = read(std::slice::from_ref(&recording), None, Source::Corrected).unwrap();
+    assert!(original.len() > 1000 && !original.temp.is_empty());
+    for path in &converted {
+        for source in [Source::Corrected, Source::Raw] {
+            let s = read(std::slice::from_ref(path), None, source).unwrap();
+            let what = format!("{} {source:?}", path.display());
+            assert_eq!(s.t0_ns, original.t0_ns, "{what}");
+            assert_eq!(s.t_s, original.t_s, "{what}");
+            assert_eq!(s.accel_m_s2, original.accel_m_s2, "{what}");
+            assert_eq!(s.gyro_rad_s, original.gyro_rad_s, "{what}");
+            assert_eq!(s.temp, original.temp, "{what}");
+            assert_eq!(s.input.topic, original.input.topic, "{what}");
+            assert!(s.unfinished.is_none(), "{what}");
+        }
+    }
+}
