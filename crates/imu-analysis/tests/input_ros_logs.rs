@@ -241,6 +241,69 @@ fn a_cut_or_unindexed_ros1_bag_is_read_to_its_last_complete_record() {
     assert!(e.contains("old.bag") && e.contains("#ROSBAG V1.2"), "{e}");
 }
 
+/// The top-level records of a bag: (offset, header, data length) up to its index.
+fn records(bytes: &[u8], end: usize) -> Vec<(usize, Vec<u8>, usize)> {
+    let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let mut out = Vec::new();
+    let mut pos = b"#ROSBAG V2.0\n".len();
+    while pos < end {
+        let hl = u32_at(pos);
+        let header = bytes[pos + 4..pos + 4 + hl].to_vec();
+        let dl = u32_at(pos + 4 + hl);
+        out.push((pos, header, dl));
+        pos += 8 + hl + dl;
+    }
+    out
+}
+
+#[test]
+fn a_killed_recorders_last_chunk_without_sizes_is_read() {
+    // `rosbag record` writes a chunk's header with sizes 0 and fills them in when the chunk is
+    // closed; killed before that, its last chunk's records (or compressed stream) simply run
+    // to the end of the file, and the bag has no index.
+    let dir = tempfile::tempdir().unwrap();
+    let n = 300u64;
+    for c in ["none", "bz2", "lz4"] {
+        let bag = dir.path().join(format!("{c}.bag"));
+        if !python(&[
+            "ros1",
+            bag.to_str().unwrap(),
+            &n.to_string(),
+            &T0_NS.to_string(),
+            c,
+            "16384",
+        ]) {
+            return;
+        }
+        let mut bytes = std::fs::read(&bag).unwrap();
+        let at = find(&bytes[..4096], b"index_pos=").unwrap() + b"index_pos=".len();
+        let index_pos = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+        bytes[at..at + 8].copy_from_slice(&0u64.to_le_bytes());
+        let chunks: Vec<_> = records(&bytes, index_pos)
+            .into_iter()
+            .filter(|(_, h, _)| find(h, b"op=\x05").is_some())
+            .collect();
+        assert!(chunks.len() > 3, "{c}: {} chunks", chunks.len());
+        let (pos, header, data_len) = chunks.last().unwrap().clone();
+        let size_at = pos + 4 + find(&header, b"size=").unwrap() + b"size=".len();
+        bytes[size_at..size_at + 4].copy_from_slice(&0u32.to_le_bytes());
+        let len_at = pos + 4 + header.len();
+        bytes[len_at..len_at + 4].copy_from_slice(&0u32.to_le_bytes());
+        bytes.truncate(len_at + 4 + data_len);
+        let killed = dir.path().join(format!("killed-{c}.bag"));
+        std::fs::write(&killed, &bytes).unwrap();
+        let s = read(
+            std::slice::from_ref(&killed),
+            Some("/imu/a"),
+            Source::Corrected,
+        )
+        .unwrap();
+        assert_truth(&s, n as usize, 1.0, &format!("killed recorder, {c}"));
+        let u = s.unfinished.as_ref().expect("reported unfinished");
+        assert!(u.footer_missing && u.n_messages == 3 * n, "{c}: {u:?}");
+    }
+}
+
 #[test]
 fn sqlite3_bags_split_and_compressed_by_file_or_by_message() {
     let dir = tempfile::tempdir().unwrap();
