@@ -232,6 +232,21 @@ fn a_cut_or_unindexed_ros1_bag_is_read_to_its_last_complete_record() {
         assert!(u.footer_missing && u.reason.contains("no index"), "{u:?}");
         assert_eq!(u.n_messages, 3 * n);
     }
+    // Corrupt bytes anywhere: a result or an error, never a panic.
+    for (c, bag) in &bags {
+        let bytes = std::fs::read(bag).unwrap();
+        let bad = dir.path().join(format!("corrupt-{c}.bag"));
+        for i in (0..bytes.len()).step_by(bytes.len() / 97 + 1) {
+            let mut b = bytes.clone();
+            b[i] ^= 0xA5;
+            std::fs::write(&bad, &b).unwrap();
+            let _ = read(
+                std::slice::from_ref(&bad),
+                Some("/imu/a"),
+                Source::Corrected,
+            );
+        }
+    }
     // Not a bag of format 2.0, and damage in the first record: errors naming the file.
     let old = dir.path().join("old.bag");
     std::fs::write(&old, b"#ROSBAG V1.2\nrest").unwrap();
