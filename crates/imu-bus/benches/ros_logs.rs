@@ -100,7 +100,8 @@ fn main() {
         ("sqlite3", DB3_BYTES_PER_MESSAGE),
     ] {
         let n = (target_bytes / per_message) as u64;
-        let out = dir.path().join(kind);
+        // Python rosbags tells a ROS 1 bag by its extension and a rosbag2 bag by its directory.
+        let out = dir.path().join(if kind == "ros1" { "robot.bag" } else { "sqlite3" });
         let t = Instant::now();
         let status = Command::new("python3")
             .arg(peer())
@@ -138,7 +139,7 @@ fn main() {
         let py = Command::new("python3")
             .arg(peer())
             .arg("read")
-            .arg(&file)
+            .arg(&out)
             .output()
             .expect("python3");
         assert!(
