@@ -39,6 +39,12 @@ fn peak_rss_kib() -> u64 {
         .unwrap_or(0)
 }
 
+/// Resets this process's peak resident set to its current one (Linux `clear_refs` 5), so the
+/// next peak is the next read's own.
+fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
 /// One sample as the offline tools keep it.
 type Sample = (u64, [f64; 3], [f64; 3]);
 
@@ -101,7 +107,11 @@ fn main() {
     ] {
         let n = (target_bytes / per_message) as u64;
         // Python rosbags tells a ROS 1 bag by its extension and a rosbag2 bag by its directory.
-        let out = dir.path().join(if kind == "ros1" { "robot.bag" } else { "sqlite3" });
+        let out = dir.path().join(if kind == "ros1" {
+            "robot.bag"
+        } else {
+            "sqlite3"
+        });
         let t = Instant::now();
         let status = Command::new("python3")
             .arg(peer())
@@ -123,7 +133,8 @@ fn main() {
             t.elapsed().as_secs_f64()
         );
 
-        // Streaming first, so the peak resident set it leaves is its own.
+        // Streaming first, from a reset peak, so the peak it leaves is its own.
+        reset_peak_rss();
         let before_kib = peak_rss_kib();
         let t = Instant::now();
         let (count, sum, _) = read_rust(kind, &file, false);
