@@ -10,10 +10,13 @@
 //! - [`mcap_read`]: a tolerant streaming MCAP reader that reads a truncated file (a process killed
 //!   mid-write) up to its last good record and says where it stopped ([`mcap_read::Unfinished`]).
 //! - [`recover`]: repairs such a file (summary, indexes, footer) so every reader opens it.
+//! - [`ros1`]: ROS 1 serialization and bag files (2.0), read in the same tolerant way;
+//!   [`ros2`]: CDR, the message types, rosbag2 directories and their sqlite3 storage.
 
 pub mod mcap_read;
 pub mod recording;
 pub mod recover;
+pub mod ros1;
 pub mod ros2;
 pub mod sample;
 pub mod shm;

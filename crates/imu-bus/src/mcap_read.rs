@@ -94,6 +94,8 @@ pub struct Unfinished {
     pub n_messages: u64,
     /// Latest log time among the messages read, Unix epoch ns (`None` when none was read).
     pub last_log_time_ns: Option<u64>,
+    /// The command that repairs the file (`imud recover FILE`, `rosbag reindex FILE`).
+    pub repair: String,
 }
 
 /// True if `path` starts with the MCAP magic bytes: how every reader tells an MCAP file from
@@ -325,6 +327,7 @@ impl<'p> Pass<'p> {
             reason: reason.clone(),
             n_messages: self.report.n_messages,
             last_log_time_ns: self.last_log_time_ns,
+            repair: format!("imud recover {}", self.path.display()),
         });
         if self.read_bytes < self.total_bytes && self.report.stopped_early.is_none() {
             // The reader had all it needed before the end of the file (trailing bytes).

@@ -25,10 +25,10 @@ pub fn warning(path: &Path, u: &Unfinished) -> String {
         None => "no message".into(),
     };
     format!(
-        "{}: {what}: read {} messages, {until}; `imud recover {}` repairs it ({})",
+        "{}: {what}: read {} messages, {until}; `{}` repairs it ({})",
         path.display(),
         u.n_messages,
-        path.display(),
+        u.repair,
         u.reason
     )
 }
@@ -65,6 +65,7 @@ mod tests {
             reason: "file ends mid-record".into(),
             n_messages: 42,
             last_log_time_ns: Some(1_700_000_000_123_456_789),
+            repair: "imud recover rec.mcap".into(),
         };
         let w = warning(Path::new("rec.mcap"), &u);
         assert_eq!(

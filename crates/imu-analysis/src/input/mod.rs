@@ -1,28 +1,39 @@
 //! Reading IMU time series for the offline tools: imud recordings, any MCAP carrying
-//! `sensor_msgs/msg/Imu` (rosbag2 recordings from other drivers, rosbag2 directories), and text
-//! files in any layout; one file or the several files of one session.
+//! `sensor_msgs/msg/Imu` (rosbag2 recordings from other drivers, rosbag2 directories), ROS 1
+//! bags, rosbag2 sqlite3 files, and text files in any layout; one file or the several files of
+//! one session.
 //!
 //! Everything becomes an [`ImuSeries`] in SI units with times in seconds from the first sample.
-//! Formats are told by content (MCAP magic bytes, else text), never by extension. MCAP is read
-//! front to back (bounded memory besides the series itself; a truncated file is read up to its
-//! last good record and says so). Invariant: errors name the file, line and column.
+//! Formats are told by content (MCAP magic bytes, `#ROSBAG V2.0`, SQLite's magic, a zstd frame,
+//! else text), never by extension. Recordings are read front to back (bounded memory besides the
+//! series itself; a truncated file is read up to its last good record and says so). Invariant:
+//! errors name the file, line and column.
 //!
-//! Files: `mcap.rs` (MCAP and topics), `text/` (layouts, columns, labels, two files),
-//! `units.rs` (text units, raw counts with offsets), `session.rs` (several files as one),
+//! Files: `collect.rs` (what every recording format feeds: topic choice, raw stream, series),
+//! `mcap.rs` (MCAP, and the CDR messages sqlite3 shares), `ros1.rs` (ROS 1 bags), `db3.rs`
+//! (rosbag2 sqlite3), `text/` (layouts, columns, labels, two files), `units.rs` (text units, raw
+//! counts with offsets), `session.rs` (several files as one, each told by content),
 //! `series.rs` (what a series says about itself).
 
 use std::path::{Path, PathBuf};
 
 use imu_bus::McapReadError;
+use imu_bus::ros1::bag::Ros1BagError;
 use imu_bus::ros2::bag::BagError;
+use imu_bus::ros2::sqlite::Db3Error;
 
+mod collect;
+mod db3;
 mod mcap;
+mod ros1;
 mod series;
 mod session;
 mod text;
 mod units;
 
+pub use db3::read_db3_with_progress;
 pub use mcap::{IMU_SCHEMA, read_mcap, read_mcap_with_progress};
+pub use ros1::read_ros1_bag_with_progress;
 pub use session::{InputOptions, SessionGap, group_sessions, read_input, session_files};
 pub use text::{ColumnRef, Columns, CsvOptions, read_csv, read_text};
 pub use units::{AccelUnit, CountsAxes, GyroUnit};
@@ -100,6 +111,12 @@ pub enum InputError {
     /// A rosbag2 directory could not be read.
     #[error(transparent)]
     Bag(#[from] BagError),
+    /// A ROS 1 bag could not be read.
+    #[error(transparent)]
+    Ros1(#[from] Ros1BagError),
+    /// A rosbag2 sqlite3 file could not be read.
+    #[error(transparent)]
+    Db3(#[from] Db3Error),
     /// The files given are not one session.
     #[error("{message}")]
     Session {
@@ -204,8 +221,8 @@ pub struct ImuSeries {
     pub input: InputInfo,
 }
 
-/// Reads any supported input, told by content: MCAP (magic bytes), a rosbag2 or imud session
-/// directory, or text.
+/// Reads any supported input, told by content: MCAP (magic bytes), a ROS 1 bag, a rosbag2
+/// sqlite3 file, a rosbag2 or imud session directory, or text.
 pub fn read_any(path: &Path, source: Source, csv: &CsvOptions) -> Result<ImuSeries, InputError> {
     read_any_with_progress(path, source, csv, &mut |_, _| {})
 }

@@ -1,18 +1,21 @@
 //! Recordings of several files read as one: imud's rotated files of a session (given one by one
 //! or as their directory), a rosbag2 directory (the files its `metadata.yaml` lists), or any
-//! single file. Each file's format is told by content (MCAP magic bytes, else text); the parts
-//! are put in time order, their times joined on one base, and the gaps between them reported.
+//! single file. Each file's format is told by content (MCAP magic bytes, `#ROSBAG V2.0`,
+//! SQLite's magic, a zstd frame holding an SQLite file, else text); the parts are put in time
+//! order, their times joined on one base, and the gaps between them reported.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use imu_bus::McapReadError;
 use imu_bus::mcap_read::has_mcap_magic;
+use imu_bus::ros1::bag::has_rosbag_magic;
 use imu_bus::ros2::bag;
+use imu_bus::ros2::sqlite::{ZSTD_MAGIC, has_sqlite_magic, starts_with};
 
 use super::{
-    Columns, CsvOptions, ImuSeries, InputError, InputInfo, Labels, Source, read_mcap_with_progress,
-    read_text,
+    Columns, CsvOptions, ImuSeries, InputError, InputInfo, Labels, Source, read_db3_with_progress,
+    read_mcap_with_progress, read_ros1_bag_with_progress, read_text,
 };
 
 /// How to read a recording of one or more files.
@@ -193,10 +196,32 @@ fn read_file(
             on_progress,
         );
     }
+    let topic = options.topic.as_deref();
+    if has_rosbag_magic(path).map_err(io)? {
+        return read_ros1_bag_with_progress(path, options.source, topic, on_progress);
+    }
+    if has_sqlite_magic(path).map_err(io)? {
+        return read_db3_with_progress(path, path, options.source, topic, on_progress);
+    }
+    if starts_with(path, &ZSTD_MAGIC).map_err(io)? {
+        // rosbag2's file compression (`x.db3.zstd`): read a decompressed copy under its name.
+        let plain = bag::decompress_zstd_file(path)?;
+        if !has_sqlite_magic(plain.path()).map_err(io)? {
+            return Err(InputError::NoData {
+                path: path.to_path_buf(),
+                message: "a zstd-compressed file that holds no sqlite3 bag (only rosbag2's \
+                          compressed .db3 files are read)"
+                    .into(),
+            });
+        }
+        return read_db3_with_progress(plain.path(), path, options.source, topic, on_progress);
+    }
     if !looks_like_text(path).map_err(io)? {
         return Err(InputError::Mcap(McapReadError::NotMcap {
             path: path.to_path_buf(),
-            message: "no MCAP magic bytes, and not text either (binary data)".into(),
+            message: "no MCAP magic bytes, not a ROS 1 bag or rosbag2 sqlite3 file, and not \
+                      text either (binary data)"
+                .into(),
         }));
     }
     let size = std::fs::metadata(path).map_or(0, |m| m.len());

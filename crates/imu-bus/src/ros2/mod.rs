@@ -1,6 +1,6 @@
 //! ROS 2 messages for the MCAP log and the daemon's DDS output: a CDR (XCDR1, little-endian) encoder and decoder, the message
 //! types imud records, and their `ros2msg` schema text exactly as rosbag2 writes it; `bag`: the
-//! files of a rosbag2 directory.
+//! files of a rosbag2 directory; `sqlite`: its sqlite3 storage (`.db3`).
 //!
 //! The standard types (`sensor_msgs/msg/Imu`, `Temperature`, `MagneticField` and their
 //! `std_msgs`, `builtin_interfaces` and `geometry_msgs` parts) match the upstream `.msg` files
@@ -20,6 +20,7 @@ mod cdr;
 mod definitions;
 mod diagnostics;
 mod messages;
+pub mod sqlite;
 
 pub use cdr::*;
 pub use definitions::*;
