@@ -12,7 +12,8 @@ use imu_bus::shm::{Publishers, ShmOptions};
 use tracing::{info, warn};
 
 use imud::config::{self, Config};
-use imud::pipeline::{GainFallback, Gains, Pipeline, Sinks};
+use imud::drivers::{Device, Driver};
+use imud::pipeline::{Pipeline, Sinks};
 use imud::session::{CalibrationSource, Daemon, DeviceIdentity, Signals};
 
 /// The default `--sim` scenario and truth model, built in so `imud --sim` works from anywhere.
@@ -365,20 +366,10 @@ async fn run(args: Args) -> anyhow::Result<()> {
         recorder,
         ros2,
     };
-    let fallback = config.device.fallback_gains;
-    let mut pipeline = Pipeline::new(
-        Gains {
-            accel: fallback.accel,
-            gyro: fallback.gyro,
-            mag: fallback.mag,
-            fallback: GainFallback::ALL,
-        },
-        config.device.tick_period_s,
-        None,
-    );
+    let device = Device::new(&config);
+    let mut pipeline = Pipeline::new(device.initial_session(), None);
     pipeline.set_health(Some(config.health.clone()));
     let device_path = config.device.path.clone();
-    let config_protocol = config.device.protocol.unwrap_or_default();
     let mut daemon = Daemon {
         calibration: CalibrationSource::new(
             config.calibration.path.clone(),
@@ -387,7 +378,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
         config,
         sinks,
         pipeline,
-        link: imud::link::Link::new(config_protocol),
+        device,
         reconnects: 0,
         notified_ready: false,
         on_identity: Box::new(move |id: &DeviceIdentity, sinks: &Sinks| {
