@@ -133,6 +133,9 @@ pub struct DeviceConfig {
     pub rate_hz: Option<f64>,
     /// Serial line rate, bits/s (38400 is the factory default).
     pub baud: u32,
+    /// Configure the unit at start-up; false (`--passive`): send it nothing and take the
+    /// stream as it is (`drivers/`: each driver's passive mode).
+    pub configure: bool,
     /// Continuous or polled acquisition.
     pub mode: AcquisitionMode,
     /// Which data reply to acquire.
@@ -163,6 +166,7 @@ impl Default for DeviceConfig {
             protocol: None,
             rate_hz: None,
             baud: 38_400,
+            configure: true,
             mode: AcquisitionMode::Continuous,
             command: SampleCommand::RawBits,
             poll_rate_hz: 100.0,

@@ -48,6 +48,10 @@ struct Args {
     /// Baud rate (overrides device.baud).
     #[arg(long, value_name = "N")]
     baud: Option<u32>,
+    /// Send the unit nothing: take its stream as it is (set up with the vendor's tool, shared
+    /// with another host, or a one-way tap); the same as `device.configure = false`.
+    #[arg(long)]
+    passive: bool,
     /// Calibration file (overrides calibration.path).
     #[arg(long, value_name = "FILE")]
     calibration: Option<PathBuf>,
@@ -204,6 +208,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     }
     if let Some(b) = args.baud {
         config.device.baud = b;
+    }
+    if args.passive {
+        config.device.configure = false;
     }
     if let Some(c) = &args.calibration {
         config.calibration.path = Some(c.clone());

@@ -181,6 +181,13 @@ impl Device {
     /// and starts.
     fn probed(&mut self, protocol: DeviceProtocol, heard: &[u8], now: Instant) {
         self.protocol = protocol;
+        if !self.config.configure {
+            // Passive: the stream heard is the session's, from its first sample.
+            let driver = self.driver();
+            driver.start(now);
+            driver.handle_input(heard, now);
+            return;
+        }
         let driver = self.driver();
         driver.handle_input(heard, now);
         let mut logged = VecDeque::new();
@@ -321,9 +328,10 @@ pub fn status_protocol_name(code: u8) -> &'static str {
 /// What a driver says is wrong with the device configuration for its protocol, if anything:
 /// (the dotted key, the message).
 pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
-    match config.protocol? {
-        DeviceProtocol::Gx1 => None,
-        DeviceProtocol::Mip => mip::config_problem(config),
+    match config.protocol {
+        Some(DeviceProtocol::Mip) => mip::config_problem(config),
+        // Probed: the GX1's rules hold for either (a MIP unit streams whatever the mode).
+        Some(DeviceProtocol::Gx1) | None => gx1::config_problem(config),
     }
 }
 

@@ -10,6 +10,10 @@
 //! 3. Ask the MIP question, "set to idle": only a MIP unit acknowledges it (and it stops one
 //!    that streams).
 //!
+//! Passive (`device.configure = false`), only step 1: the probe listens for up to the silence
+//! time-out (at least [`LISTEN`]) and asks nothing, so a unit that streams is recognised without
+//! a command.
+//!
 //! No answer is an error: the session is retried with back-off like any failed start-up. The
 //! bytes heard go, as frames only, to the driver of the protocol found, so they are logged
 //! like any other bytes from the device; the probe's own decoders keep them out of the
@@ -48,8 +52,11 @@ enum Stage {
 pub struct Probe {
     stage: Stage,
     deadline: Instant,
+    started: Instant,
     now: Instant,
     reply_timeout: Duration,
+    /// Only listen: never ask.
+    passive: bool,
     bytes: Vec<u8>,
     gx1: ReplyDecoder,
     mip: MipDecoder,
@@ -64,11 +71,19 @@ pub struct Probe {
 impl Probe {
     /// A probe that starts listening at `now`.
     pub fn new(config: &DeviceConfig, now: Instant) -> Self {
+        let passive = !config.configure;
+        let listen = if passive {
+            LISTEN.max(Duration::from_secs_f64(config.silence_timeout_s))
+        } else {
+            LISTEN
+        };
         Self {
             stage: Stage::Listen,
-            deadline: now + LISTEN,
+            deadline: now + listen,
+            started: now,
             now,
             reply_timeout: Duration::from_secs_f64(config.reply_timeout_s),
+            passive,
             bytes: Vec::new(),
             gx1: ReplyDecoder::default(),
             mip: MipDecoder::default(),
@@ -165,6 +180,14 @@ impl Probe {
             return;
         }
         match self.stage {
+            Stage::Listen if self.passive => {
+                self.stage = Stage::Done;
+                self.result = Some(Err(anyhow!(
+                    "no stream of a known protocol heard within {:.1} s (passive: nothing is \
+                     asked; set device.protocol, or check that the unit streams)",
+                    (self.deadline - self.started).as_secs_f64()
+                )));
+            }
             Stage::Listen => {
                 self.stage = Stage::AskGx1;
                 self.transmit = Some(Command::FirmwareVersion.to_bytes());

@@ -53,6 +53,8 @@ pub struct Peer {
     pub requests: Vec<Request>,
     /// Stop answering and streaming altogether (the cable pulled).
     pub silent: bool,
+    /// Samples streamed so far.
+    pub sent: u64,
 }
 
 impl Peer {
@@ -75,6 +77,7 @@ impl Peer {
             origin,
             requests: Vec::new(),
             silent: false,
+            sent: 0,
         }
     }
 
@@ -177,7 +180,7 @@ impl Peer {
                 break;
             }
             let t_s = self.t_s(t);
-            self.device.stream_sample(t_s, &mut out);
+            self.sent += u64::from(self.device.stream_sample(t_s, &mut out).is_some());
             self.stream = Some((t0, n + 1));
         }
         out

@@ -1,6 +1,10 @@
 //! The 3DM-GX1 as a driver: its reply decoder, its fenced start-up (`startup.rs`), its data
 //! replies as readings (`reading.rs`), polling in polled mode, and its simulated unit for the
 //! offline path (`offline.rs`).
+//!
+//! Passive (`device.configure = false`): nothing is ever sent; the unit is taken to stream in
+//! continuous mode already, its replies are samples from the first, the GainScales are the
+//! configured fallbacks (flagged so), and the identity says the configuration was not verified.
 
 pub mod offline;
 pub mod reading;
@@ -68,6 +72,18 @@ pub fn initial_session(config: &DeviceConfig) -> SessionSpec {
     session(config, fallback_gains(config))
 }
 
+/// What is wrong with `config` for a 3DM-GX1, if anything: (the dotted key, the message).
+pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
+    (!config.configure && config.mode == AcquisitionMode::Polled).then(|| {
+        (
+            "device.mode",
+            "\"polled\" asks the unit for every sample: a passive unit (device.configure = \
+             false) is only listened to"
+                .into(),
+        )
+    })
+}
+
 /// Polls in polled mode: the data command, a temperature every `temp_every`-th poll (both
 /// encoded once, so a poll does not allocate).
 #[derive(Debug)]
@@ -122,6 +138,44 @@ impl Gx1Driver {
         d
     }
 
+    /// A passive start: the session and identity at once, nothing sent.
+    fn start_passive(&mut self) {
+        let gains = fallback_gains(&self.config);
+        self.session_gains = Some(gains);
+        self.unwrapper = TickUnwrapper::new();
+        let spec = SessionSpec {
+            acquisition: Acquisition::Streaming,
+            ..session(&self.config, gains)
+        };
+        self.events.push_back(DriverEvent::Session(spec));
+        info!(
+            "device {} (3DM-GX1) passive: nothing is sent; its stream is taken as it is, with \
+             the configured GainScales {}/{}/{} (not verified)",
+            self.path.display(),
+            gains.accel,
+            gains.gyro,
+            gains.mag
+        );
+        let not_asked = "not asked (passive)".to_string();
+        let mut details = vec![
+            (
+                "tick-period-s".into(),
+                self.config.tick_period_s.to_string(),
+            ),
+            ("configuration-verified".into(), "false".into()),
+        ];
+        details.extend(gains.metadata());
+        self.events
+            .push_back(DriverEvent::Identified(Box::new(DeviceIdentity {
+                protocol: imu_proto::DeviceProtocol::Gx1.name(),
+                model: "3DM-GX1".into(),
+                firmware: not_asked.clone(),
+                serial: not_asked,
+                details,
+            })));
+        self.events.push_back(DriverEvent::Ready);
+    }
+
     fn stream_command(&self) -> Option<Command> {
         (self.config.mode == AcquisitionMode::Continuous)
             .then(|| sample_command(self.config.command))
@@ -144,10 +198,13 @@ impl Gx1Driver {
                     "device {} (3DM-GX1) firmware {firmware} serial {serial}",
                     self.path.display(),
                 );
-                let mut details = vec![(
-                    "tick-period-s".into(),
-                    self.config.tick_period_s.to_string(),
-                )];
+                let mut details = vec![
+                    (
+                        "tick-period-s".into(),
+                        self.config.tick_period_s.to_string(),
+                    ),
+                    ("configuration-verified".into(), "true".into()),
+                ];
                 details.extend(gains.metadata());
                 let identity = DeviceIdentity {
                     protocol: imu_proto::DeviceProtocol::Gx1.name(),
@@ -233,6 +290,10 @@ impl Driver for Gx1Driver {
         self.session_gains = None;
         self.polling = None;
         self.out = Out::default();
+        if !self.config.configure {
+            self.start_passive();
+            return;
+        }
         self.startup = Some(Startup::new(
             fallback_gains(&self.config),
             Duration::from_secs_f64(self.config.reply_timeout_s),
@@ -338,7 +399,8 @@ impl Driver for Gx1Driver {
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {
-        (self.config.mode == AcquisitionMode::Continuous)
+        // A passive unit is never sent anything, not even a stop.
+        (self.config.configure && self.config.mode == AcquisitionMode::Continuous)
             .then(|| Command::SetContinuous { command: 0 }.to_bytes())
     }
 

@@ -1,6 +1,12 @@
 //! A MIP unit as a driver: its packet decoder, its start-up (`startup.rs`), its IMU data
 //! packets as readings (`reading.rs`), and its simulated unit for the offline path
 //! (`offline.rs`). A MIP unit always streams: a configured "polled" mode does not apply.
+//!
+//! Passive (`device.configure = false`): nothing is ever sent. The clock is learned from the
+//! first IMU data packet with accel, gyro and a timestamp (the shared reference time 0xD5 if
+//! it has one, else the internal timestamp), and that packet is the session's first sample;
+//! other data sets a 7-series unit interleaves (estimation filter 0x82, system 0xA0, GNSS) are
+//! logged as frames and counted, not decoded into samples.
 
 pub mod offline;
 pub mod reading;
@@ -62,6 +68,8 @@ pub struct MipDriver {
     /// Readings are made (the unit resumed).
     streaming: bool,
     startup: Option<Startup>,
+    /// Passive: listening for the first usable IMU packet until this time.
+    learning: Option<Instant>,
     events: VecDeque<DriverEvent>,
     now: Instant,
 }
@@ -76,9 +84,15 @@ impl MipDriver {
             readings: reading::Readings::new(MipTimebase::ReferenceTime),
             streaming: false,
             startup: None,
+            learning: None,
             events: VecDeque::new(),
             now: Instant::now(),
         }
+    }
+
+    /// Packets of data sets other than the IMU's, by descriptor set.
+    pub fn other_sets(&self) -> &std::collections::BTreeMap<u8, u64> {
+        self.readings.other_sets()
     }
 
     /// A driver of a unit already streaming on `timebase` (no start-up: the offline path,
@@ -88,6 +102,61 @@ impl MipDriver {
         d.readings.restart(timebase);
         d.streaming = true;
         d
+    }
+
+    /// Passive: the clock a packet would set, if it is a usable IMU data packet.
+    fn learn(&mut self, packet: &imu_proto::mip::Packet) -> bool {
+        if packet.descriptor_set() != imu_proto::mip::descriptor_set::IMU_DATA {
+            return false;
+        }
+        let Ok(data) = imu_proto::mip::ImuData::decode_packet(packet) else {
+            return false;
+        };
+        let timebase = match (data.reference_time_ns, data.internal_ticks) {
+            (Some(_), _) => MipTimebase::ReferenceTime,
+            (None, Some(_)) => MipTimebase::InternalTimestamp,
+            (None, None) => return false,
+        };
+        if data.accel_g.is_none() || data.gyro_rad_s.is_none() {
+            return false;
+        }
+        self.learning = None;
+        self.streaming = true;
+        self.readings.restart(timebase);
+        info!(
+            "device {} (MIP) passive: its IMU stream taken as it is, clock {}{}{} (rate \
+             measured; configuration not verified)",
+            self.path.display(),
+            timebase.name(),
+            if data.mag_gauss.is_some() {
+                ", magnetometer"
+            } else {
+                ", no magnetometer"
+            },
+            if data.temperature.is_some() {
+                ", temperature"
+            } else {
+                ", no temperature"
+            },
+        );
+        self.events
+            .push_back(DriverEvent::Session(session(timebase)));
+        let not_asked = "not asked (passive)".to_string();
+        self.events
+            .push_back(DriverEvent::Identified(Box::new(DeviceIdentity {
+                protocol: imu_proto::DeviceProtocol::Mip.name(),
+                model: not_asked.clone(),
+                firmware: not_asked.clone(),
+                serial: not_asked,
+                details: vec![
+                    ("clock".into(), timebase.name().into()),
+                    ("magnetometer".into(), data.mag_gauss.is_some().to_string()),
+                    ("temperature".into(), data.temperature.is_some().to_string()),
+                    ("configuration-verified".into(), "false".into()),
+                ],
+            })));
+        self.events.push_back(DriverEvent::Ready);
+        true
     }
 
     fn on_outcome(&mut self, outcome: Option<Outcome>) {
@@ -151,6 +220,7 @@ impl MipDriver {
                 ("magnetometer".into(), choice.mag.to_string()),
                 ("temperature".into(), choice.temperature.to_string()),
                 ("message-format-command".into(), c.form.name()),
+                ("configuration-verified".into(), "true".into()),
             ],
         }
     }
@@ -160,6 +230,12 @@ impl Driver for MipDriver {
     fn start(&mut self, now: Instant) {
         self.now = now;
         self.streaming = false;
+        self.learning = None;
+        if !self.config.configure {
+            self.startup = None;
+            self.learning = Some(now + Duration::from_secs_f64(self.config.silence_timeout_s));
+            return;
+        }
         self.startup = Some(Startup::new(
             Duration::from_secs_f64(self.config.reply_timeout_s),
             self.config.rate_hz,
@@ -178,6 +254,8 @@ impl Driver for MipDriver {
         }
         Some(match self.decoder.next_event()? {
             MipEvent::Packet { packet, offset } => {
+                // Passive: the first usable packet sets the session, which goes out before it.
+                let learned = self.learning.is_some() && self.learn(&packet);
                 // The start-up's packets are logged only: no samples before the unit resumed.
                 let content = if self.streaming {
                     self.readings.content(&packet)
@@ -188,13 +266,18 @@ impl Driver for MipDriver {
                     let outcome = s.on_packet(&packet, self.now);
                     self.on_outcome(outcome);
                 }
-                DriverEvent::Frame {
+                let frame = DriverEvent::Frame {
                     frame: SampleFrame {
                         stream_offset: offset,
                         bytes: FrameData::from_slice(packet.as_bytes()),
                     },
                     content,
+                };
+                if learned {
+                    self.events.push_back(frame);
+                    return self.events.pop_front();
                 }
+                frame
             }
             MipEvent::Rejected {
                 bytes,
@@ -219,11 +302,22 @@ impl Driver for MipDriver {
     }
 
     fn poll_timeout(&self) -> Option<Instant> {
-        self.startup.as_ref()?.deadline()
+        match &self.startup {
+            Some(s) => s.deadline(),
+            None => self.learning,
+        }
     }
 
     fn handle_timeout(&mut self, now: Instant) {
         self.now = now;
+        if self.learning.is_some_and(|t| now >= t) {
+            self.learning = None;
+            self.events.push_back(DriverEvent::Failed(anyhow::anyhow!(
+                "no MIP IMU data packet with accel, gyro and a timestamp heard within {:.1} s \
+                 (passive: nothing is sent to the unit)",
+                self.config.silence_timeout_s
+            )));
+        }
         if let Some(s) = &mut self.startup {
             let outcome = s.on_timeout(now);
             self.on_outcome(outcome);
@@ -235,7 +329,10 @@ impl Driver for MipDriver {
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {
-        Some(MipCommand::SetToIdle.to_packet().as_bytes().to_vec())
+        // A passive unit is never sent anything, not even a stop.
+        self.config
+            .configure
+            .then(|| MipCommand::SetToIdle.to_packet().as_bytes().to_vec())
     }
 
     fn stats(&self) -> DecoderStats {

@@ -8,7 +8,7 @@ use imu_proto::mip::data::INTERNAL_TICK_HZ;
 use imu_proto::mip::descriptor_set::IMU_DATA;
 use imu_proto::mip::{ImuData, Packet};
 use imu_proto::ticks::TickUnwrapper;
-use tracing::warn;
+use tracing::{info, warn};
 
 use crate::pipeline::{
     DeviceReading, FrameContent, TemperatureCadence, TickKind, TickLength, Timebase,
@@ -75,6 +75,9 @@ pub struct Readings {
     unwrapper: TickUnwrapper,
     /// Data packets that made no sample so far (the first is said in the log).
     unusable: u64,
+    /// Packets of data sets other than the IMU's (estimation filter, system, GNSS) so far, by
+    /// descriptor set; each set's first is said in the log.
+    other_sets: std::collections::BTreeMap<u8, u64>,
 }
 
 impl Readings {
@@ -84,6 +87,7 @@ impl Readings {
             timebase,
             unwrapper: TickUnwrapper::with_bits(timebase.tick_bits()),
             unusable: 0,
+            other_sets: std::collections::BTreeMap::new(),
         }
     }
 
@@ -105,10 +109,32 @@ impl Readings {
         }
     }
 
+    /// Counts a packet of another data set (the map grows by one entry per set seen, at most
+    /// a handful: not on the per-frame path after the first of each).
+    fn count_other_set(&mut self, set: u8) {
+        let n = self.other_sets.entry(set).or_insert(0);
+        *n += 1;
+        if *n == 1 {
+            info!(
+                "MIP data set 0x{set:02X} ({}) is logged as frames, not decoded into samples",
+                data_set_name(set)
+            );
+        }
+    }
+
+    /// Packets of data sets other than the IMU's, by descriptor set.
+    pub fn other_sets(&self) -> &std::collections::BTreeMap<u8, u64> {
+        &self.other_sets
+    }
+
     /// What `packet` carries: nothing for a packet of another descriptor set (a reply), else
     /// its temperature and its sample, or an unusable packet.
     pub fn content(&mut self, packet: &Packet) -> FrameContent {
-        if packet.descriptor_set() != IMU_DATA {
+        let set = packet.descriptor_set();
+        if set != IMU_DATA {
+            if is_data_set(set) {
+                self.count_other_set(set);
+            }
             return FrameContent::default();
         }
         let data = match ImuData::decode_packet(packet) {
@@ -157,5 +183,23 @@ impl Readings {
             unusable: false,
             fields_skipped: u32::from(data.skipped_fields),
         }
+    }
+}
+
+/// True for a data descriptor set (0x80 and up; commands are below).
+fn is_data_set(set: u8) -> bool {
+    set >= 0x80
+}
+
+/// A data set's name (mip_sdk `mip_descriptors.h`, `data_filter.h`, `data_system.h`,
+/// `data_gnss.h`).
+pub fn data_set_name(set: u8) -> &'static str {
+    match set {
+        0x80 => "IMU",
+        0x81 => "GNSS",
+        0x82 => "estimation filter",
+        0x91..=0x95 => "GNSS receiver",
+        0xA0 => "system",
+        _ => "unknown",
     }
 }
