@@ -8,5 +8,6 @@ pub mod drivers;
 pub mod health;
 pub mod offline;
 pub mod pipeline;
+pub mod replay;
 pub mod ros2;
 pub mod session;

@@ -186,6 +186,12 @@ impl Daemon {
 
     fn publish_status(&mut self, connected: bool) {
         let (mono, wall) = now_ns();
+        self.publish_status_at(connected, mono, wall);
+    }
+
+    /// Publishes, records and sends the status at the host times given (a replay's are the
+    /// recording's).
+    pub(crate) fn publish_status_at(&mut self, connected: bool, mono: u64, wall: u64) {
         let mut status = self.pipeline.status(
             &self.device.stats(),
             &self.sinks,
@@ -217,7 +223,6 @@ impl Daemon {
         if self.calibration_noise_pending
             && let (Some(rate), Some(cal)) = (self.sample_rate_hz(), self.pipeline.calibration())
         {
-            let (_, wall) = now_ns();
             self.sinks.log_calibration(wall, cal, Some(rate));
             self.calibration_noise_pending = false;
         }
@@ -227,6 +232,15 @@ impl Daemon {
     /// the session's start and its identity included. Returns how start-up ended, if it did.
     fn take_events(&mut self) -> Option<Result<(), anyhow::Error>> {
         let (mono, wall) = now_ns();
+        self.take_events_at(mono, wall)
+    }
+
+    /// [`Self::take_events`] with the host times given (a replay's are the recording's).
+    pub(crate) fn take_events_at(
+        &mut self,
+        mono: u64,
+        wall: u64,
+    ) -> Option<Result<(), anyhow::Error>> {
         let mut ended = None;
         while let Some(ev) = self.device.poll_event() {
             match ev {

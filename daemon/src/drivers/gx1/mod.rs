@@ -143,10 +143,9 @@ impl Gx1Driver {
         let gains = fallback_gains(&self.config);
         self.session_gains = Some(gains);
         self.unwrapper = TickUnwrapper::new();
-        let spec = SessionSpec {
-            acquisition: Acquisition::Streaming,
-            ..session(&self.config, gains)
-        };
+        // Streaming; a polled session only in a replay of one (the configuration check
+        // refuses polling a live passive unit).
+        let spec = session(&self.config, gains);
         self.events.push_back(DriverEvent::Session(spec));
         info!(
             "device {} (3DM-GX1) passive: nothing is sent; its stream is taken as it is, with \
