@@ -13,8 +13,13 @@ use imu_model::Calibration;
 use imu_proto::DeviceProtocol;
 use imu_proto::mip::{ImuData, TemperatureStats};
 use imu_proto::reply::Reply;
-use imud::link::Link;
-use imud::pipeline::{ActiveCalibration, GainFallback, Gains, MipTimebase, Pipeline, Sinks};
+use imud::config::DeviceConfig;
+use imud::drivers::gx1::{self, Gx1Driver};
+use imud::drivers::mip::{self, MipDriver, MipTimebase};
+use imud::drivers::{Driver, DriverEvent};
+use imud::pipeline::{
+    Acquisition, ActiveCalibration, GainFallback, Gains, Pipeline, SessionSpec, Sinks, log_rejected,
+};
 
 const BATCH: usize = 1000;
 const BATCHES: usize = 1000;
@@ -79,19 +84,30 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
         mag: 2000,
         fallback: GainFallback::NONE,
     };
-    let mut pipeline = Pipeline::new(gains, 6.5536e-3, cal);
-    // The daemon's own decoders, as the session feeds them.
-    let mut link = Link::new(protocol);
-    if protocol == DeviceProtocol::Mip {
-        pipeline.new_session(Gains::NOT_APPLICABLE, MipTimebase::ReferenceTime.timebase());
-        // Loss accounting on, as when streaming (the GX1 batches repeat their ticks, so they
-        // run without it, as in every earlier run of this benchmark).
-        pipeline.set_continuous(true);
-    }
+    // The daemon's own drivers, as the session feeds them.
+    let cfg = DeviceConfig::default();
+    let (mut driver, session): (Box<dyn Driver>, SessionSpec) = match protocol {
+        // The GX1 batches repeat their ticks, so they run without loss accounting (as polls),
+        // as in every earlier run of this benchmark.
+        DeviceProtocol::Gx1 => (
+            Box::new(Gx1Driver::with_session(&cfg, gains)),
+            SessionSpec {
+                acquisition: Acquisition::Polled { rate_hz: 100.0 },
+                ..gx1::session(&cfg, gains)
+            },
+        ),
+        // Loss accounting on, as when streaming.
+        DeviceProtocol::Mip => (
+            Box::new(MipDriver::with_session(&cfg, MipTimebase::ReferenceTime)),
+            mip::session(MipTimebase::ReferenceTime),
+        ),
+    };
+    let mut pipeline = Pipeline::new(session, cal);
     // The daemon watches its calibration's health by default (imud::health).
     pipeline.set_health(health.then(imud::config::HealthConfig::default));
     let (stream, spacing_ns) = frames(protocol);
     let mut per_frame_ns = Vec::with_capacity(BATCHES);
+    let now = Instant::now();
     for b in 0..BATCHES {
         // MIP stamps run on: the batch's packets shifted by the batch's time.
         let batch = match protocol {
@@ -101,8 +117,20 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
         let start = Instant::now();
         for (k, frame) in batch.iter().enumerate() {
             let t = (b * BATCH + k) as u64 * spacing_ns;
-            link.push(frame);
-            link.drain_into(&mut pipeline, t, t, sinks);
+            driver.handle_input(frame, now);
+            while let Some(ev) = driver.poll_event() {
+                match ev {
+                    DriverEvent::Frame { frame, content } => {
+                        pipeline.on_frame(frame, &content, t, t, sinks);
+                    }
+                    DriverEvent::Rejected {
+                        bytes,
+                        offset,
+                        reason,
+                    } => log_rejected(bytes, offset, reason, t, t, sinks),
+                    _ => {}
+                }
+            }
         }
         per_frame_ns.push(start.elapsed().as_nanos() as f64 / BATCH as f64);
         // Let the writer thread drain between batches (untimed): the daemon runs at hundreds of

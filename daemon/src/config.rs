@@ -106,17 +106,6 @@ pub enum SampleCommand {
     InstantaneousVectors,
 }
 
-impl SampleCommand {
-    /// The protocol command.
-    pub fn command(self) -> imu_proto::Command {
-        match self {
-            Self::RawBits => imu_proto::Command::RawSensorBits,
-            Self::StabilizedVectors => imu_proto::Command::StabilizedVectors,
-            Self::InstantaneousVectors => imu_proto::Command::InstantaneousVectors,
-        }
-    }
-}
-
 /// GainScale words used when the device does not answer the EEPROM read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
@@ -135,7 +124,7 @@ pub struct GainConfig {
 pub struct DeviceConfig {
     /// Device path, e.g. `/dev/ttyUSB0` or a udev link `/dev/imu0`.
     pub path: PathBuf,
-    /// The protocol the device speaks; none: probed at each start-up (`startup/probe.rs`).
+    /// The protocol the device speaks; none: probed at each start-up (`drivers/probe.rs`).
     #[serde(with = "protocol_option", skip_serializing_if = "Option::is_none")]
     pub protocol: Option<imu_proto::DeviceProtocol>,
     /// MIP: the data rate to configure, Hz (the unit's base rate / a whole decimation); none:
@@ -144,6 +133,9 @@ pub struct DeviceConfig {
     pub rate_hz: Option<f64>,
     /// Serial line rate, bits/s (38400 is the factory default).
     pub baud: u32,
+    /// Configure the unit at start-up; false (`--passive`): send it nothing and take the
+    /// stream as it is (`drivers/`: each driver's passive mode).
+    pub configure: bool,
     /// Continuous or polled acquisition.
     pub mode: AcquisitionMode,
     /// Which data reply to acquire.
@@ -174,6 +166,7 @@ impl Default for DeviceConfig {
             protocol: None,
             rate_hz: None,
             baud: 38_400,
+            configure: true,
             mode: AcquisitionMode::Continuous,
             command: SampleCommand::RawBits,
             poll_rate_hz: 100.0,
@@ -489,11 +482,8 @@ impl Config {
                 return Some((key, format!("{v} must be a positive number of seconds")));
             }
         }
-        if d.protocol == Some(imu_proto::DeviceProtocol::Mip) && d.mode == AcquisitionMode::Polled {
-            return Some((
-                "device.mode",
-                "a MIP unit streams: \"polled\" is a 3DM-GX1 mode".into(),
-            ));
+        if let Some(problem) = crate::drivers::config_problem(d) {
+            return Some(problem);
         }
         if let Some(r) = d.rate_hz
             && !(positive(r) && r <= 10_000.0)

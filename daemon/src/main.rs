@@ -12,7 +12,8 @@ use imu_bus::shm::{Publishers, ShmOptions};
 use tracing::{info, warn};
 
 use imud::config::{self, Config};
-use imud::pipeline::{GainFallback, Gains, Pipeline, Sinks};
+use imud::drivers::{Device, Driver};
+use imud::pipeline::{Pipeline, Sinks};
 use imud::session::{CalibrationSource, Daemon, DeviceIdentity, Signals};
 
 /// The default `--sim` scenario and truth model, built in so `imud --sim` works from anywhere.
@@ -47,6 +48,10 @@ struct Args {
     /// Baud rate (overrides device.baud).
     #[arg(long, value_name = "N")]
     baud: Option<u32>,
+    /// Send the unit nothing: take its stream as it is (set up with the vendor's tool, shared
+    /// with another host, or a one-way tap); the same as `device.configure = false`.
+    #[arg(long)]
+    passive: bool,
     /// Calibration file (overrides calibration.path).
     #[arg(long, value_name = "FILE")]
     calibration: Option<PathBuf>,
@@ -93,6 +98,40 @@ enum Command {
         #[arg(long)]
         keep_original: bool,
     },
+    /// Replay a byte capture through the same driver and pipeline as a live unit, with the same
+    /// outputs: an imud recording (its /imu/raw_frame records, at their recorded host times:
+    /// its /imu/data is reproduced bit for bit), a raw byte capture (.bin) or a hex dump (.hex,
+    /// .txt), paced at the line's baud rate.
+    Replay {
+        /// The capture.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// The pace: 1 as recorded, 10 ten times faster, max as fast as the CPU allows.
+        #[arg(long, value_name = "1|10|max", default_value = "1")]
+        speed: imud::replay::Speed,
+        /// The calibration to correct with (a recording's own configuration's otherwise).
+        #[arg(long, value_name = "FILE")]
+        calibration: Option<PathBuf>,
+        /// The protocol of a raw capture (default: recognised from its stream; a recording
+        /// says its own).
+        #[arg(long, value_name = "PROTOCOL")]
+        protocol: Option<imu_proto::DeviceProtocol>,
+        /// Configuration file (a recording's own configuration takes its place).
+        #[arg(long, value_name = "FILE")]
+        config: Option<PathBuf>,
+        /// Line rate that paces a raw capture, bits/s (default: device.baud).
+        #[arg(long, value_name = "N")]
+        baud: Option<u32>,
+        /// Directory for the replay's recording.
+        #[arg(long, value_name = "DIR")]
+        log_dir: Option<PathBuf>,
+        /// Instance name of the replay's outputs.
+        #[arg(long, value_name = "NAME")]
+        name: Option<String>,
+        /// Also publish the ROS 2 topics.
+        #[arg(long)]
+        ros2: bool,
+    },
 }
 
 fn main() -> std::process::ExitCode {
@@ -114,6 +153,10 @@ fn main() -> std::process::ExitCode {
         }) = &args.command
         {
             return Ok(recover_files(files, *keep_original));
+        }
+        if let Some(Command::Replay { .. }) = &args.command {
+            replay_file(args)?;
+            return Ok(std::process::ExitCode::SUCCESS);
         }
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -203,6 +246,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     }
     if let Some(b) = args.baud {
         config.device.baud = b;
+    }
+    if args.passive {
+        config.device.configure = false;
     }
     if let Some(c) = &args.calibration {
         config.calibration.path = Some(c.clone());
@@ -321,6 +367,19 @@ async fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut signals = Signals::install()?;
 
+    let mut daemon = build_daemon(config, Vec::new())?;
+    daemon.load_initial_calibration()?;
+    let result = daemon.run(&mut signals).await;
+    info!("shutting down");
+    finish_outputs(&mut daemon);
+    result
+}
+
+/// The outputs `config` asks for; `extra` metadata is recorded with the configuration.
+fn open_sinks(
+    config: &Config,
+    extra: Vec<(String, BTreeMap<String, String>)>,
+) -> anyhow::Result<Sinks> {
     let publishers = if config.publish.enabled {
         let options = ShmOptions {
             subscriber_buffer_size: config.publish.subscriber_buffer,
@@ -344,10 +403,11 @@ async fn run(args: Args) -> anyhow::Result<()> {
             frame_id: config.log.frame_id.clone(),
             ..RecordingConfig::default()
         };
-        let metadata = vec![(
+        let mut metadata = vec![(
             "imud.config".to_string(),
             BTreeMap::from([("toml".to_string(), config.to_toml())]),
         )];
+        metadata.extend(extra);
         Some(Recorder::start(rc, metadata).context("starting the MCAP recorder")?)
     } else {
         None
@@ -360,26 +420,24 @@ async fn run(args: Args) -> anyhow::Result<()> {
     } else {
         None
     };
-    let sinks = Sinks {
+    Ok(Sinks {
         publishers,
         recorder,
         ros2,
-    };
-    let fallback = config.device.fallback_gains;
-    let mut pipeline = Pipeline::new(
-        Gains {
-            accel: fallback.accel,
-            gyro: fallback.gyro,
-            mag: fallback.mag,
-            fallback: GainFallback::ALL,
-        },
-        config.device.tick_period_s,
-        None,
-    );
+    })
+}
+
+/// The daemon for `config`: its outputs, its device's driver, the pipeline.
+fn build_daemon(
+    config: Config,
+    extra: Vec<(String, BTreeMap<String, String>)>,
+) -> anyhow::Result<Daemon> {
+    let sinks = open_sinks(&config, extra)?;
+    let device = Device::new(&config);
+    let mut pipeline = Pipeline::new(device.initial_session(), None);
     pipeline.set_health(Some(config.health.clone()));
     let device_path = config.device.path.clone();
-    let config_protocol = config.device.protocol.unwrap_or_default();
-    let mut daemon = Daemon {
+    Ok(Daemon {
         calibration: CalibrationSource::new(
             config.calibration.path.clone(),
             config.calibration.watch,
@@ -387,7 +445,7 @@ async fn run(args: Args) -> anyhow::Result<()> {
         config,
         sinks,
         pipeline,
-        link: imud::link::Link::new(config_protocol),
+        device,
         reconnects: 0,
         notified_ready: false,
         on_identity: Box::new(move |id: &DeviceIdentity, sinks: &Sinks| {
@@ -396,10 +454,11 @@ async fn run(args: Args) -> anyhow::Result<()> {
             }
         }),
         calibration_noise_pending: false,
-    };
-    daemon.load_initial_calibration()?;
-    let result = daemon.run(&mut signals).await;
-    info!("shutting down");
+    })
+}
+
+/// Finishes the recording and the ROS 2 output, saying what they wrote.
+fn finish_outputs(daemon: &mut Daemon) {
     if let Some(r) = daemon.sinks.recorder.take() {
         match r.finish() {
             Ok(stats) => info!(
@@ -418,5 +477,73 @@ async fn run(args: Args) -> anyhow::Result<()> {
             s.written, s.dropped_queue_full, s.write_failures, s.not_sent_unmatched
         );
     }
-    result
+}
+
+/// `imud replay`: the capture through a passive device, its outputs as a live run's.
+fn replay_file(args: Args) -> anyhow::Result<()> {
+    let Some(Command::Replay {
+        file,
+        speed,
+        calibration,
+        protocol,
+        config,
+        baud,
+        log_dir,
+        name,
+        ros2,
+    }) = args.command
+    else {
+        unreachable!("called for the replay subcommand");
+    };
+    let (base, source) = Config::load(config.as_deref())?;
+    let baud = baud.unwrap_or(base.device.baud);
+    let capture = imud::replay::Capture::read(&file, baud, imud::replay::start_times())?;
+    let mut config = capture.config(&base)?;
+    config.device.path = file.clone();
+    if let Some(p) = protocol {
+        config.device.protocol = Some(p);
+    }
+    if let Some(c) = calibration {
+        config.calibration.path = Some(c);
+    }
+    config.calibration.watch = false;
+    if let Some(l) = log_dir {
+        config.log.dir = l;
+    }
+    if let Some(n) = name {
+        config.name = n;
+    }
+    if ros2 {
+        config.ros2.enabled = true;
+    }
+    // Checked as a configured unit: polling is refused only for a live passive one.
+    let mut checked = config.clone();
+    checked.device.configure = true;
+    checked.validate(&config::Source {
+        file: format!("{} with command-line flags", source.file),
+        text: source.text.clone(),
+    })?;
+    let metadata = vec![(
+        "imud.replay".to_string(),
+        BTreeMap::from([
+            ("source".to_string(), file.display().to_string()),
+            (
+                "kind".to_string(),
+                format!("{:?}", capture.kind).to_lowercase(),
+            ),
+            ("speed".to_string(), format!("{speed:?}")),
+        ]),
+    )];
+    let mut daemon = build_daemon(config, metadata)?;
+    daemon.load_initial_calibration()?;
+    let result = daemon.replay(&capture, speed);
+    finish_outputs(&mut daemon);
+    let report = result?;
+    info!(
+        "replayed {}: {} reads, {} samples",
+        file.display(),
+        report.chunks,
+        report.samples
+    );
+    Ok(())
 }

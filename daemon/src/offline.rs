@@ -7,10 +7,9 @@
 //! synthetic: the scenario clock plus a fixed offset). This is how hours of data for the offline
 //! tools' accuracy tests are produced in seconds: `imud --sim SCENARIO --offline`.
 //!
-//! A scenario whose device speaks MIP (`[device] protocol = "mip"`, or `--protocol mip`) runs
-//! through the MIP codec the same way: the unit is configured by the live start-up's first
-//! message format (accel, gyro, mag, temperature, reference time) and its data packets are
-//! decoded by the MIP decoder.
+//! Whatever the scenario's device speaks (`[device] protocol`, or `--protocol`), its simulated
+//! unit (`drivers::OfflineUnit`, one per protocol folder) is configured directly and its bytes
+//! are decoded by its driver, as on a live link.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,18 +17,11 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use imu_bus::recording::{Recorder, RecordingConfig};
 use imu_bus::truth::TruthWriter;
-use imu_proto::DeviceProtocol;
-use imu_proto::command::Command;
-use imu_proto::decoder::ReplyDecoder;
-use imu_proto::mip::{MipCommand, MipDecoder, Setting};
-use imu_proto::reply::Reply;
-use imu_sim::mip_device::MipDevice;
 use imu_sim::{DeviceCore, SimOptions};
 
 use crate::config::Config;
-use crate::pipeline::{
-    ActiveCalibration, GainFallback, Gains, MipTimebase, Pipeline, SampleClock, Sinks, Timebase,
-};
+use crate::drivers::{DriverEvent, OfflineUnit, offline_unit};
+use crate::pipeline::{ActiveCalibration, Pipeline, SampleClock, Sinks, log_rejected};
 
 /// What an offline run produced.
 #[derive(Debug, Clone)]
@@ -149,41 +141,20 @@ pub fn health_reports(
 impl Run {
     /// A run of `sim` into `sinks`: the device started, its gains read, the pipeline made.
     fn start(sim: SimOptions, config: &Config, mut sinks: Sinks) -> anyhow::Result<Run> {
-        let mut core = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
+        let core = DeviceCore::new(sim.scenario.clone(), sim.truth.clone(), sim.seed);
         let truth = open_truth(&sim, &core)?;
         let period_s = core.sample_period_s();
         anyhow::ensure!(
             core.timeline().duration_s().is_finite(),
             "offline recording needs a scenario that ends (the last segment has no duration-s)"
         );
-        let (device, gains, timebase) = match sim.scenario.device.protocol {
-            DeviceProtocol::Gx1 => {
-                let gains = read_gains(&mut core, config);
-                let timebase = Timebase::gx1(config.device.tick_period_s);
-                (
-                    OfflineDevice::Gx1(core, ReplyDecoder::new()),
-                    gains,
-                    timebase,
-                )
-            }
-            DeviceProtocol::Mip => {
-                let device = configure_mip(core, period_s)?;
-                let timebase = MipTimebase::ReferenceTime.timebase();
-                (
-                    OfflineDevice::Mip(Box::new(device), MipDecoder::new()),
-                    Gains::NOT_APPLICABLE,
-                    timebase,
-                )
-            }
-        };
-        let pipeline = start_pipeline(&sim, config, (gains, timebase), period_s, &mut sinks)?;
+        let unit = offline_unit(sim.scenario.device.protocol, core, config)?;
+        let pipeline = start_pipeline(&sim, config, unit.as_ref(), period_s, &mut sinks)?;
         Ok(Run {
-            device,
+            unit,
             pipeline,
             sinks,
             truth,
-            cmd: config.device.command.command(),
-            temp_every: temperature_every(config, period_s),
             queue_capacity: config.log.queue_capacity,
             report: OfflineReport {
                 samples: 0,
@@ -194,10 +165,9 @@ impl Run {
         })
     }
 
-    /// Every sample of the scenario through the pipeline, `after` called after each.
     fn for_each_sample(&mut self, mut after: impl FnMut(&mut Pipeline)) -> anyhow::Result<()> {
-        let period_s = self.device.core().sample_period_s();
-        let duration_s = self.device.core().timeline().duration_s();
+        let period_s = self.unit.core().sample_period_s();
+        let duration_s = self.unit.core().timeline().duration_s();
         let mut bytes = Vec::with_capacity(64);
         let mut k: u64 = 0;
         loop {
@@ -260,70 +230,12 @@ fn start_recorder(sim: &SimOptions, config: &Config) -> anyhow::Result<Recorder>
     .context("starting the MCAP recorder")
 }
 
-/// The start-up exchange, through the codec, as on a line: reads the three gain scales from the
-/// EEPROM, falling back to `config.device.fallback-gains` where the device gives none.
-fn read_gains(device: &mut DeviceCore, config: &Config) -> Gains {
-    let fb = config.device.fallback_gains;
-    let (accel, fa) = read_gain(device, imu_proto::device::ACCEL_GAIN_SCALE_ADDR, fb.accel);
-    let (gyro, fg) = read_gain(device, imu_proto::device::GYRO_GAIN_SCALE_ADDR, fb.gyro);
-    let (mag, fm) = read_gain(device, imu_proto::device::MAG_GAIN_SCALE_ADDR, fb.mag);
-    Gains {
-        accel,
-        gyro,
-        mag,
-        fallback: GainFallback {
-            accel: fa,
-            gyro: fg,
-            mag: fm,
-        },
-    }
-}
-
-/// One gain scale read from EEPROM `address` at t = 0, and whether `fallback` replaced it.
-fn read_gain(device: &mut DeviceCore, address: u16, fallback: u16) -> (u16, bool) {
-    let reply = device
-        .handle(Command::ReadEeprom { address }, 0.0)
-        .reply
-        .and_then(|r| Reply::decode(&r.to_bytes()).ok());
-    match reply {
-        Some(Reply::EepromRead { value, .. }) if value != 0 => (value, false),
-        _ => (fallback, true),
-    }
-}
-
-/// The MIP unit configured as the live start-up configures it: its first message format at the
-/// scenario's rate, then resumed; each command through the codec.
-fn configure_mip(core: DeviceCore, period_s: f64) -> anyhow::Result<MipDevice> {
-    let mut device = MipDevice::new(core);
-    let decimation = device.decimation();
-    let format = crate::startup::preferred_mip_format(decimation);
-    for cmd in [
-        MipCommand::ImuMessageFormat(Setting::Write(format)),
-        MipCommand::Resume,
-    ] {
-        device.push(cmd.to_packet().as_bytes());
-        while let Some(request) = device.next_request() {
-            let request = request.map_err(|n| anyhow::anyhow!("the unit rejected {n} bytes"))?;
-            let reply = device.handle(request);
-            let replies = imu_proto::mip::MipReply::decode_packet(&reply)?;
-            anyhow::ensure!(
-                replies
-                    .iter()
-                    .all(|r| r.code == imu_proto::mip::AckCode::Ok),
-                "the simulated unit refused {cmd:?} at {:.0} Hz: {replies:?}",
-                1.0 / period_s
-            );
-        }
-    }
-    Ok(device)
-}
-
 /// The pipeline for a new session with `gains` on `timebase`, the configured calibration
 /// applied and logged, and the device metadata written to the recorder.
 fn start_pipeline(
     sim: &SimOptions,
     config: &Config,
-    (gains, timebase): (Gains, Timebase),
+    unit: &dyn OfflineUnit,
     period_s: f64,
     sinks: &mut Sinks,
 ) -> anyhow::Result<Pipeline> {
@@ -333,8 +245,7 @@ fn start_pipeline(
         ))),
         None => None,
     };
-    let mut pipeline = Pipeline::new(gains, config.device.tick_period_s, None);
-    pipeline.new_session(gains, timebase);
+    let mut pipeline = Pipeline::new(unit.session(), None);
     // The synthetic host time is the scenario's exact sample time: stamp with it (the clock fit
     // would place samples on whole 6.5536 ms ticks, coarser than a 100 Hz sample interval).
     pipeline.set_sample_clock(SampleClock::Host);
@@ -344,63 +255,25 @@ fn start_pipeline(
         sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));
     }
     if let Some(r) = &sinks.recorder {
-        let protocol = sim.scenario.device.protocol;
         let mut metadata = BTreeMap::from([
             ("path".to_string(), "offline simulation".to_string()),
-            ("protocol".to_string(), protocol.name().to_string()),
             (
                 "serial-number".to_string(),
                 sim.scenario.device.serial_number.to_string(),
             ),
         ]);
-        if protocol == DeviceProtocol::Gx1 {
-            metadata.extend(gains.metadata());
-        }
+        metadata.extend(unit.details());
         r.update_metadata("imud.device", metadata);
     }
     Ok(pipeline)
 }
 
-/// Every how many samples a temperature is polled (`u64::MAX`: never).
-fn temperature_every(config: &Config, period_s: f64) -> u64 {
-    if config.device.temperature_rate_hz > 0.0 {
-        ((1.0 / period_s) / config.device.temperature_rate_hz)
-            .round()
-            .max(1.0) as u64
-    } else {
-        u64::MAX
-    }
-}
-
-/// The simulated device of an offline run and the host's decoder for it.
-// One lives per offline run: the variants' sizes do not matter.
-#[allow(clippy::large_enum_variant)]
-enum OfflineDevice {
-    /// A 3DM-GX1, polled.
-    Gx1(DeviceCore, ReplyDecoder),
-    /// A MIP unit, streaming.
-    Mip(Box<MipDevice>, MipDecoder),
-}
-
-impl OfflineDevice {
-    fn core(&self) -> &DeviceCore {
-        match self {
-            OfflineDevice::Gx1(core, _) => core,
-            OfflineDevice::Mip(device, _) => device.core(),
-        }
-    }
-}
-
-/// The state of an offline run between samples.
+/// One offline run: the simulated unit, the pipeline and the outputs.
 struct Run {
-    device: OfflineDevice,
+    unit: Box<dyn OfflineUnit>,
     pipeline: Pipeline,
     sinks: Sinks,
     truth: Option<TruthWriter>,
-    /// The data command polled every sample.
-    cmd: Command,
-    /// Every how many samples a temperature is polled.
-    temp_every: u64,
     queue_capacity: usize,
     report: OfflineReport,
 }
@@ -415,33 +288,28 @@ impl Run {
             let t_ns = (t_s * 1e9) as u64;
             (MONO_ORIGIN_NS + t_ns, WALL_ORIGIN_NS + t_ns)
         };
-        match &mut self.device {
-            OfflineDevice::Gx1(device, decoder) => {
-                if k.is_multiple_of(self.temp_every) {
-                    let (reply, t) = device.data_reply(Command::Temperature, t_s);
-                    reply.encode(bytes);
-                    truths.push(t);
-                    self.report.temperatures += 1;
+        self.unit.step(k, t_s, bytes, &mut truths);
+        let driver = self.unit.driver();
+        driver.handle_input(bytes, std::time::Instant::now());
+        while let Some(ev) = driver.poll_event() {
+            match ev {
+                DriverEvent::Frame { frame, content } => {
+                    self.pipeline
+                        .on_frame(frame, &content, mono, wall, &mut self.sinks);
                 }
-                let (reply, t) = device.data_reply(self.cmd, t_s);
-                reply.encode(bytes);
-                truths.push(t);
-                decoder.push(bytes);
-                while let Some(ev) = decoder.next_event() {
-                    self.pipeline.on_event(ev, mono, wall, &mut self.sinks);
-                }
-            }
-            OfflineDevice::Mip(device, decoder) => {
-                // The temperature comes with every packet (recorded once a second).
-                let (packet, t) = device.data_packet(t_s);
-                truths.push(t);
-                decoder.push(packet.as_bytes());
-                while let Some(ev) = decoder.next_event() {
-                    self.pipeline.on_mip_event(ev, mono, wall, &mut self.sinks);
-                }
-                self.report.temperatures = self.pipeline.counters().temperatures;
+                DriverEvent::Rejected {
+                    bytes,
+                    offset,
+                    reason,
+                } => log_rejected(bytes, offset, reason, mono, wall, &self.sinks),
+                // A unit configured directly makes no start-up events.
+                DriverEvent::Session(_)
+                | DriverEvent::Identified(_)
+                | DriverEvent::Ready
+                | DriverEvent::Failed(_) => {}
             }
         }
+        self.report.temperatures = self.pipeline.counters().temperatures;
         self.report.samples += 1;
         if let Some(w) = &mut self.truth {
             for t in &truths {

@@ -1,7 +1,11 @@
-//! The device session: open the port, run the start-up sequence, stream or poll, detect loss,
-//! reconnect with backoff, and keep status, signals and calibration reloads served throughout.
+//! The device session: open the port, run the device's driver (start-up, then streaming or
+//! polling), detect loss, reconnect with backoff, and keep status, signals and calibration
+//! reloads served throughout.
 //!
-//! This is the only async code in the workspace. One task owns the port, the decoder and the
+//! This is the only async code in the workspace, and it knows no protocol: one loop over any
+//! `AsyncRead + AsyncWrite` owns the port and the clock, feeds what it reads to the
+//! [`Driver`](crate::drivers::Driver), writes what the driver asks, calls it back on its
+//! deadlines and hands its events to the pipeline. One task owns the port, the driver and the
 //! pipeline, so the per-frame path never crosses a thread; the MCAP writer has its own thread.
 
 use std::path::PathBuf;
@@ -10,53 +14,15 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, anyhow};
 use imu_bus::recording::LogRecord;
-use imu_proto::DeviceProtocol;
-use imu_proto::command::Command;
-use imu_proto::mip::MipCommand;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::signal::unix::{Signal, SignalKind, signal};
-use tokio_serial::SerialStream;
+use tokio_serial::SerialPortBuilderExt;
 use tracing::{error, info, warn};
 
-use crate::config::{AcquisitionMode, Config};
-use crate::link::Link;
-use crate::pipeline::{ActiveCalibration, Gains, Pipeline, Sinks};
-
-/// What the device told us at start-up.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DeviceIdentity {
-    /// The protocol it speaks.
-    pub protocol: DeviceProtocol,
-    /// Model name ("3DM-GX1", or what a MIP unit reports, e.g. "3DM-GX5-25").
-    pub model: String,
-    /// Firmware version as the vendor writes it.
-    pub firmware: String,
-    /// Serial number.
-    pub serial: String,
-    /// GainScales in force (each read from the device or the configured fallback; a MIP unit
-    /// has none: [`Gains::NOT_APPLICABLE`]).
-    pub gains: Gains,
-    /// Protocol-specific facts for the recording metadata (key, value).
-    pub details: Vec<(String, String)>,
-}
-
-impl DeviceIdentity {
-    /// The recording metadata `imud.device` for the device at `path`.
-    pub fn metadata(&self, path: &std::path::Path) -> std::collections::BTreeMap<String, String> {
-        let mut m = std::collections::BTreeMap::from([
-            ("path".to_string(), path.display().to_string()),
-            ("protocol".to_string(), self.protocol.name().to_string()),
-            ("model".to_string(), self.model.clone()),
-            ("firmware".to_string(), self.firmware.clone()),
-            ("serial-number".to_string(), self.serial.clone()),
-        ]);
-        if self.protocol == DeviceProtocol::Gx1 {
-            m.extend(self.gains.metadata());
-        }
-        m.extend(self.details.iter().cloned());
-        m
-    }
-}
+use crate::config::Config;
+pub use crate::drivers::DeviceIdentity;
+use crate::drivers::{Device, Driver, DriverEvent};
+use crate::pipeline::{ActiveCalibration, Pipeline, Sinks, log_rejected};
 
 /// Host clocks now: (CLOCK_MONOTONIC ns, Unix wall-clock ns). CLOCK_MONOTONIC is system-wide, so
 /// a subscriber in another process can compare its own receipt time with a sample's.
@@ -148,8 +114,8 @@ pub struct Daemon {
     pub sinks: Sinks,
     /// The per-frame state.
     pub pipeline: Pipeline,
-    /// The decoders (kept across reconnects so their counters are cumulative).
-    pub link: Link,
+    /// The device's driver (kept across reconnects so its counters are cumulative).
+    pub device: Device,
     /// The calibration source.
     pub calibration: CalibrationSource,
     /// Reconnects so far.
@@ -165,9 +131,11 @@ pub struct Daemon {
 /// Called with the device identity each time the device answers its start-up sequence.
 pub type IdentityHook = Box<dyn FnMut(&DeviceIdentity, &Sinks)>;
 
-/// Why a streaming session ended.
-enum SessionEnd {
+/// Why a session ended.
+pub enum SessionEnd {
+    /// A shutdown signal.
     Shutdown,
+    /// The device was lost (or its start-up failed).
     Lost(anyhow::Error),
 }
 
@@ -189,12 +157,10 @@ impl Daemon {
         self.calibration_noise_pending = rate.is_none();
     }
 
-    /// The data rate: configured when polling, measured when streaming.
-    fn sample_rate_hz(&self) -> Option<f64> {
-        match self.config.device.mode {
-            AcquisitionMode::Polled => Some(self.config.device.poll_rate_hz),
-            AcquisitionMode::Continuous => self.pipeline.sample_rate_hz(),
-        }
+    /// The data rate: the poll rate when the host polls, measured when the device streams (the
+    /// session's acquisition as its driver set it up, not the configured mode).
+    pub fn sample_rate_hz(&self) -> Option<f64> {
+        self.pipeline.sample_rate_hz()
     }
 
     /// Loads the configured calibration at start-up; an invalid file is a start-up error.
@@ -220,8 +186,14 @@ impl Daemon {
 
     fn publish_status(&mut self, connected: bool) {
         let (mono, wall) = now_ns();
+        self.publish_status_at(connected, mono, wall);
+    }
+
+    /// Publishes, records and sends the status at the host times given (a replay's are the
+    /// recording's).
+    pub(crate) fn publish_status_at(&mut self, connected: bool, mono: u64, wall: u64) {
         let mut status = self.pipeline.status(
-            &self.link.stats(),
+            &self.device.stats(),
             &self.sinks,
             self.reconnects,
             connected,
@@ -251,16 +223,51 @@ impl Daemon {
         if self.calibration_noise_pending
             && let (Some(rate), Some(cal)) = (self.sample_rate_hz(), self.pipeline.calibration())
         {
-            let (_, wall) = now_ns();
             self.sinks.log_calibration(wall, cal, Some(rate));
             self.calibration_noise_pending = false;
         }
     }
 
-    pub(crate) fn drain_decoder(&mut self) {
+    /// Hands every event the driver has to the pipeline (frames logged, readings published),
+    /// the session's start and its identity included. Returns how start-up ended, if it did.
+    fn take_events(&mut self) -> Option<Result<(), anyhow::Error>> {
         let (mono, wall) = now_ns();
-        self.link
-            .drain_into(&mut self.pipeline, mono, wall, &mut self.sinks);
+        self.take_events_at(mono, wall)
+    }
+
+    /// [`Self::take_events`] with the host times given (a replay's are the recording's).
+    pub(crate) fn take_events_at(
+        &mut self,
+        mono: u64,
+        wall: u64,
+    ) -> Option<Result<(), anyhow::Error>> {
+        let mut ended = None;
+        while let Some(ev) = self.device.poll_event() {
+            match ev {
+                DriverEvent::Frame { frame, content } => {
+                    self.pipeline
+                        .on_frame(frame, &content, mono, wall, &mut self.sinks);
+                }
+                DriverEvent::Rejected {
+                    bytes,
+                    offset,
+                    reason,
+                } => log_rejected(bytes, offset, reason, mono, wall, &self.sinks),
+                DriverEvent::Session(spec) => self.pipeline.new_session(spec),
+                DriverEvent::Identified(identity) => (self.on_identity)(&identity, &self.sinks),
+                DriverEvent::Ready => ended = Some(Ok(())),
+                DriverEvent::Failed(e) => ended = Some(Err(e)),
+            }
+        }
+        ended
+    }
+
+    /// Opens the device's port.
+    fn open(&self) -> anyhow::Result<tokio_serial::SerialStream> {
+        let cfg = &self.config.device;
+        tokio_serial::new(cfg.path.to_string_lossy(), cfg.baud)
+            .open_native_async()
+            .with_context(|| format!("opening {}", cfg.path.display()))
     }
 
     /// Runs until SIGTERM/SIGINT: sessions with reconnects in between.
@@ -269,30 +276,18 @@ impl Daemon {
         let mut backoff = Duration::from_secs_f64(cfg.reconnect_min_s);
         let mut had_session = false;
         loop {
-            let end = match self.open_and_start().await {
-                Ok((port, identity)) => {
-                    // A reconnect is a session that follows a lost one (not a failed attempt).
-                    if had_session {
-                        self.reconnects += 1;
-                        info!(
-                            "device {} is back (reconnect {})",
-                            cfg.path.display(),
-                            self.reconnects
-                        );
-                    }
-                    had_session = true;
-                    backoff = Duration::from_secs_f64(cfg.reconnect_min_s);
-                    (self.on_identity)(&identity, &self.sinks);
-                    if !self.notified_ready {
-                        let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
-                        self.notified_ready = true;
-                    }
-                    self.stream(port, signals).await
+            let end = match self.open() {
+                Ok(port) => {
+                    let mut link = SessionLink {
+                        had_session: &mut had_session,
+                        backoff: &mut backoff,
+                    };
+                    self.session(port, signals, &mut link).await
                 }
                 Err(e) => SessionEnd::Lost(e),
             };
-            self.link.flush();
-            self.drain_decoder();
+            self.device.flush();
+            let _ = self.take_events();
             match end {
                 SessionEnd::Shutdown => {
                     // A last status, so the recording ends with the final counters.
@@ -325,53 +320,103 @@ impl Daemon {
         }
     }
 
-    /// Streams (or polls) until the device is lost or a shutdown signal arrives.
-    async fn stream(&mut self, mut port: SerialStream, signals: &mut Signals) -> SessionEnd {
+    /// Start-up is done: a reconnect counted (a session that follows a lost one, not a failed
+    /// attempt), the back-off reset, readiness sent once.
+    fn on_ready(&mut self, link: &mut SessionLink<'_>) {
+        let cfg = &self.config.device;
+        if *link.had_session {
+            self.reconnects += 1;
+            info!(
+                "device {} is back (reconnect {})",
+                cfg.path.display(),
+                self.reconnects
+            );
+        }
+        *link.had_session = true;
+        *link.backoff = Duration::from_secs_f64(cfg.reconnect_min_s);
+        if !self.notified_ready {
+            let _ = sd_notify::notify(false, &[sd_notify::NotifyState::Ready]);
+            self.notified_ready = true;
+        }
+    }
+
+    /// Writes everything the driver has to send.
+    async fn transmit<W: AsyncWrite + Unpin>(
+        &mut self,
+        port: &mut W,
+        out: &mut Vec<u8>,
+    ) -> anyhow::Result<()> {
+        out.clear();
+        while self.device.poll_transmit(out) {}
+        if !out.is_empty() {
+            port.write_all(out).await.context("writing to the device")?;
+        }
+        Ok(())
+    }
+
+    /// One session on an open port: the driver's start-up, then streaming (or polling) until
+    /// the device is lost or a shutdown signal arrives. Knows no protocol.
+    async fn session<P: AsyncRead + AsyncWrite + Unpin>(
+        &mut self,
+        port: P,
+        signals: &mut Signals,
+        link: &mut SessionLink<'_>,
+    ) -> SessionEnd {
+        let (mut rd, mut wr) = tokio::io::split(port);
         let cfg = self.config.device.clone();
-        let polled =
-            cfg.mode == AcquisitionMode::Polled && self.link.protocol() == DeviceProtocol::Gx1;
-        let poll_period = Duration::from_secs_f64(1.0 / cfg.poll_rate_hz);
-        let mut poll = tokio::time::interval(poll_period);
-        poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-        let temp_every = if cfg.temperature_rate_hz > 0.0 {
-            (cfg.poll_rate_hz / cfg.temperature_rate_hz)
-                .round()
-                .max(1.0) as u64
-        } else {
-            u64::MAX
-        };
-        let mut n_polls: u64 = 0;
+        self.device.start(std::time::Instant::now());
+        let mut ready = false;
         let mut status = tokio::time::interval(Duration::from_secs_f64(
             self.config.publish.status_interval_s,
         ));
         let mut watch = tokio::time::interval(Duration::from_secs(1));
         let silence = Duration::from_secs_f64(cfg.silence_timeout_s);
         let mut buf = vec![0u8; 8192];
+        let mut out = Vec::with_capacity(512);
         let mut last_bytes = tokio::time::Instant::now();
-        let poll_cmd = cfg.command.command().to_bytes();
-        let temp_cmd = Command::Temperature.to_bytes();
+        // A shutdown asked during start-up takes effect when start-up ends (done or failed),
+        // so the recording and the status say which device and gains it was.
+        let mut shutdown = false;
         loop {
+            match self.take_events() {
+                Some(Ok(())) => {
+                    ready = true;
+                    last_bytes = tokio::time::Instant::now();
+                    self.on_ready(link);
+                }
+                Some(Err(e)) if shutdown => {
+                    warn!("start-up ended by the shutdown: {e:#}");
+                    return SessionEnd::Shutdown;
+                }
+                Some(Err(e)) => return SessionEnd::Lost(e),
+                None => {}
+            }
+            if shutdown && ready {
+                self.stop_device(&mut wr).await;
+                return SessionEnd::Shutdown;
+            }
+            if let Err(e) = self.transmit(&mut wr, &mut out).await {
+                return SessionEnd::Lost(e);
+            }
+            let deadline = self.device.poll_timeout();
+            let sleep = tokio::time::sleep_until(
+                deadline.map_or_else(far_future, tokio::time::Instant::from_std),
+            );
             tokio::select! {
-                read = port.read(&mut buf) => match read {
+                read = rd.read(&mut buf) => match read {
                     Ok(0) => return SessionEnd::Lost(anyhow!("the device closed the line")),
                     Ok(n) => {
                         last_bytes = tokio::time::Instant::now();
-                        let (mono, wall) = now_ns();
-                        self.link.push(&buf[..n]);
-                        self.link.drain_into(&mut self.pipeline, mono, wall, &mut self.sinks);
+                        self.device.handle_input(&buf[..n], std::time::Instant::now());
                     }
                     Err(e) => return SessionEnd::Lost(anyhow!(e).context("reading from the device")),
                 },
-                _ = poll.tick(), if polled => {
-                    n_polls += 1;
-                    let bytes = if n_polls.is_multiple_of(temp_every) { &temp_cmd } else { &poll_cmd };
-                    if let Err(e) = port.write_all(bytes).await {
-                        return SessionEnd::Lost(anyhow!(e).context("writing to the device"));
-                    }
+                _ = sleep, if deadline.is_some() => {
+                    self.device.handle_timeout(std::time::Instant::now());
                 }
                 _ = status.tick() => {
-                    self.publish_status(true);
-                    if last_bytes.elapsed() > silence {
+                    self.publish_status(ready);
+                    if ready && last_bytes.elapsed() > silence {
                         return SessionEnd::Lost(anyhow!("no data for {:.1} s", silence.as_secs_f64()));
                     }
                 }
@@ -381,23 +426,29 @@ impl Daemon {
                     }
                 }
                 _ = signals.hup.recv() => self.reload_calibration("SIGHUP"),
-                _ = signals.term.recv() => { self.stop_device(&mut port).await; return SessionEnd::Shutdown; }
-                _ = signals.int.recv() => { self.stop_device(&mut port).await; return SessionEnd::Shutdown; }
+                _ = signals.term.recv() => shutdown = true,
+                _ = signals.int.recv() => shutdown = true,
             }
         }
     }
 
     /// Leaves the device idle on shutdown (best effort).
-    async fn stop_device(&mut self, port: &mut SerialStream) {
-        let stop = match self.link.protocol() {
-            DeviceProtocol::Mip => MipCommand::SetToIdle.to_packet().as_bytes().to_vec(),
-            DeviceProtocol::Gx1 if self.config.device.mode == AcquisitionMode::Continuous => {
-                Command::SetContinuous { command: 0 }.to_bytes()
-            }
-            DeviceProtocol::Gx1 => return,
-        };
-        let _ = port.write_all(&stop).await;
+    async fn stop_device<W: AsyncWrite + Unpin>(&mut self, port: &mut W) {
+        if let Some(stop) = self.device.stop_bytes() {
+            let _ = port.write_all(&stop).await;
+        }
     }
+}
+
+/// What a session updates of the reconnect loop.
+pub struct SessionLink<'a> {
+    had_session: &'a mut bool,
+    backoff: &'a mut Duration,
+}
+
+/// A deadline that never comes (a sleep that is not polled).
+fn far_future() -> tokio::time::Instant {
+    tokio::time::Instant::now() + Duration::from_secs(86_400)
 }
 
 #[cfg(test)]

@@ -1,10 +1,13 @@
 //! The per-frame path at CPU speed with synthesized links: loss accounting on a clean link with
 //! host jitter and on a corrupting one, and time stamps through host stalls. Frames go through
-//! the real codec and `Pipeline`; arrival times are made up, so minutes of link take a moment.
+//! the real codec (the GX1 driver, its session set as a streaming unit's) and `Pipeline`;
+//! arrival times are made up, so minutes of link take a moment.
 
-use imu_proto::decoder::ReplyDecoder;
 use imu_proto::reply::Reply;
-use imud::pipeline::{GainFallback, Gains, Pipeline, Sinks};
+use imud::config::DeviceConfig;
+use imud::drivers::gx1::{self, Gx1Driver};
+use imud::drivers::{Driver, DriverEvent};
+use imud::pipeline::{GainFallback, Gains, Pipeline, Sinks, log_rejected};
 
 const TICK_S: f64 = 6.5536e-3;
 
@@ -48,36 +51,54 @@ impl Link {
     }
 }
 
+const GAINS: Gains = Gains {
+    accel: 8500,
+    gyro: 10_000,
+    mag: 2000,
+    fallback: GainFallback::NONE,
+};
+
+/// A continuous stream's device: the default configuration, on `TICK_S` ticks.
+fn device() -> DeviceConfig {
+    DeviceConfig {
+        tick_period_s: TICK_S,
+        ..DeviceConfig::default()
+    }
+}
+
 fn pipeline() -> Pipeline {
-    let gains = Gains {
-        accel: 8500,
-        gyro: 10_000,
-        mag: 2000,
-        fallback: GainFallback::NONE,
-    };
-    let mut p = Pipeline::new(gains, TICK_S, None);
-    p.set_continuous(true);
-    p
+    Pipeline::new(gx1::session(&device(), GAINS), None)
+}
+
+fn driver() -> Gx1Driver {
+    Gx1Driver::with_session(&device(), GAINS)
 }
 
 /// Pushes `bytes` that arrived at `host_s` and returns the stamps of the samples they completed.
 fn deliver(
     p: &mut Pipeline,
-    decoder: &mut ReplyDecoder,
+    decoder: &mut Gx1Driver,
     bytes: &[u8],
     host_s: f64,
     stamps: &mut Vec<u64>,
 ) {
-    decoder.push(bytes);
+    decoder.handle_input(bytes, std::time::Instant::now());
     let t_ns = (host_s * 1e9) as u64;
+    let wall_ns = t_ns + 1_700_000_000_000_000_000;
     let before = p.counters().samples;
-    while let Some(ev) = decoder.next_event() {
-        p.on_event(
-            ev,
-            t_ns,
-            t_ns + 1_700_000_000_000_000_000,
-            &mut Sinks::default(),
-        );
+    let mut sinks = Sinks::default();
+    while let Some(ev) = decoder.poll_event() {
+        match ev {
+            DriverEvent::Frame { frame, content } => {
+                p.on_frame(frame, &content, t_ns, wall_ns, &mut sinks);
+            }
+            DriverEvent::Rejected {
+                bytes,
+                offset,
+                reason,
+            } => log_rejected(bytes, offset, reason, t_ns, wall_ns, &sinks),
+            other => panic!("a session-set driver made {other:?}"),
+        }
     }
     if p.counters().samples > before {
         // The stamp of the last sample is what the clock gave it.
@@ -89,7 +110,7 @@ fn deliver(
 /// sent (bytes still in order): the pipeline after them and the samples' stamps.
 fn clean_run(link: &mut Link, n: u64, late_s: f64, jitter_s: f64) -> (Pipeline, Vec<u64>) {
     let mut p = pipeline();
-    let mut decoder = ReplyDecoder::new();
+    let mut decoder = driver();
     let mut stamps = Vec::new();
     let mut arrival_s = 0.0f64;
     for k in 0..n {
@@ -164,7 +185,7 @@ fn three_percent_byte_corruption_and_bursts_count_the_lost_frames() {
         period_s: 0.01,
     };
     let mut p = pipeline();
-    let mut decoder = ReplyDecoder::new();
+    let mut decoder = driver();
     let mut stamps = Vec::new();
     let n = 20_000u64;
     let mut corrupted_frames = 0u64;
@@ -210,7 +231,7 @@ fn stamps_and_drift_are_not_bent_by_one_second_stalls() {
         period_s: 0.01,
     };
     let mut p = pipeline();
-    let mut decoder = ReplyDecoder::new();
+    let mut decoder = driver();
     let mut stamps = Vec::new();
     let mut truth_s = Vec::new();
     let mut stall_until = 0.0f64;

@@ -66,6 +66,13 @@ pub struct MipRequest {
     command: Result<MipCommand, MipError>,
 }
 
+impl MipRequest {
+    /// The command's (descriptor set, field descriptor), as its reply echoes them.
+    pub fn descriptor(&self) -> (u8, u8) {
+        (self.set, self.descriptor)
+    }
+}
+
 /// The sans-IO MIP device.
 pub struct MipDevice {
     core: DeviceCore,

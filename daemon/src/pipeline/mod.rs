@@ -6,14 +6,14 @@
 //! a slow subscriber and logging drops (and counts) records when the writer thread falls behind.
 
 //!
-//! Files: `gx1.rs` (a 3DM-GX1 reply's counts and GainScales), `mip.rs` (a MIP IMU packet),
-//! both turned into one [`DeviceReading`]; `loss.rs` (gap accounting on the device clock);
-//! `sinks.rs` (the calibration in force and the outputs). Here: the steps every protocol
-//! shares (stamp, correct, watch health, publish) and the status.
+//! Files: `reading.rs` (what a driver hands over: a [`DeviceReading`] per data frame, a
+//! [`SessionSpec`] per session), `loss/` (gap accounting on the device clock, the one home of
+//! it); `sinks.rs` (the calibration in force and the outputs). Here: the steps every device
+//! shares (stamp, correct, watch health, publish) and the status. Nothing here knows a
+//! protocol: the drivers (`crate::drivers`) decode frames into these types.
 
-mod gx1;
-mod loss;
-mod mip;
+pub mod loss;
+mod reading;
 mod sinks;
 
 use std::sync::Arc;
@@ -21,95 +21,28 @@ use std::sync::Arc;
 use imu_bus::CalibrationHealth;
 use imu_bus::recording::{FrameData, LogRecord, SampleFrame};
 use imu_bus::sample::HealthState;
-use imu_bus::sample::{corrected_flags, device_protocol, raw_flags};
+use imu_bus::sample::{corrected_flags, raw_flags};
 use imu_bus::shm::{Publishers, ShmEvent};
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 use imu_model::Measured;
 use imu_model::nalgebra::Vector3;
-use imu_proto::decoder::{DecodeEvent, DecoderStats, RejectReason};
-use imu_proto::reply::Reply;
-use imu_proto::scale;
-use imu_proto::ticks::TickUnwrapper;
+use imu_proto::decoder::{DecoderStats, RejectReason};
 use tracing::{info, warn};
 
 use crate::clock::{ClockFit, WallStamps};
 use crate::config::HealthConfig;
 use crate::health::HealthMonitor;
 
-pub use gx1::{Counts, GainFallback, Gains};
 use loss::GapAccounting;
 pub use loss::TickKind;
-pub use mip::MipTimebase;
+pub use reading::{
+    Acquisition, Counts, DeviceReading, FrameContent, GainFallback, Gains, SessionSpec,
+    TemperatureCadence, TickLength, Timebase,
+};
 pub use sinks::{ActiveCalibration, Sinks};
 
-/// One data sample as the device sent it, whatever its protocol: what the shared steps need.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DeviceReading {
-    /// The device's sample clock, unwrapped, in ticks of the session's timebase.
-    pub ticks_unwrapped: u64,
-    /// Its low 16 bits as sent (the GX1's whole counter).
-    pub ticks: u16,
-    /// The counts, for a device that sends counts (3DM-GX1).
-    pub counts: Option<Counts>,
-    /// The device's own reading in SI (GainScales applied, or a MIP unit's scaled fields).
-    pub measured: Measured,
-    /// A channel sat at the end of its range.
-    pub saturated: bool,
-    /// Reply code (GX1) or data set (MIP, 0x80).
-    pub command: u8,
-}
-
-/// A session's device clock: which one, and so how it counts time.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Timebase {
-    /// The 3DM-GX1's 16-bit timer at a (configured, disputed) tick period.
-    Gx1 {
-        /// Seconds per tick.
-        tick_period_s: f64,
-    },
-    /// One of a MIP unit's timestamps.
-    Mip(MipTimebase),
-}
-
-impl Timebase {
-    /// The 3DM-GX1's 16-bit timer at `tick_period_s`.
-    pub fn gx1(tick_period_s: f64) -> Self {
-        Self::Gx1 { tick_period_s }
-    }
-
-    /// Seconds per tick (nominal: the clock fit measures the device's oscillator).
-    pub fn tick_period_s(self) -> f64 {
-        match self {
-            Self::Gx1 { tick_period_s } => tick_period_s,
-            Self::Mip(m) => m.tick_ns() as f64 * 1e-9,
-        }
-    }
-
-    /// Counter width, bits.
-    pub fn tick_bits(self) -> u32 {
-        match self {
-            Self::Gx1 { .. } => 16,
-            Self::Mip(MipTimebase::InternalTimestamp) => 32,
-            Self::Mip(MipTimebase::ReferenceTime) => 64,
-        }
-    }
-
-    /// How the ticks compare with the sample interval.
-    pub fn kind(self) -> TickKind {
-        match self {
-            Self::Gx1 { .. } => TickKind::Coarse,
-            Self::Mip(_) => TickKind::Fine,
-        }
-    }
-
-    /// Device time of `ticks`, ns (exact integers where a tick is a whole number of ns).
-    pub fn device_ns(self, ticks: u64) -> u64 {
-        match self {
-            Self::Gx1 { tick_period_s } => (ticks as f64 * tick_period_s * 1e9) as u64,
-            Self::Mip(m) => ticks.saturating_mul(m.tick_ns()),
-        }
-    }
-}
+/// Host time between two recorded temperatures of a stream that sends one with every sample, ns.
+const TEMPERATURE_LOG_INTERVAL_NS: u64 = 1_000_000_000;
 
 /// Counters owned by the pipeline.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -124,10 +57,10 @@ pub struct PipelineCounters {
     pub not_converged: u64,
     /// Samples whose shared-memory publication failed.
     pub publish_errors: u64,
-    /// MIP data packets that were not samples (undecodable, or without the configured clock,
-    /// accel or gyro field).
+    /// Data frames that were not samples (undecodable, or without the configured clock, accel
+    /// or gyro field).
     pub undecodable: u64,
-    /// MIP data fields skipped (unknown descriptors or unexpected sizes).
+    /// Data fields skipped (unknown descriptors or unexpected sizes).
     pub fields_skipped: u64,
     /// Temperatures recorded.
     pub temperatures: u64,
@@ -147,15 +80,13 @@ pub enum SampleClock {
 /// The per-frame state machine.
 pub struct Pipeline {
     sample_clock: SampleClock,
-    gains: Gains,
-    timebase: Timebase,
-    unwrapper: TickUnwrapper,
+    session: SessionSpec,
     gaps: GapAccounting,
     clock: ClockFit,
     wall: WallStamps,
     calibration: Option<Arc<ActiveCalibration>>,
     temp_c: f64,
-    /// When a temperature that comes with every sample (MIP) was last recorded.
+    /// When a temperature that comes with every sample was last recorded.
     temp_logged_ns: Option<u64>,
     /// The last two corrected rates with their times (older first), for the angular
     /// acceleration of the lever-arm term.
@@ -177,19 +108,14 @@ pub struct Pipeline {
 }
 
 impl Pipeline {
-    /// A pipeline for one device session.
-    pub fn new(
-        gains: Gains,
-        tick_period_s: f64,
-        calibration: Option<Arc<ActiveCalibration>>,
-    ) -> Self {
+    /// A pipeline whose first session is `session` (a driver's [`SessionSpec`]; start-up
+    /// replaces it with [`Pipeline::new_session`]).
+    pub fn new(session: SessionSpec, calibration: Option<Arc<ActiveCalibration>>) -> Self {
         Self {
             sample_clock: SampleClock::default(),
-            gains,
-            timebase: Timebase::gx1(tick_period_s),
-            unwrapper: TickUnwrapper::new(),
-            gaps: GapAccounting::default(),
-            clock: ClockFit::new(tick_period_s),
+            session,
+            gaps: GapAccounting::new(session.acquisition, session.timebase.kind),
+            clock: ClockFit::new(session.timebase.tick_period_s()),
             wall: WallStamps::default(),
             calibration,
             temp_c: f64::NAN,
@@ -235,14 +161,12 @@ impl Pipeline {
         self.sample_clock = clock;
     }
 
-    /// Starts a new device session (after a reconnect): keeps the sequence numbering and the
-    /// stamps' order, forgets the device's clock. `gains` are a GX1's (a MIP unit has none:
-    /// [`Gains::NOT_APPLICABLE`]), `timebase` its sample clock.
-    pub fn new_session(&mut self, gains: Gains, timebase: Timebase) {
-        self.gains = gains;
-        self.timebase = timebase;
-        self.unwrapper = TickUnwrapper::with_bits(timebase.tick_bits());
-        self.gaps = GapAccounting::new(self.gaps.enabled, timebase.kind());
+    /// Starts a new device session (after a start-up or a reconnect): keeps the sequence
+    /// numbering and the stamps' order, forgets the device's clock.
+    pub fn new_session(&mut self, session: SessionSpec) {
+        let timebase = session.timebase;
+        self.session = session;
+        self.gaps = GapAccounting::new(session.acquisition, timebase.kind);
         if self.clock.nominal_tick_period_s() != timebase.tick_period_s() {
             self.clock = ClockFit::new(timebase.tick_period_s());
         }
@@ -262,21 +186,30 @@ impl Pipeline {
 
     /// The GainScales in force.
     pub fn gains(&self) -> Gains {
-        self.gains
+        self.session.gains
+    }
+
+    /// The session's device clock and acquisition.
+    pub fn session(&self) -> SessionSpec {
+        self.session
+    }
+
+    /// The data rate, Hz: the poll rate when the host polls, else measured, once at least two
+    /// seconds of samples were seen this session (whatever the configuration asked: a device
+    /// that streams is measured).
+    pub fn sample_rate_hz(&self) -> Option<f64> {
+        match self.session.acquisition {
+            Acquisition::Polled { rate_hz } => Some(rate_hz),
+            Acquisition::Streaming => self.measured_rate_hz(),
+        }
     }
 
     /// Measured data rate, Hz, once at least two seconds of samples were seen this session.
-    pub fn sample_rate_hz(&self) -> Option<f64> {
+    pub fn measured_rate_hz(&self) -> Option<f64> {
         let (t0, n0) = self.rate_origin?;
         let (t1, n1) = (self.last_sample_ns?, self.counters.samples);
         let span_s = (t1.saturating_sub(t0)) as f64 * 1e-9;
         (span_s >= 2.0).then(|| (n1 - n0 - 1) as f64 / span_s)
-    }
-
-    /// Turns on loss accounting for a continuous stream (the device paces it; the tick step is
-    /// learned from its first samples); off for polling, whose intervals are the host's.
-    pub fn set_continuous(&mut self, continuous: bool) {
-        self.gaps = GapAccounting::new(continuous, self.timebase.kind());
     }
 
     /// Puts a calibration in force from the next sample on (returns that sample's seq).
@@ -306,54 +239,73 @@ impl Pipeline {
         &self.clock
     }
 
-    /// Handles one decoder event received at the given host times.
-    pub fn on_event(&mut self, ev: DecodeEvent, t_mono_ns: u64, t_wall_ns: u64, sinks: &mut Sinks) {
-        match ev {
-            DecodeEvent::Frame {
-                reply,
-                bytes,
-                offset,
-            } => {
-                self.hold_frame(&bytes, offset);
-                self.on_reply(&reply, t_mono_ns, t_wall_ns, sinks);
-                self.flush_frame(t_mono_ns, t_wall_ns, sinks);
-            }
-            DecodeEvent::Rejected {
-                bytes,
-                offset,
-                reason,
-            } => log_rejected(bytes, offset, reason, t_mono_ns, t_wall_ns, sinks),
-        }
-    }
-
-    /// Logs one good frame (either protocol's) and counts it.
-    pub(crate) fn log_frame(
+    /// Handles one good frame from the device received at the given host times: it is logged
+    /// once (with its sample, if it makes one), its temperature kept and recorded, its reading
+    /// through the shared steps.
+    pub fn on_frame(
         &mut self,
-        bytes: &[u8],
-        offset: u64,
+        frame: SampleFrame,
+        content: &FrameContent,
         t_mono_ns: u64,
         t_wall_ns: u64,
-        sinks: &Sinks,
+        sinks: &mut Sinks,
     ) {
-        self.hold_frame(bytes, offset);
+        self.hold_frame(frame);
+        self.counters.fields_skipped += u64::from(content.fields_skipped);
+        if let Some((temp_c, cadence)) = content.temperature {
+            self.temp_c = temp_c;
+            let record = match cadence {
+                TemperatureCadence::Each => true,
+                // It comes with every sample: recorded once a second, as polls would be.
+                TemperatureCadence::WithSamples => {
+                    let due = self
+                        .temp_logged_ns
+                        .is_none_or(|last| t_mono_ns >= last + TEMPERATURE_LOG_INTERVAL_NS);
+                    if due {
+                        self.temp_logged_ns = Some(t_mono_ns);
+                    }
+                    due
+                }
+            };
+            if record {
+                self.counters.temperatures += 1;
+                // The frame goes into the log before the temperature taken from it.
+                self.flush_frame(t_mono_ns, t_wall_ns, sinks);
+                sinks.log(LogRecord::Temperature {
+                    t_wall_ns,
+                    temp_c: self.temp_c,
+                });
+            }
+        }
+        if content.unusable {
+            self.counters.undecodable += 1;
+        }
+        if let Some(reading) = &content.reading {
+            self.on_reading(reading, t_mono_ns, t_wall_ns, sinks);
+        }
+        // A frame that made no sample is logged on its own.
+        self.flush_frame(t_mono_ns, t_wall_ns, sinks);
+    }
+
+    /// Logs one good frame and counts it, without making a sample of it (the start-up's and the
+    /// probe's bytes).
+    pub fn log_frame(&mut self, frame: SampleFrame, t_mono_ns: u64, t_wall_ns: u64, sinks: &Sinks) {
+        self.hold_frame(frame);
         self.flush_frame(t_mono_ns, t_wall_ns, sinks);
     }
 
     /// Counts one good frame and keeps it for the sample it may make (logged with it, as one
     /// record). Every event that holds a frame flushes it before it returns, so none is held
     /// from an earlier event.
-    pub(crate) fn hold_frame(&mut self, bytes: &[u8], offset: u64) {
+    fn hold_frame(&mut self, frame: SampleFrame) {
         debug_assert!(self.pending_frame.is_none(), "a frame held past its event");
         self.counters.frames += 1;
-        self.pending_frame = Some(SampleFrame {
-            stream_offset: offset,
-            bytes: FrameData::from_slice(bytes),
-        });
+        self.pending_frame = Some(frame);
     }
 
     /// Logs the held frame on its own, if a frame is held (it made no sample, or something
     /// else is logged before its sample).
-    pub(crate) fn flush_frame(&mut self, t_mono_ns: u64, t_wall_ns: u64, sinks: &Sinks) {
+    fn flush_frame(&mut self, t_mono_ns: u64, t_wall_ns: u64, sinks: &Sinks) {
         if let Some(frame) = self.pending_frame.take() {
             sinks.log(LogRecord::RawFrame {
                 t_host_wall_ns: t_wall_ns,
@@ -366,35 +318,7 @@ impl Pipeline {
         }
     }
 
-    /// Handles one good reply: a temperature is kept, a data reply becomes a raw and a corrected
-    /// sample (gap accounting, time stamp, scaling, correction, publishing).
-    pub fn on_reply(&mut self, reply: &Reply, t_mono_ns: u64, t_wall_ns: u64, sinks: &mut Sinks) {
-        if let Reply::Temperature { raw, .. } = *reply {
-            self.flush_frame(t_mono_ns, t_wall_ns, sinks);
-            self.temp_c = scale::temp_raw_to_c(raw);
-            self.counters.temperatures += 1;
-            sinks.log(LogRecord::Temperature {
-                t_wall_ns,
-                temp_c: self.temp_c,
-            });
-            return;
-        }
-        let Some(counts) = Counts::of(reply) else {
-            return;
-        };
-        let ticks = reply.ticks().unwrap_or(0);
-        let reading = DeviceReading {
-            ticks_unwrapped: self.unwrapper.unwrap(ticks),
-            ticks,
-            counts: Some(counts),
-            measured: counts.to_units(self.gains),
-            saturated: counts.saturated(),
-            command: reply.code(),
-        };
-        self.on_reading(&reading, t_mono_ns, t_wall_ns, sinks);
-    }
-
-    /// The steps every protocol shares: gap accounting, time stamp, the raw sample, correction,
+    /// The steps every device shares: gap accounting, time stamp, the raw sample, correction,
     /// health, publishing.
     pub fn on_reading(
         &mut self,
@@ -404,9 +328,11 @@ impl Pipeline {
         sinks: &mut Sinks,
     ) {
         let ticks_unwrapped = reading.ticks_unwrapped;
-        let step = self
-            .gaps
-            .on_sample(self.seq, ticks_unwrapped, self.timebase.tick_period_s());
+        let step = self.gaps.on_sample(
+            self.seq,
+            ticks_unwrapped,
+            self.session.timebase.tick_period_s(),
+        );
         self.counters.samples_lost += step.lost_before + step.lost_earlier;
         if step.learned {
             // Positions were whole ticks until now: their lower envelope is biased by up to
@@ -421,7 +347,7 @@ impl Pipeline {
             // Exact already: no fit to run (and none to report).
             SampleClock::Host => t_mono_ns,
         };
-        let t_device_ns = self.timebase.device_ns(ticks_unwrapped);
+        let t_device_ns = self.session.timebase.device_ns(ticks_unwrapped);
         let mut flags = match reading.counts {
             Some(c) if c.scaled => raw_flags::SCALED_COUNTS,
             Some(_) => 0,
@@ -470,7 +396,7 @@ impl Pipeline {
 
     /// Applies the calibration in force (or only the GainScales) to one sample.
     fn correct(&mut self, m: &Measured, t_sample_ns: u64, t_device_ns: u64) -> CorrectedSample {
-        let mut flags = if self.gains.fallback.any() {
+        let mut flags = if self.session.gains.fallback.any() {
             corrected_flags::FALLBACK_GAINS
         } else {
             0
@@ -629,19 +555,16 @@ impl Pipeline {
             temp_c: self.temp_c,
             device_connected: u8::from(connected),
             logging: u8::from(logging),
-            gains_fallback: self.gains.fallback.mask(),
+            gains_fallback: self.session.gains.fallback.mask(),
             health_accel: health_accel.code(),
             health_gyro: health_gyro.code(),
-            protocol: match self.timebase {
-                Timebase::Gx1 { .. } => device_protocol::GX1,
-                Timebase::Mip(_) => device_protocol::MIP,
-            },
+            protocol: self.session.status_protocol,
             reserved: [0; 2],
             clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
             clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),
-            gain_scale_accel: self.gains.accel,
-            gain_scale_gyro: self.gains.gyro,
-            gain_scale_mag: self.gains.mag,
+            gain_scale_accel: self.session.gains.accel,
+            gain_scale_gyro: self.session.gains.gyro,
+            gain_scale_mag: self.session.gains.mag,
             reserved_end: [0; 2],
             packets_unusable: self.counters.undecodable,
             fields_skipped: self.counters.fields_skipped,
@@ -649,7 +572,7 @@ impl Pipeline {
     }
 }
 
-/// Logs bytes the decoder rejected (either protocol's decoder: the reasons are shared).
+/// Logs bytes the decoder rejected (every codec's decoder shares the reasons).
 pub fn log_rejected(
     bytes: Vec<u8>,
     offset: u64,
@@ -671,131 +594,4 @@ pub fn log_rejected(
         })),
         bytes: FrameData::from_vec(bytes),
     });
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn raw(ticks: u16) -> Reply {
-        Reply::RawSensorBits {
-            mag: [32_768; 3],
-            accel: [32_768, 32_768, 32_768 + 4681],
-            rate: [32_768; 3],
-            ticks,
-        }
-    }
-
-    /// The 3DM-GX1's usual GainScales.
-    fn test_gains(fallback: GainFallback) -> Gains {
-        Gains {
-            accel: 7000,
-            gyro: 10000,
-            mag: 2000,
-            fallback,
-        }
-    }
-
-    #[test]
-    fn continuous_gaps_are_counted_and_flagged() {
-        let mut p = Pipeline::new(test_gains(GainFallback::NONE), 6.5536e-3, None);
-        p.set_continuous(true);
-        let mut sinks = Sinks::default();
-        let lost = [300u64, 301, 302, 500];
-        for k in 0..1000u64 {
-            if lost.contains(&k) {
-                continue;
-            }
-            // 100 Hz on 6.5536 ms ticks: steps of 1 and 2 ticks, and a wrap past 65535.
-            let ticks = ((k as f64 * 0.01 / 6.5536e-3).floor() as u64 + 65_000) % 65_536;
-            p.on_reply(
-                &raw(ticks as u16),
-                k * 10_000_000,
-                k * 10_000_000,
-                &mut sinks,
-            );
-        }
-        assert_eq!(p.counters().samples, 996);
-        assert_eq!(p.counters().samples_lost, 4);
-        // Without a calibration the corrected stream is the GainScale conversion: z = +1 g.
-        assert!(p.calibration().is_none());
-    }
-
-    /// Each frame reaches the log once, in arrival order: a data frame with its sample (one
-    /// record), a temperature reply's frame before the temperature, rejected bytes as such.
-    #[test]
-    fn every_frame_is_logged_once_in_arrival_order() {
-        use imu_bus::recording::{
-            RecordedMessage, Recorder, RecordingConfig, for_each_record, list_recordings,
-        };
-        use imu_proto::decoder::ReplyDecoder;
-
-        let dir = tempfile::tempdir().unwrap();
-        let recorder = Recorder::start(
-            RecordingConfig {
-                dir: dir.path().to_path_buf(),
-                prefix: "order".into(),
-                ..RecordingConfig::default()
-            },
-            Vec::new(),
-        )
-        .unwrap();
-        let mut sinks = Sinks {
-            recorder: Some(recorder),
-            ..Sinks::default()
-        };
-        let mut p = Pipeline::new(test_gains(GainFallback::NONE), 6.5536e-3, None);
-        let mut bytes = Vec::new();
-        raw(10).encode(&mut bytes);
-        Reply::Temperature {
-            raw: 2000,
-            ticks: 11,
-        }
-        .encode(&mut bytes);
-        bytes.extend_from_slice(&[0xAB, 0xCD]); // garbage
-        raw(12).encode(&mut bytes);
-        let mut decoder = ReplyDecoder::default();
-        decoder.push(&bytes);
-        decoder.flush();
-        let mut offsets = Vec::new();
-        while let Some(ev) = decoder.next_event() {
-            offsets.push(ev.offset());
-            p.on_event(ev, 5, 7, &mut sinks);
-        }
-        let stats = sinks.recorder.take().unwrap().finish().unwrap();
-        // Sample + frame, temperature + its frame, garbage, sample + frame.
-        assert_eq!((stats.written, stats.dropped_queue_full), (5, 0));
-        let file = &list_recordings(dir.path(), "order").unwrap()[0];
-        let mut kinds = String::new();
-        let mut frame_offsets = Vec::new();
-        for_each_record(file, |m| {
-            kinds.push(match m {
-                RecordedMessage::Frame(f) => {
-                    frame_offsets.push(f.stream_offset);
-                    if f.accepted { 'f' } else { 'x' }
-                }
-                RecordedMessage::Raw(_) => 'r',
-                RecordedMessage::Imu(_) => 'i',
-                RecordedMessage::MagneticField(_) => 'm',
-                RecordedMessage::Temperature(_) => 't',
-                _ => '?',
-            });
-        })
-        .unwrap();
-        assert_eq!(kinds, "frimftxfrim");
-        assert_eq!(frame_offsets, offsets);
-        assert_eq!(p.counters().frames, 3);
-    }
-
-    #[test]
-    fn polled_streams_do_not_count_gaps() {
-        let mut p = Pipeline::new(test_gains(GainFallback::ALL), 6.5536e-3, None);
-        p.set_continuous(false);
-        let mut sinks = Sinks::default();
-        for k in 0..300u64 {
-            let ticks = (k * k) % 65_536; // irregular polls
-            p.on_reply(&raw(ticks as u16), k, k, &mut sinks);
-        }
-        assert_eq!(p.counters().samples_lost, 0);
-    }
 }

@@ -141,11 +141,7 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
         kv("gain_scale_mag", s.gain_scale_mag.to_string()),
         kv(
             "protocol",
-            match s.protocol {
-                imu_bus::sample::device_protocol::MIP => "mip",
-                _ => "3dm-gx1",
-            }
-            .into(),
+            crate::drivers::status_protocol_name(s.protocol).into(),
         ),
         kv("packets_unusable", s.packets_unusable.to_string()),
         kv("fields_skipped", s.fields_skipped.to_string()),
@@ -155,6 +151,8 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::drivers::gx1::{self, Gx1Driver};
+    use crate::drivers::{Driver, DriverEvent};
     use crate::pipeline::{GainFallback, Gains, Pipeline, Sinks};
     use imu_bus::recording::{Recorder, RecordingConfig, TESLA_PER_GAUSS, read_recording};
     use imu_bus::sample::raw_flags;
@@ -195,9 +193,21 @@ mod tests {
             recorder: Some(Recorder::start(config, Vec::new()).unwrap()),
             ..Sinks::default()
         };
-        let mut p = Pipeline::new(gains, 6.5536e-3, None);
+        // A 3DM-GX1's replies (it sends counts) through its driver, as a streaming unit's.
+        let device = crate::config::DeviceConfig::default();
+        let mut driver = Gx1Driver::with_session(&device, gains);
+        let mut p = Pipeline::new(gx1::session(&device, gains), None);
         for (k, reply) in replies.iter().enumerate() {
-            p.on_reply(reply, k as u64 * 1_000, k as u64 * 2_000, &mut sinks);
+            driver.handle_input(&reply.to_bytes(), std::time::Instant::now());
+            while let Some(DriverEvent::Frame { frame, content }) = driver.poll_event() {
+                p.on_frame(
+                    frame,
+                    &content,
+                    k as u64 * 1_000,
+                    k as u64 * 2_000,
+                    &mut sinks,
+                );
+            }
         }
         let stats = sinks.recorder.take().unwrap().finish().unwrap();
         let file = stats.current_file.clone();

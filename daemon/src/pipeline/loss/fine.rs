@@ -1,42 +1,8 @@
-//! Loss accounting of a continuous stream: the device's sample clock tells how many samples
-//! fell between two that arrived; losses are logged in bursts.
-//!
-//! Two kinds of device clock need two trackers. A coarse counter (the 3DM-GX1's 6.5536 ms
-//! ticks, one or two per sample) quantises every stamp by up to a sample interval, so
-//! [`GapTracker`] places samples by set membership on the exact tick line (its search is as
-//! fine as the tick line needs, so it is not for clocks of thousands of ticks a sample). A fine
-//! clock (a MIP unit's reference time in ns, or its 62.5 kHz internal timestamp: at least 60
-//! ticks a sample) quantises by a small fraction of an interval and may jitter by the device's
-//! own latency, which that exact fit would not tolerate: [`FineGapTracker`] rounds each spacing
-//! to whole sample intervals of a period measured over the whole session.
+//! Losses on a fine device clock (many ticks a sample: a stamp is exact to a small fraction of
+//! an interval, up to the device's own stamping jitter): each spacing rounded to whole sample
+//! intervals of a period measured over the whole session.
 
-use tracing::warn;
-
-use crate::gaps::{GapStep, GapTracker};
-
-/// How the device's sample clock compares with the sample interval.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum TickKind {
-    /// About one tick a sample (the 3DM-GX1): ticks floor the true time by up to an interval.
-    #[default]
-    Coarse,
-    /// Many ticks a sample (a MIP unit's ns or 62.5 kHz clocks): a stamp is exact to a small
-    /// fraction of an interval, up to the device's stamping jitter.
-    Fine,
-}
-
-/// Loss accounting of a continuous stream: the tracker and the log of loss bursts.
-#[derive(Debug, Clone, Default)]
-pub(super) struct GapAccounting {
-    /// Only continuous streams are paced by the device; polls are the host's.
-    pub(super) enabled: bool,
-    pub(super) kind: TickKind,
-    tracker: GapTracker,
-    fine: FineGapTracker,
-    burst: Option<LossBurst>,
-    /// The previous sample's ticks (polls only).
-    last_ticks: Option<u64>,
-}
+use super::coarse::GapStep;
 
 /// Intervals measured before a fine clock's sample period is trusted.
 const FINE_LEARN_INTERVALS: usize = 32;
@@ -45,7 +11,7 @@ const FINE_LEARN_INTERVALS: usize = 32;
 /// session's span over the intervals counted so far (so it follows the device's oscillator,
 /// not the nominal rate).
 #[derive(Debug, Clone, Default)]
-pub(super) struct FineGapTracker {
+pub struct FineGapTracker {
     /// The session's first stamp and the previous one, ticks.
     first: Option<u64>,
     last: u64,
@@ -58,7 +24,7 @@ pub(super) struct FineGapTracker {
 
 impl FineGapTracker {
     /// Feeds the next sample's stamp, ticks.
-    pub(super) fn push(&mut self, ticks: u64) -> GapStep {
+    pub fn push(&mut self, ticks: u64) -> GapStep {
         let quiet = |spacing: u64| GapStep {
             lost_before: 0,
             lost_earlier: 0,
@@ -113,81 +79,6 @@ impl FineGapTracker {
 /// Whole sample intervals in a spacing, at least one (a stamp early by jitter is no loss).
 fn whole_intervals(spacing: f64, period: f64) -> u64 {
     (spacing / period).round().max(1.0) as u64
-}
-
-/// Losses close together, logged once when the link has been clean for [`BURST_QUIET_S`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct LossBurst {
-    first_seq: u64,
-    lost: u64,
-    gaps: u64,
-    last_gap_ticks: f64,
-}
-
-/// A loss burst ends after this much device time without a loss, s.
-const BURST_QUIET_S: f64 = 1.0;
-
-impl GapAccounting {
-    /// Fresh accounting: on for a continuous stream, on a clock of `kind`.
-    pub(super) fn new(enabled: bool, kind: TickKind) -> Self {
-        Self {
-            enabled,
-            kind,
-            ..Self::default()
-        }
-    }
-
-    /// Accounts the sample `seq` at `ticks_unwrapped`: returns the loss step and whether a gap
-    /// precedes it.
-    pub(super) fn on_sample(
-        &mut self,
-        seq: u64,
-        ticks_unwrapped: u64,
-        tick_period_s: f64,
-    ) -> GapStep {
-        if !self.enabled {
-            // Polls: each sample's own tick interval, no losses to count.
-            let spacing_ticks = self
-                .last_ticks
-                .map_or(0.0, |l| ticks_unwrapped.saturating_sub(l) as f64);
-            self.last_ticks = Some(ticks_unwrapped);
-            return GapStep {
-                lost_before: 0,
-                lost_earlier: 0,
-                position_ticks: ticks_unwrapped as f64 + 0.5,
-                spacing_ticks,
-                learned: false,
-            };
-        }
-        let step = match self.kind {
-            TickKind::Coarse => self.tracker.push(ticks_unwrapped),
-            TickKind::Fine => self.fine.push(ticks_unwrapped),
-        };
-        let lost = step.lost_before + step.lost_earlier;
-        if lost > 0 {
-            let b = self.burst.get_or_insert(LossBurst {
-                first_seq: seq,
-                lost: 0,
-                gaps: 0,
-                last_gap_ticks: step.position_ticks,
-            });
-            b.lost += lost;
-            b.gaps += 1;
-            b.last_gap_ticks = step.position_ticks;
-        } else if let Some(b) = self.burst
-            && (step.position_ticks - b.last_gap_ticks) * tick_period_s > BURST_QUIET_S
-        {
-            warn!(
-                "device link lost {} sample(s) in {} gap(s) from sample {} to {}",
-                b.lost,
-                b.gaps,
-                b.first_seq,
-                seq.saturating_sub(1)
-            );
-            self.burst = None;
-        }
-        step
-    }
 }
 
 #[cfg(test)]
