@@ -3,7 +3,10 @@
 //! full turn about each axis, with no table and no time windows. Each still face's true input
 //! is gravity along the sensor axis that points up (recognised from the measured gravity); each
 //! turn's is 360 degrees about the axis it turned about (recognised from the integrated rate,
-//! after removing the gyro's reading at rest) over the turn's samples. Earth's rate enters with
+//! after removing the gyro's reading at rest) over the turn's samples: the motion between two
+//! rests, bounded by where the rate leaves and rejoins the rest's, so that a session cut into
+//! parts and joined with no motion between them (another face's samples right after a turn's
+//! last rest) still gives each turn its own samples only, and a turn at either end of it counts. Earth's rate enters with
 //! its vertical part where the latitude is given; the part a heading would fix is carried as a
 //! systematic gyro bias uncertainty, as for a plan without north. A labelled session (a
 //! `part`/`label` column) whose parts are named like faces and turns (`+x`, `face-x+`,
@@ -103,6 +106,20 @@ pub enum FerrarisError {
         /// What the data say instead.
         message: String,
     },
+    /// Labelled parts whose names are neither a face, a turn, nor a part that says it is none.
+    #[error(
+        "{file}: {count} labelled part(s) name no face and no turn: {parts}; name faces like \
+         `+x`, `face-x-` or imucal's `x_p`/`x_a`, turns like `turn-z` or `z_rot`, and parts \
+         that are neither `move` or `rest` (the grammar: reference/ferraris/labels.rs)"
+    )]
+    UnknownParts {
+        /// The plan file.
+        file: String,
+        /// The first of them, each with its time span.
+        parts: String,
+        /// How many runs of samples carry such a label.
+        count: usize,
+    },
     /// A rotating segment given to [`Ferraris::segment_truth`] is not a full turn about one
     /// axis (segments must come from [`Ferraris::segmentation`]).
     #[error(
@@ -159,11 +176,12 @@ impl Ferraris {
         })
     }
 
-    /// The still faces (as detected) and one segment per full turn (the samples between the
-    /// two still faces around it, kind [`SegmentKind::Plateau`]), in time order. Detected rate
-    /// plateaus inside a turn are replaced by the turn; quiet runs are reported as detection
-    /// reports them. A session labelled with faces and turns (module `labels`) takes them from
-    /// its labels.
+    /// The still faces (as detected) and one segment per full turn (the motion between two
+    /// still faces, or before the first or after the last, from its first to its last moving
+    /// sample with a little rest around it, kind [`SegmentKind::Plateau`]), in time order.
+    /// Detected rate plateaus inside a turn are replaced by the turn; quiet runs are reported as
+    /// detection reports them. A session labelled with faces and turns (module `labels`) takes
+    /// them from its labels.
     pub fn segmentation(
         &self,
         series: &ImuSeries,
@@ -196,18 +214,29 @@ impl Ferraris {
             }
         }
         let rest = crate::segment::rest_rate(&statics);
+        let noise = rest_noise_rad_s(&statics);
         let mut segments = statics.clone();
-        for pair in statics.windows(2) {
-            let window = pair[0].range().end..pair[1].first_sample;
-            if window.len() < 2 {
+        // Between two rests, and before the first and after the last (a session cut into
+        // parts may start or end with a turn whose rest after it is too short to be one).
+        let mut bounds: Vec<usize> = vec![0];
+        for s in &statics {
+            bounds.extend([s.first_sample, s.range().end]);
+        }
+        bounds.push(series.len());
+        for pair in bounds.chunks(2) {
+            let window = pair[0]..pair[1];
+            // The turn is the motion in the window, not the window: parts concatenated with no
+            // motion between them put another face's samples beside it, whose gravity is not
+            // the turn's.
+            let Some(motion) = motion_extent(series, window, rest, noise) else {
                 continue;
-            }
-            let mut turn = Segment::from_samples(series, window.clone(), SegmentKind::Plateau);
+            };
+            let mut turn = Segment::from_samples(series, motion.clone(), SegmentKind::Plateau);
             if self.turn_of(series, &turn, rest).is_some() {
                 // The rate varies through a turn by hand: the error of its mean is the sensor's
                 // noise, not the spread of the rate (which would make the turn worthless).
-                turn.std_gyro_rad_s = noise_std(&series.gyro_rad_s[window.clone()]);
-                turn.std_accel_m_s2 = noise_std(&series.accel_m_s2[window]);
+                turn.std_gyro_rad_s = noise_std(&series.gyro_rad_s[motion.clone()]);
+                turn.std_accel_m_s2 = noise_std(&series.accel_m_s2[motion]);
                 segments.push(turn);
             }
         }
@@ -369,6 +398,55 @@ fn span_s(series: &ImuSeries, s: &Segment) -> f64 {
     let r = s.range();
     let dt = (series.t_s[r.end - 1] - series.t_s[r.start]) / (r.len() - 1).max(1) as f64;
     dt * r.len() as f64
+}
+
+/// The gyro's noise at rest, rad/s: the root of the summed per-axis variances, the
+/// sample-weighted mean over `statics` (0 without any).
+fn rest_noise_rad_s(statics: &[Segment]) -> f64 {
+    let (sum, n) = statics.iter().fold((0.0, 0usize), |(sum, n), s| {
+        let var: f64 = s.std_gyro_rad_s.iter().map(|x| x * x).sum();
+        (sum + var * s.n as f64, n + s.n)
+    });
+    (sum / n.max(1) as f64).sqrt()
+}
+
+/// Samples of smoothing (each side) of the rate whose excess over the rest finds a motion, s.
+const MOTION_SMOOTH_S: f64 = 0.025;
+/// Samples kept before and after a motion's first and last moving sample, s: the rate there is
+/// within a few noise sigmas of the rest, so the angle it adds is below the noise's.
+const MOTION_PAD_S: f64 = 0.1;
+
+/// The samples of `window` from its first to its last moving one (the rate, smoothed over
+/// [`MOTION_SMOOTH_S`], more than 5 noise sigmas from `rest`), widened by [`MOTION_PAD_S`] at
+/// each end within the window; None if nothing moves in it.
+fn motion_extent(
+    series: &ImuSeries,
+    window: std::ops::Range<usize>,
+    rest: Vec3,
+    noise_rad_s: f64,
+) -> Option<std::ops::Range<usize>> {
+    if window.len() < 2 {
+        return None;
+    }
+    let rate_hz = series.sample_rate_hz();
+    let h = ((MOTION_SMOOTH_S * rate_hz).round() as usize).max(1);
+    let pad = (MOTION_PAD_S * rate_hz).round() as usize;
+    let threshold = 5.0 * noise_rad_s / ((2 * h + 1) as f64).sqrt();
+    let excess: Vec<Vec3> = series.gyro_rad_s[window.clone()]
+        .iter()
+        .map(|g| Vec3::from(*g) - rest)
+        .collect();
+    let moving = |k: usize| {
+        let lo = k.saturating_sub(h);
+        let hi = (k + h + 1).min(excess.len());
+        let mean = excess[lo..hi].iter().sum::<Vec3>() / (hi - lo) as f64;
+        mean.norm() > threshold
+    };
+    let first = (0..excess.len()).find(|&k| moving(k))?;
+    let last = (0..excess.len()).rev().find(|&k| moving(k))?;
+    Some(
+        window.start + first.saturating_sub(pad)..window.start + (last + pad + 1).min(excess.len()),
+    )
 }
 
 /// Per-axis standard deviation of the white noise of a smoothly varying signal, from its second
