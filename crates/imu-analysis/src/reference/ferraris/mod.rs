@@ -14,8 +14,10 @@
 //! instead, each checked against what gravity and the rate say.
 
 mod labels;
+mod sign;
 
 pub use labels::{PartName, parse_part};
+pub use sign::{SignCheck, check_sign};
 
 use imu_model::Vec3;
 use imu_model::earth::{
@@ -106,6 +108,22 @@ pub enum FerrarisError {
         /// What the data say instead.
         message: String,
     },
+    /// Gravity says a gyro axis reports rotation the other way.
+    #[error(
+        "{file}: gravity says the gyro reports rotation the other way about {axes} (the \
+         coefficient of its rate in the accelerometer's change; +1 agrees): its sign is flipped, \
+         a negative gain, which a calibration does not hold. Negate that axis' scale when \
+         reading it: for a text recording --csv-gyro counts:{per_axis} (S your counts' scale, \
+         rad/s per count; counts:-S when every axis is flipped)"
+    )]
+    GyroSign {
+        /// The plan file.
+        file: String,
+        /// The flipped axes with their coefficients.
+        axes: String,
+        /// The per-axis scales that fix it (`S,S,-S`).
+        per_axis: String,
+    },
     /// Labelled parts whose names are neither a face, a turn, nor a part that says it is none.
     #[error(
         "{file}: {count} labelled part(s) name no face and no turn: {parts}; name faces like \
@@ -188,10 +206,47 @@ impl Ferraris {
         opts: &SegmentOptions,
     ) -> Result<Segmentation, FerrarisError> {
         let detected = crate::segment::detect(series, opts)?;
-        if let Some(labelled) = self.labelled_segmentation(series, &detected)? {
-            return Ok(labelled);
+        let seg = match self.labelled_segmentation(series, &detected)? {
+            Some(labelled) => labelled,
+            None => self.recognised_segmentation(series, detected)?,
+        };
+        self.check_gyro_sign(series, &seg)?;
+        Ok(seg)
+    }
+
+    /// Refuses a gyro whose sign gravity says is flipped on some axis (module `sign`): the
+    /// turns' sense would be taken from it and every rotation calibrated backwards.
+    fn check_gyro_sign(&self, series: &ImuSeries, seg: &Segmentation) -> Result<(), FerrarisError> {
+        let statics: Vec<Segment> = seg.of_kind(SegmentKind::Static).cloned().collect();
+        let mut moving = Vec::new();
+        let mut from = 0;
+        for s in &statics {
+            moving.push(from..s.first_sample);
+            from = s.range().end;
         }
-        self.recognised_segmentation(series, detected)
+        moving.push(from..series.len());
+        let check = check_sign(series, &moving, crate::segment::rest_rate(&statics));
+        let flipped = check.flipped();
+        if flipped.is_empty() {
+            return Ok(());
+        }
+        let axes = flipped
+            .iter()
+            .map(|&a| {
+                let (k, se) = check.coefficient[a].unwrap_or((f64::NAN, f64::NAN));
+                format!("{} ({k:+.2} +/- {se:.2})", ["x", "y", "z"][a])
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        let per_axis = (0..3)
+            .map(|a| if flipped.contains(&a) { "-S" } else { "S" })
+            .collect::<Vec<_>>()
+            .join(",");
+        Err(FerrarisError::GyroSign {
+            file: self.file.clone(),
+            axes,
+            per_axis,
+        })
     }
 
     /// [`Ferraris::segmentation`] by recognition: faces from gravity, turns from the rate.
