@@ -114,7 +114,7 @@ pub enum FerrarisError {
          coefficient of its rate in the accelerometer's change; +1 agrees): its sign is flipped, \
          a negative gain, which a calibration does not hold. Negate that axis' scale when \
          reading it: for a text recording --csv-gyro counts:{per_axis} (S your counts' scale, \
-         rad/s per count; counts:-S when every axis is flipped)"
+         rad/s per count)"
     )]
     GyroSign {
         /// The plan file.
@@ -225,7 +225,12 @@ impl Ferraris {
             from = s.range().end;
         }
         moving.push(from..series.len());
-        let check = check_sign(series, &moving, crate::segment::rest_rate(&statics));
+        let check = check_sign(
+            series,
+            &moving,
+            crate::segment::rest_rate(&statics),
+            accel_offset(&statics),
+        );
         let flipped = check.flipped();
         if flipped.is_empty() {
             return Ok(());
@@ -238,10 +243,14 @@ impl Ferraris {
             })
             .collect::<Vec<_>>()
             .join(", ");
-        let per_axis = (0..3)
-            .map(|a| if flipped.contains(&a) { "-S" } else { "S" })
-            .collect::<Vec<_>>()
-            .join(",");
+        let per_axis = if flipped.len() == 3 {
+            "-S".to_string()
+        } else {
+            (0..3)
+                .map(|a| if flipped.contains(&a) { "-S" } else { "S" })
+                .collect::<Vec<_>>()
+                .join(",")
+        };
         Err(FerrarisError::GyroSign {
             file: self.file.clone(),
             axes,
@@ -438,6 +447,30 @@ impl Ferraris {
             self.name.as_deref().unwrap_or(&self.file)
         )
     }
+}
+
+/// The accelerometer's offset, m/s^2: the mean of the six faces' mean readings, in which
+/// gravity cancels (zero unless all six faces were seen).
+fn accel_offset(statics: &[Segment]) -> Vec3 {
+    let mut faces: Vec<(Vec3, Vec3, usize)> = Vec::new();
+    for s in statics {
+        let up = face_up(s);
+        match faces.iter_mut().find(|(u, _, _)| *u == up) {
+            Some((_, sum, n)) => {
+                *sum += s.mean_accel();
+                *n += 1;
+            }
+            None => faces.push((up, s.mean_accel(), 1)),
+        }
+    }
+    if faces.len() < 6 {
+        return Vec3::zeros();
+    }
+    faces
+        .iter()
+        .map(|(_, sum, n)| sum / *n as f64)
+        .sum::<Vec3>()
+        / 6.0
 }
 
 /// The sensor axis pointing up on the still face `s`, as a signed unit vector.

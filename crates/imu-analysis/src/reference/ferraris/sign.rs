@@ -6,8 +6,11 @@
 //! as `df/dt = -w x f` in the sensor frame. Over the samples that move, the change of the
 //! accelerometer reading in short blocks is regressed on each gyro axis' share of that
 //! prediction; a coefficient near +1 is a gyro that agrees with the accelerometer, near -1 one
-//! whose axis is flipped. A session that never tilts (turns about the vertical, no moves
-//! between faces) cannot tell, and the turns' sense stays the gyro's.
+//! whose axis is flipped. The accelerometer's offset is removed first (it would otherwise turn
+//! with the rate as if it were gravity's). A session that never tilts (turns about the
+//! vertical, no moves between faces) cannot tell, nor can one whose hand accelerates the unit
+//! more than gravity moves in it (the coefficient then is far from both +1 and -1): the turns'
+//! sense then stays the gyro's.
 
 use imu_model::Vec3;
 use imu_model::nalgebra::{Matrix3, Vector3};
@@ -22,6 +25,9 @@ const BLOCK_S: f64 = 0.05;
 const JUMP_MARGIN_M_S2: f64 = 3.0;
 /// Standard errors by which a coefficient must be negative to call its axis flipped.
 const FLIP_SIGMAS: f64 = 5.0;
+/// How far from -1 a flipped axis' coefficient may be: farther, the motion is not the pure
+/// rotation the regression models (a hand's linear acceleration) and says nothing.
+const FLIP_TOLERANCE: f64 = 0.5;
 
 /// What gravity says of each gyro axis' sign.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,19 +39,27 @@ pub struct SignCheck {
 
 impl SignCheck {
     /// The axes whose sign gravity says is flipped (the coefficient more than
-    /// [`FLIP_SIGMAS`] standard errors below zero).
+    /// [`FLIP_SIGMAS`] standard errors below zero and within [`FLIP_TOLERANCE`] of -1).
     pub fn flipped(&self) -> Vec<usize> {
         (0..3)
             .filter(|&a| {
-                self.coefficient[a].is_some_and(|(k, se)| k < 0.0 && -k > FLIP_SIGMAS * se)
+                self.coefficient[a].is_some_and(|(k, se)| {
+                    k < 0.0 && -k > FLIP_SIGMAS * se && (k + 1.0).abs() < FLIP_TOLERANCE
+                })
             })
             .collect()
     }
 }
 
 /// The check over the samples `moving` (ranges of `series` where the unit moves), the gyro's
-/// reading at rest `rest` removed. Blocks that straddle two labelled parts are left out.
-pub fn check_sign(series: &ImuSeries, moving: &[std::ops::Range<usize>], rest: Vec3) -> SignCheck {
+/// reading at rest `rest` and the accelerometer's offset `accel_offset` removed. Blocks that
+/// straddle two labelled parts are left out.
+pub fn check_sign(
+    series: &ImuSeries,
+    moving: &[std::ops::Range<usize>],
+    rest: Vec3,
+    accel_offset: Vec3,
+) -> SignCheck {
     let rate_hz = series.sample_rate_hz();
     let block = ((BLOCK_S * rate_hz).round() as usize).max(1);
     let mut xtx = Matrix3::<f64>::zeros();
@@ -65,7 +79,7 @@ pub fn check_sign(series: &ImuSeries, moving: &[std::ops::Range<usize>], rest: V
             let mut x = Matrix3::<f64>::zeros();
             for k in i0..i1 {
                 let dt = series.t_s[k + 1] - series.t_s[k];
-                let f = Vec3::from(series.accel_m_s2[k]);
+                let f = Vec3::from(series.accel_m_s2[k]) - accel_offset;
                 let w = Vec3::from(series.gyro_rad_s[k]) - rest;
                 for a in 0..3 {
                     let mut e = Vec3::zeros();
@@ -140,23 +154,47 @@ mod tests {
     #[test]
     fn gravity_tells_a_flipped_gyro_axis() {
         let all = [0..799];
-        let right = check_sign(&session([1.0; 3]), &all, Vec3::zeros());
+        let right = check_sign(&session([1.0; 3]), &all, Vec3::zeros(), Vec3::zeros());
         for a in 0..3 {
             let (k, se) = right.coefficient[a].unwrap();
             assert!((k - 1.0).abs() < 0.1 && se < 0.05, "axis {a}: {k} +/- {se}");
         }
         assert!(right.flipped().is_empty());
-        let z = check_sign(&session([1.0, 1.0, -1.0]), &all, Vec3::zeros());
+        let z = check_sign(
+            &session([1.0, 1.0, -1.0]),
+            &all,
+            Vec3::zeros(),
+            Vec3::zeros(),
+        );
         assert_eq!(z.flipped(), vec![2], "{z:?}");
-        let every = check_sign(&session([-1.0; 3]), &all, Vec3::zeros());
+        let every = check_sign(&session([-1.0; 3]), &all, Vec3::zeros(), Vec3::zeros());
         assert_eq!(every.flipped(), vec![0, 1, 2], "{every:?}");
+        // An offset on the accelerometer is gravity's no more once removed.
+        let mut offset = session([-1.0; 3]);
+        let b = Vec3::new(0.3, -0.2, 0.25);
+        offset
+            .accel_m_s2
+            .iter_mut()
+            .for_each(|a| *a = (Vec3::from(*a) + b).into());
+        let removed = check_sign(&offset, &all, Vec3::zeros(), b);
+        assert_eq!(removed.flipped(), vec![0, 1, 2]);
+        for a in 0..3 {
+            let (k, _) = removed.coefficient[a].unwrap();
+            let (want, _) = every.coefficient[a].unwrap();
+            assert!((k - want).abs() < 1e-9, "axis {a}: {k} vs {want}");
+        }
+        // A coefficient far from both signs is motion the regression does not model: no call.
+        let wild = SignCheck {
+            coefficient: [Some((-4.5, 0.8)), Some((-1.1, 0.1)), None],
+        };
+        assert_eq!(wild.flipped(), vec![1]);
         // A unit that does not move says nothing.
         let mut still = session([1.0; 3]);
         still.gyro_rad_s.iter_mut().for_each(|w| *w = [0.0; 3]);
         let f = still.accel_m_s2[0];
         still.accel_m_s2.iter_mut().for_each(|a| *a = f);
         assert_eq!(
-            check_sign(&still, &all, Vec3::zeros()).coefficient,
+            check_sign(&still, &all, Vec3::zeros(), Vec3::zeros()).coefficient,
             [None; 3]
         );
     }
