@@ -153,7 +153,7 @@ mod tests {
 
     #[test]
     fn gravity_tells_a_flipped_gyro_axis() {
-        let all = [0..799];
+        let all = [std::ops::Range { start: 0, end: 799 }];
         let right = check_sign(&session([1.0; 3]), &all, Vec3::zeros(), Vec3::zeros());
         for a in 0..3 {
             let (k, se) = right.coefficient[a].unwrap();
