@@ -225,6 +225,35 @@ mod tests {
         assert!(positive_f64("0").is_err() && positive_f64("-100").is_err());
     }
 
+    /// `--rate-hz` reaches the text reader's options with `--start-s`; `--start-s` alone, a
+    /// rate with a time scale, and a rate that is not above zero are usage errors.
+    #[cfg(feature = "analysis")]
+    #[test]
+    fn a_rate_times_text_without_a_time_column() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            csv: CsvArgs,
+        }
+        let parse = |args: &[&str]| Cli::try_parse_from([&["tool"], args].concat());
+        let cli = parse(&["--rate-hz", "204.8", "--start-s", "12.5"]).unwrap();
+        let o = cli.csv.options_for(&[], 0).unwrap();
+        assert_eq!((o.rate_hz, o.start_s), (Some(204.8), 12.5));
+        assert_eq!(
+            parse(&[]).unwrap().csv.options_for(&[], 0).unwrap().rate_hz,
+            None
+        );
+        for bad in [
+            &["--start-s", "1"][..],
+            &["--rate-hz", "100", "--csv-time-scale-s", "1e-9"],
+            &["--rate-hz", "0"],
+            &["--rate-hz", "-5"],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?} accepted");
+        }
+    }
+
     #[derive(Debug, thiserror::Error)]
     #[error("writing the table")]
     struct Wrapper(#[source] std::io::Error);
