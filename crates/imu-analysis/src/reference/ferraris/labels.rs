@@ -22,8 +22,9 @@
 //! convention of that package (clockwise seen from above), so `x_rot` leaves it to the data.
 //! A part named as no part of the procedure (an empty label, or one starting with `move`,
 //! `moving`, `transition`, `rest`, `setup`, `idle`, `other` or `none`: `move 3`, `rest`) is not
-//! used; any other name that does not parse (`x_q`, `acc_x_p`, `face-w`) is an error that names
-//! it, never silently left out. A face part's still stretches are its rests (its gravity
+//! used; any other name that does not parse (`x_q`, `acc_x_p`, `face-w`) beside names that do
+//! is an error that names it, never silently left out. A label column none of whose names is a
+//! face or a turn (`step 3`) is no Ferraris labelling: recognition finds the faces and turns. A face part's still stretches are its rests (its gravity
 //! must be along the named axis, within the plan's face tolerance), a turn part's samples are
 //! its turn (its integrated rate a full turn about the named axis); a mismatch is an error
 //! naming the part.
@@ -179,6 +180,10 @@ impl Ferraris {
         detected: &Segmentation,
     ) -> Result<Option<Segmentation>, FerrarisError> {
         let (parts, unknown) = parts(series);
+        // A label column none of whose names is a face or a turn is no Ferraris labelling.
+        if parts.is_empty() {
+            return Ok(None);
+        }
         if !unknown.is_empty() {
             let mut named: Vec<String> = Vec::new();
             for (name, r) in &unknown {
@@ -197,9 +202,7 @@ impl Ferraris {
                 count: unknown.len(),
             });
         }
-        if parts.is_empty() {
-            return Ok(None);
-        }
+
         let statics: Vec<Segment> = detected.of_kind(SegmentKind::Static).cloned().collect();
         let mut faces = Vec::new();
         for p in parts
