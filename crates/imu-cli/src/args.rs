@@ -50,6 +50,17 @@ mod csv_args {
         /// Text recordings: seconds per unit of the time column (1 for s, 1e-9 for ns).
         #[arg(long, default_value_t = 1.0, value_name = "S", value_parser = super::finite_f64)]
         pub csv_time_scale_s: f64,
+        /// Text recordings without a time column: their sample rate, Hz. The columns are then
+        /// ax, ay, az, gx, gy, gz (ax, ay, az with --gyro-csv, whose rows are at the same rate)
+        /// and data row n is at --start-s + n / R, across all parts of a labelled session (a
+        /// per-part sample index is then just a column that is not read).
+        #[arg(long, value_name = "R", value_parser = super::positive_f64,
+              conflicts_with = "csv_time_scale_s")]
+        pub rate_hz: Option<f64>,
+        /// With --rate-hz: the time of a file's first row, s (orders the files of a session).
+        #[arg(long, default_value_t = 0.0, value_name = "S", value_parser = super::finite_f64,
+              requires = "rate_hz")]
+        pub start_s: f64,
         /// Text recordings: unit of the accelerometer columns: m/s2, g, or
         /// counts:SCALE[@OFFSET] (raw counts less OFFSET, times SCALE m/s^2 per count; SCALE and
         /// OFFSET each one number or X,Y,Z, e.g. counts:0.00241@32768 for unsigned 16-bit
@@ -66,15 +77,16 @@ mod csv_args {
         #[arg(long = "gyro-csv", value_name = "GYRO.txt")]
         pub gyro_csv: Vec<PathBuf>,
         /// Text recordings: the columns of time, ax, ay, az, gx, gy, gz (time, ax, ay, az with
-        /// --gyro-csv), each a 0-based index (the first column is 0) or a name from the header
+        /// --gyro-csv; no time with --rate-hz), each a 0-based index (the first column is 0) or a name from the header
         /// line, e.g. `--columns t,ax,ay,az,gx,gy,gz` or `--columns 0,4,5,6,1,2,3`. Default: the
         /// first columns in that order, a label column left out.
-        #[arg(long, value_name = "T,AX,AY,AZ[,GX,GY,GZ]", value_delimiter = ',')]
+        #[arg(long, value_name = "[T,]AX,AY,AZ[,GX,GY,GZ]", value_delimiter = ',')]
         pub columns: Vec<ColumnRef>,
-        /// The --gyro-csv file's columns of time, gx, gy, gz (0-based indices or header names).
+        /// The --gyro-csv file's columns of time, gx, gy, gz (no time with --rate-hz; 0-based
+        /// indices or header names).
         #[arg(
             long,
-            value_name = "T,GX,GY,GZ",
+            value_name = "[T,]GX,GY,GZ",
             value_delimiter = ',',
             requires = "gyro_csv"
         )]
@@ -125,6 +137,8 @@ mod csv_args {
             };
             Ok(CsvOptions {
                 time_scale_s: self.csv_time_scale_s,
+                rate_hz: self.rate_hz,
+                start_s: self.start_s,
                 accel: self.csv_accel,
                 gyro: self.csv_gyro,
                 gyro_file,
@@ -168,6 +182,16 @@ pub fn finite_f64(s: &str) -> Result<f64, String> {
     }
 }
 
+/// The value parser of a rate: a finite number above zero.
+pub fn positive_f64(s: &str) -> Result<f64, String> {
+    let v = finite_f64(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("`{s}` is not above zero"))
+    }
+}
+
 /// True if any error in `chain` (an error and its sources) is an I/O error of kind
 /// `BrokenPipe`, directly or inside a JSON writer's error: the reader went away, which is not
 /// the tool's failure.
@@ -195,6 +219,38 @@ mod tests {
         assert_eq!(finite_f64(" -2.5 "), Ok(-2.5));
         for bad in ["nan", "NaN", "inf", "-inf", "infinity", "1e999", "x"] {
             assert!(finite_f64(bad).is_err(), "{bad} accepted");
+            assert!(positive_f64(bad).is_err(), "{bad} accepted");
+        }
+        assert_eq!(positive_f64("204.8"), Ok(204.8));
+        assert!(positive_f64("0").is_err() && positive_f64("-100").is_err());
+    }
+
+    /// `--rate-hz` reaches the text reader's options with `--start-s`; `--start-s` alone, a
+    /// rate with a time scale, and a rate that is not above zero are usage errors.
+    #[cfg(feature = "analysis")]
+    #[test]
+    fn a_rate_times_text_without_a_time_column() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            csv: CsvArgs,
+        }
+        let parse = |args: &[&str]| Cli::try_parse_from([&["tool"], args].concat());
+        let cli = parse(&["--rate-hz", "204.8", "--start-s", "12.5"]).unwrap();
+        let o = cli.csv.options_for(&[], 0).unwrap();
+        assert_eq!((o.rate_hz, o.start_s), (Some(204.8), 12.5));
+        assert_eq!(
+            parse(&[]).unwrap().csv.options_for(&[], 0).unwrap().rate_hz,
+            None
+        );
+        for bad in [
+            &["--start-s", "1"][..],
+            &["--rate-hz", "100", "--csv-time-scale-s", "1e-9"],
+            &["--rate-hz", "0"],
+            &["--rate-hz", "-5"],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?} accepted");
         }
     }
 

@@ -8,6 +8,14 @@
 //! counts as the device gives them (unsigned, zero at mid-scale 32768, one count
 //! `GainScale / 32 768 000` g or rad/s); [`ExportUnits::Si`] writes them converted to m/s^2
 //! and rad/s with the device's GainScales.
+//!
+//! [`export_parts`] (`imu-sim --export-parts FILE.csv`) writes a labelled session as labs
+//! export one for the Python package imucal: the scenario's parts only (segments with a `part`,
+//! each run of one part's segments as one part, the moves between them cut out, so the parts
+//! follow each other with no motion between them), one CSV with a header `part, samples, acc_x,
+//! acc_y, acc_z, gyr_x, gyr_y, gyr_z`, `samples` the index within the part (restarting at 0),
+//! no time column, the counts signed about mid-scale, and the gyro's optionally negated (a unit
+//! whose gyro reports rotation the other way).
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -115,6 +123,119 @@ pub fn export_text(
         gyro: gyro_path,
         samples,
         accel_count_m_s2: count(gains.0) * g0,
+        gyro_count_rad_s: count(gains.1),
+    })
+}
+
+/// What [`export_parts`] wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartsExport {
+    /// The CSV file.
+    pub path: PathBuf,
+    /// Rows written (the parts' samples).
+    pub samples: u64,
+    /// The parts in order, with their first row (0-based, data rows) and row count.
+    pub parts: Vec<(String, u64, u64)>,
+    /// The rate of the rows, Hz (the scenario's rate; the file has no time column).
+    pub rate_hz: f64,
+    /// One accelerometer count, m/s^2.
+    pub accel_count_m_s2: f64,
+    /// One gyro count, rad/s (before any negation: a flipped gyro reads with `-` this).
+    pub gyro_count_rad_s: f64,
+}
+
+/// Runs `opts`'s scenario (which must end) and writes the samples of its parts to `path` as
+/// a labelled session without time (the module's doc), the gyro's counts times `gyro_sign`
+/// (+1, or -1 for a gyro whose sign is flipped); with `opts.truth_out` the truth of every
+/// sample, written or cut.
+pub fn export_parts(
+    opts: &SimOptions,
+    path: &Path,
+    gyro_sign: i32,
+) -> Result<PartsExport, SimError> {
+    let mut core = DeviceCore::new(opts.scenario.clone(), opts.truth.clone(), opts.seed);
+    let duration_s = core.timeline().duration_s();
+    let bad = |message: &str| SimError::Export {
+        path: path.to_path_buf(),
+        message: message.into(),
+    };
+    if !duration_s.is_finite() {
+        return Err(bad(
+            "the scenario never ends (its last segment has no duration-s); a \
+                        text export needs a finite scenario",
+        ));
+    }
+    if gyro_sign.abs() != 1 {
+        return Err(bad("the gyro's sign is +1 or -1"));
+    }
+    let part_of: Vec<Option<String>> = core
+        .timeline()
+        .segments()
+        .iter()
+        .map(|s| s.part.clone())
+        .collect();
+    if part_of.iter().all(Option::is_none) {
+        return Err(bad(
+            "no segment of the scenario has a `part`: nothing to write",
+        ));
+    }
+    let mut truth = open_truth(opts, &core, path.parent().unwrap_or(Path::new(".")))?;
+    let gains = (
+        opts.scenario.device.gain_scale.accel,
+        opts.scenario.device.gain_scale.gyro,
+    );
+    let mut out = String::from("part,samples,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\n");
+    let mut parts: Vec<(String, u64, u64)> = Vec::new();
+    let rate_hz = opts.scenario.rate_hz;
+    let (mut k, mut rows) = (0u64, 0u64);
+    let mut current: Option<&str> = None;
+    while (k as f64) / rate_hz <= duration_s {
+        let (reply, record) = core.data_reply(Command::RawSensorBits, k as f64 / rate_hz);
+        k += 1;
+        if let Some(w) = truth.as_mut() {
+            w.write_sample(&record)?;
+        }
+        let Some(part) = part_of
+            .get(record.segment as usize)
+            .and_then(|p| p.as_deref())
+        else {
+            current = None;
+            continue;
+        };
+        let Reply::RawSensorBits { accel, rate, .. } = reply else {
+            unreachable!("a raw-sensor-bits poll gets a raw-sensor-bits reply");
+        };
+        if current != Some(part) {
+            parts.push((part.to_string(), rows, 0));
+            current = Some(part);
+        }
+        let last = parts.last_mut().expect("a part was started");
+        let signed = |c: u16| i32::from(c) - 32_768;
+        let _ = writeln!(
+            out,
+            "{part},{},{},{},{},{},{},{}",
+            last.2,
+            signed(accel[0]),
+            signed(accel[1]),
+            signed(accel[2]),
+            gyro_sign * signed(rate[0]),
+            gyro_sign * signed(rate[1]),
+            gyro_sign * signed(rate[2]),
+        );
+        last.2 += 1;
+        rows += 1;
+    }
+    if let Some(w) = truth {
+        w.finish()?;
+    }
+    write_file(path, &out)?;
+    let count = |gain: u16| f64::from(gain) / 32_768_000.0;
+    Ok(PartsExport {
+        path: path.to_path_buf(),
+        samples: rows,
+        parts,
+        rate_hz,
+        accel_count_m_s2: count(gains.0) * imu_model::units::STANDARD_GRAVITY_M_S2,
         gyro_count_rad_s: count(gains.1),
     })
 }

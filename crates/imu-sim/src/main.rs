@@ -81,6 +81,17 @@ struct Args {
         requires = "export_text"
     )]
     export_units: ExportUnits,
+    /// Instead of opening a device, run the scenario at CPU speed and write the samples of its
+    /// parts (segments with a `part`) to FILE as a labelled session without time, as labs
+    /// export one for the Python package imucal: `part,samples,acc_x,...,gyr_z`, `samples` the
+    /// index within the part, signed counts, the moves between parts cut out. Prints the parts
+    /// and the flags that read it.
+    #[arg(long, value_name = "FILE.csv", conflicts_with_all = ["link", "fast", "describe", "export_text"])]
+    export_parts: Option<PathBuf>,
+    /// With --export-parts: negate the gyro's counts (a unit whose gyro reports rotation the
+    /// other way).
+    #[arg(long, requires = "export_parts")]
+    export_flip_gyro: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -102,6 +113,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     opts.truth_out = args.truth_out;
     if let Some(dir) = &args.export_text {
         return export(&opts, dir, args.export_units);
+    }
+    if let Some(path) = &args.export_parts {
+        return export_parts(&opts, path, args.export_flip_gyro);
     }
     opts.link = args.link;
     opts.pacing = if args.fast {
@@ -185,6 +199,34 @@ fn export(opts: &SimOptions, dir: &std::path::Path, units: ExportUnits) -> anyho
             out.accel_count_m_s2, out.gyro_count_rad_s
         );
     }
+    Ok(())
+}
+
+fn export_parts(opts: &SimOptions, path: &std::path::Path, flip_gyro: bool) -> anyhow::Result<()> {
+    let sign = if flip_gyro { -1 } else { 1 };
+    let out = imu_sim::export::export_parts(opts, path, sign)?;
+    let mut stdout = std::io::stdout().lock();
+    let parts: Vec<String> = out
+        .parts
+        .iter()
+        .map(|(name, _, n)| format!("{name} ({n})"))
+        .collect();
+    let _ = writeln!(
+        stdout,
+        "{} samples in {} parts: {}\n{}",
+        out.samples,
+        out.parts.len(),
+        parts.join(", "),
+        out.path.display()
+    );
+    let _ = writeln!(
+        stdout,
+        "read with: --rate-hz {} --columns acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z --csv-accel \
+         counts:{} --csv-gyro counts:{}",
+        out.rate_hz,
+        out.accel_count_m_s2,
+        f64::from(sign) * out.gyro_count_rad_s
+    );
     Ok(())
 }
 

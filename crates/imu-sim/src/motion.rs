@@ -81,6 +81,8 @@ pub struct SegmentInfo {
     pub axis_sensor: Option<Vector3<f64>>,
     /// Plateau rate of `rate` segments, rad/s.
     pub table_rate_rad_s: Option<f64>,
+    /// The labelled session's part the segment belongs to (a scenario segment's `part`).
+    pub part: Option<String>,
 }
 
 /// The true state of the sensor at one instant.

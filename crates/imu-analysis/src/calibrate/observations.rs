@@ -48,7 +48,10 @@ impl Observations {
     /// each from `reference`. Accel
     /// points come from the static segments, plus, with `accel_on_plateaus`, from the rate
     /// plateaus whose accel is as steady as at rest (a table turning about the vertical: the
-    /// centripetal term of a lever arm shows there); gyro points from every segment.
+    /// centripetal term of a lever arm shows there); gyro points from every segment. A
+    /// Ferraris turn is no such plateau (a hand's turn: its rate and the centripetal term vary
+    /// through it, and its accel std is the sensor's noise, not the spread), so a Ferraris
+    /// plan's accel comes from its rests alone, as imu-calibrate fits it.
     pub fn from_recording(
         series: &crate::ImuSeries,
         reference: &Reference,
@@ -56,6 +59,7 @@ impl Observations {
         accel_on_plateaus: bool,
     ) -> Result<Observations, CalibrateError> {
         use crate::segment::SegmentKind;
+        let accel_on_plateaus = accel_on_plateaus && !matches!(reference, Reference::Ferraris(_));
         let segmentation = reference.segmentation(series, segment)?;
         let segment_truth = reference.segment_truth(series, &segmentation.segments)?;
         // Steadiness bound for plateau accel: 3x the largest per-axis accel std at rest.

@@ -54,9 +54,17 @@ impl Builder {
             gravity_dir_sensor: g_dir,
             axis_sensor: axis,
             table_rate_rad_s: rate,
+            part: None,
         });
         let _ = self.gravity_m_s2;
         index
+    }
+
+    /// Puts the last segment made into the labelled session's part `part`.
+    pub(super) fn set_part(&mut self, part: &Option<String>) {
+        if let Some(s) = self.segments.last_mut() {
+            s.part.clone_from(part);
+        }
     }
 
     pub(super) fn end_segment(&mut self) {

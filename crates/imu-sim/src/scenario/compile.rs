@@ -94,6 +94,7 @@ impl Scenario {
                 duration_s,
                 move_s,
                 label,
+                part,
                 ..
             } => {
                 if let Some(target) = target {
@@ -105,6 +106,7 @@ impl Scenario {
                 }
                 let label = label.clone().unwrap_or_else(|| format!("static {n}"));
                 b.hold(duration_s.unwrap_or(f64::INFINITY), "static", &label, None);
+                b.set_part(part);
             }
             SegmentSpec::IndexTable {
                 axis,
@@ -123,16 +125,32 @@ impl Scenario {
                 axis,
                 angle_deg,
                 duration_s,
+                wobble_deg,
+                part,
             } => {
-                b.rotate(
-                    axis.0,
-                    angle_deg.to_radians(),
-                    *duration_s,
-                    &format!(
-                        "segment {n} rotate {angle_deg} deg about {}",
-                        axis_name(axis.0)
-                    ),
+                let label = format!(
+                    "segment {n} rotate {angle_deg} deg about {}",
+                    axis_name(axis.0)
                 );
+                if *wobble_deg == 0.0 {
+                    b.rotate(axis.0, angle_deg.to_radians(), *duration_s, &label);
+                } else {
+                    // A hand's turn wobbles: its axis tipped towards the next sensor axis (x to
+                    // y, y to z, z to x) for the first half, away from it for the second.
+                    let next = Vector3::new(axis.0[2], axis.0[0], axis.0[1]);
+                    let about = Unit::new_normalize(axis.0.cross(&next));
+                    for tip_deg in [*wobble_deg, -*wobble_deg] {
+                        let tip = Rotation3::from_axis_angle(&about, tip_deg.to_radians());
+                        b.rotate(
+                            tip * axis.0,
+                            angle_deg.to_radians() / 2.0,
+                            duration_s / 2.0,
+                            &label,
+                        );
+                        b.set_part(part);
+                    }
+                }
+                b.set_part(part);
             }
             SegmentSpec::Impacts {
                 axis,

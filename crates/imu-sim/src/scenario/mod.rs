@@ -546,6 +546,10 @@ pub enum SegmentSpec {
         /// Label for the truth file and reports.
         #[serde(default)]
         label: Option<String>,
+        /// The part of a labelled session this hold belongs to (`imu-sim --export-parts`
+        /// writes only the samples of parts, each part's run of segments as one).
+        #[serde(default)]
+        part: Option<String>,
     },
     /// Index-table steps about a sensor axis (paper 3.1.2, and the 30-degree dynamic test of 3.4).
     IndexTable {
@@ -587,6 +591,15 @@ pub enum SegmentSpec {
         /// Duration, seconds.
         #[serde(rename = "duration-s")]
         duration_s: f64,
+        /// A hand's turn wobbles: its first half is about `axis` tipped by this many degrees
+        /// towards the next sensor axis (x to y, y to z, z to x), its second half tipped as far
+        /// away, so gravity moves in the sensor frame (cones round the tipped axis) while the
+        /// rate integrated over the turn stays about `axis` (but for `1 - cos(wobble)` of it).
+        #[serde(rename = "wobble-deg", default)]
+        wobble_deg: f64,
+        /// The part of a labelled session this turn belongs to (as for `static`).
+        #[serde(default)]
+        part: Option<String>,
     },
     /// A train of half-sine shocks along a sensor axis while otherwise still (paper 3.3).
     Impacts {

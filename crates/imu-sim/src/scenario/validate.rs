@@ -262,10 +262,14 @@ fn validate_segment(
         SegmentSpec::Rotate {
             angle_deg,
             duration_s,
+            wobble_deg,
             ..
         } => {
             if !angle_deg.is_finite() || !positive(*duration_s) {
                 return bad("angle-deg must be finite and duration-s positive");
+            }
+            if !(0.0..45.0).contains(wobble_deg) {
+                return bad("wobble-deg must be at least 0 and below 45 (degrees)");
             }
         }
         SegmentSpec::Impacts {

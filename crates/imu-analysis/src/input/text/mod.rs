@@ -3,7 +3,10 @@
 //! `#` or `%` comment lines and an optional header line (only a line without any number is one).
 //! Columns are chosen by 0-based index or by header name; a `part` or `label` column names the
 //! part of a labelled session each sample belongs to. Accelerometer and gyro come from one file
-//! or from two on one clock (the gyro interpolated to the accelerometer's times).
+//! or from two on one clock (the gyro interpolated to the accelerometer's times). A file without
+//! a time column (a published dataset that gives its rate apart) is read at a rate the caller
+//! gives: row `n`'s time is `start + n / rate`, across the parts of a labelled session too (a
+//! per-part sample index, restarting in each part, cannot give that time; it is just a column).
 
 use std::path::{Path, PathBuf};
 
@@ -12,7 +15,7 @@ use super::{AccelUnit, GyroUnit, ImuSeries, InputError, Labels};
 mod layout;
 mod rows;
 
-use rows::{Spec, Table, read_table};
+use rows::{Clock, Spec, Table, read_table};
 
 /// How to read a text file: `time, ax, ay, az, gx, gy, gz` (a header line is skipped), or the
 /// accelerometer's `time, ax, ay, az` with the gyro's `time, gx, gy, gz` in a second file.
@@ -20,6 +23,13 @@ use rows::{Spec, Table, read_table};
 pub struct CsvOptions {
     /// Seconds per unit of the time column (1 for s, 1e-9 for ns).
     pub time_scale_s: f64,
+    /// The sample rate of a file without a time column, Hz: its columns are then the values
+    /// only (`ax, ay, az, gx, gy, gz`, or `ax, ay, az` with a gyro file, whose rows are on the
+    /// same rate) and row `n` (0-based, data rows only) is at `start_s + n / rate_hz`.
+    pub rate_hz: Option<f64>,
+    /// The time of the first row when `rate_hz` is given, s (the origin that orders the files
+    /// of a session).
+    pub start_s: f64,
     /// Accelerometer unit.
     pub accel: AccelUnit,
     /// Gyro unit.
@@ -34,6 +44,8 @@ impl Default for CsvOptions {
     fn default() -> Self {
         Self {
             time_scale_s: 1.0,
+            rate_hz: None,
+            start_s: 0.0,
             accel: AccelUnit::MetersPerSecond2,
             gyro: GyroUnit::RadPerSecond,
             gyro_file: None,
@@ -81,7 +93,7 @@ pub struct Columns {
 
 /// Reads a text file of time plus accelerometer and gyro axes (streamed line by line), or,
 /// with `options.gyro_file`, the accelerometer's file and the gyro's file; columns in the
-/// default order.
+/// default order (without the time with `options.rate_hz`).
 pub fn read_csv(path: &Path, options: &CsvOptions) -> Result<ImuSeries, InputError> {
     read_text(path, options, &Columns::default())
 }
@@ -96,11 +108,34 @@ pub fn read_text(
         origin: path.display().to_string(),
         ..ImuSeries::default()
     };
-    let main_spec = |roles| Spec {
-        roles,
+    let clock = match options.rate_hz {
+        Some(rate_hz) if !(rate_hz > 0.0 && rate_hz.is_finite() && options.start_s.is_finite()) => {
+            return Err(InputError::NoData {
+                path: path.to_path_buf(),
+                message: format!(
+                    "a rate of {rate_hz} Hz from {} s cannot time the rows: give a positive rate",
+                    options.start_s
+                ),
+            });
+        }
+        Some(rate_hz) => Clock::Rate {
+            rate_hz,
+            start_s: options.start_s,
+        },
+        None => Clock::Column {
+            time_scale_s: options.time_scale_s,
+        },
+    };
+    // Without a time column the roles are the values only.
+    let roles = |r: &'static [&'static str]| match clock {
+        Clock::Rate { .. } => &r[1..],
+        Clock::Column { .. } => r,
+    };
+    let main_spec = |r| Spec {
+        roles: roles(r),
         columns: columns.main.as_deref(),
         label: columns.label.as_ref(),
-        time_scale_s: options.time_scale_s,
+        clock,
     };
     let (t, accel, gyro, labels) = match &options.gyro_file {
         None => {
@@ -117,10 +152,10 @@ pub fn read_text(
             let gyr: Table<3> = read_table(
                 gyro_path,
                 &Spec {
-                    roles: &GYRO_FILE,
+                    roles: roles(&GYRO_FILE),
                     columns: columns.gyro.as_deref(),
                     label: None,
-                    time_scale_s: options.time_scale_s,
+                    clock,
                 },
             )?;
             series.origin = format!("{} + {}", path.display(), gyro_path.display());

@@ -1,5 +1,6 @@
 //! The rows of a text file, streamed line by line: time plus `N` value columns chosen by index
-//! or header name, and the label column when there is one. The layout comes from the first
+//! or header name (or the `N` values alone, timed by their row at a given rate), and the label
+//! column when there is one. The layout comes from the first
 //! content lines (`layout`); every error names the file, the line and the column.
 
 use std::io::BufRead;
@@ -13,14 +14,24 @@ const SNIFF_LINES: usize = 16;
 
 /// What to read from a file.
 pub(super) struct Spec<'a> {
-    /// Names of the time and value columns, for messages (`t, ax, ay, az`).
+    /// Names of the time (unless the clock is a rate) and value columns, for messages
+    /// (`t, ax, ay, az`).
     pub roles: &'a [&'a str],
     /// The time and value columns (`--columns`); `None`: the first ones, the label's left out.
     pub columns: Option<&'a [ColumnRef]>,
     /// The label column (`--label-column`); `None`: a header column named `part` or `label`.
     pub label: Option<&'a ColumnRef>,
-    /// Seconds per unit of the time column.
-    pub time_scale_s: f64,
+    /// Where the times come from.
+    pub clock: Clock,
+}
+
+/// Where a row's time comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Clock {
+    /// The first chosen column, times this many seconds per unit.
+    Column { time_scale_s: f64 },
+    /// No time column: data row `n` (0-based) is at `start_s + n / rate_hz`.
+    Rate { rate_hz: f64, start_s: f64 },
 }
 
 /// The rows read: times (s, as written times the scale), values as written, labels.
@@ -34,7 +45,7 @@ pub(super) struct Table<const N: usize> {
 struct Resolved {
     sep: Separator,
     header: Option<Vec<String>>,
-    /// Time then value columns, 0-based.
+    /// Time (unless the clock is a rate) then value columns, 0-based.
     cols: Vec<usize>,
     label: Option<usize>,
     /// What the columns are, for messages: `t, ax, ay, az` with the header's names.
@@ -67,7 +78,7 @@ pub(super) fn read_table<const N: usize>(
         }
     }
     let resolved = resolve(path, spec, &ahead)?;
-    let mut table = Builder::<N>::new(spec.time_scale_s, resolved.label.is_some());
+    let mut table = Builder::<N>::new(spec.clock, resolved.label.is_some());
     let skip = usize::from(resolved.header.is_some());
     for (n, text) in ahead.iter().skip(skip) {
         table.push(path, &resolved, *n, text)?;
@@ -164,16 +175,16 @@ fn resolve(
 
 /// The table as it grows, with the labels interned.
 struct Builder<const N: usize> {
-    time_scale_s: f64,
+    clock: Clock,
     t: Vec<f64>,
     values: Vec<[f64; N]>,
     labels: Option<Labels>,
 }
 
 impl<const N: usize> Builder<N> {
-    fn new(time_scale_s: f64, labelled: bool) -> Self {
+    fn new(clock: Clock, labelled: bool) -> Self {
         Builder {
-            time_scale_s,
+            clock,
             t: Vec::new(),
             values: Vec::new(),
             labels: labelled.then(Labels::default),
@@ -220,12 +231,17 @@ impl<const N: usize> Builder<N> {
                 return Err(err(format!("column {} is not finite: `{f}`", c + 1)));
             }
         }
-        let t = v[0] * self.time_scale_s;
+        let (t, first_value) = match self.clock {
+            Clock::Column { time_scale_s } => (v[0] * time_scale_s, 1),
+            Clock::Rate { rate_hz, start_s } => (start_s + self.t.len() as f64 / rate_hz, 0),
+        };
         if let Some(&last) = self.t.last()
             && t <= last
         {
             return Err(err(format!(
-                "time {} does not increase (the line before: {last} s)",
+                "time {} does not increase (the line before: {last} s); a file without a time \
+                 column (a sample index that restarts in each part is none) is read with \
+                 --rate-hz",
                 v[0]
             )));
         }
@@ -233,7 +249,8 @@ impl<const N: usize> Builder<N> {
             labels.push(fields[c]);
         }
         self.t.push(t);
-        self.values.push(std::array::from_fn(|i| v[i + 1]));
+        self.values
+            .push(std::array::from_fn(|i| v[i + first_value]));
         Ok(())
     }
 

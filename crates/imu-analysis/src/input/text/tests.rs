@@ -19,6 +19,7 @@ fn csv_with_header_units_and_errors() {
             accel: AccelUnit::G,
             gyro: GyroUnit::DegPerSecond,
             gyro_file: None,
+            ..CsvOptions::default()
         },
     )
     .unwrap();
@@ -86,6 +87,7 @@ fn csv_counts_and_two_files() {
             accel: AccelUnit::Counts(0.01),
             gyro: GyroUnit::Counts(1e-3),
             gyro_file: Some(g.clone()),
+            ..CsvOptions::default()
         },
     )
     .unwrap();
@@ -376,4 +378,95 @@ fn an_eight_bit_header_is_text() {
     std::fs::write(&p, bytes).unwrap();
     let s = crate::input::read_any(&p, crate::input::Source::Raw, &CsvOptions::default()).unwrap();
     assert_truth(&s, "latin1");
+}
+
+/// A file without a time column, like a published labelled session: parts concatenated, each
+/// with a sample index that restarts at 0, raw counts. At `--rate-hz` row `n` is at
+/// `start + n / rate` across the parts; the index is a column that is not read.
+#[test]
+fn a_file_without_time_is_timed_by_its_rows_at_the_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from("part,samples,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\n");
+    let parts = ["x_p", "x_a", "x_rot"];
+    for (k, part) in parts.iter().enumerate() {
+        for i in 0..5 {
+            let n = 5 * k + i;
+            text += &format!("{part},{i},{n},{},-3,{},0,1\n", 2 * n, -(n as i64));
+        }
+    }
+    let p = write(dir.path(), "session.csv", text);
+    let columns = Columns {
+        main: Some(
+            ["acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z"]
+                .map(|c| ColumnRef::Name(c.into()))
+                .to_vec(),
+        ),
+        ..Columns::default()
+    };
+    let options = CsvOptions {
+        rate_hz: Some(204.8),
+        start_s: 12.5,
+        accel: AccelUnit::Counts(0.5),
+        ..CsvOptions::default()
+    };
+    let s = read_text(&p, &options, &columns).unwrap();
+    assert_eq!(s.len(), 15);
+    for (n, t) in s.t_s.iter().enumerate() {
+        assert_eq!(*t, (12.5 + n as f64 / 204.8) - 12.5, "row {n}");
+        assert_eq!(s.accel_m_s2[n], [0.5 * n as f64, n as f64, -1.5], "row {n}");
+        assert_eq!(s.gyro_rad_s[n], [-(n as f64), 0.0, 1.0], "row {n}");
+    }
+    assert_eq!(s.t0_ns, 12_500_000_000);
+    let labels = s.labels.as_ref().unwrap();
+    assert_eq!(labels.names, parts);
+    assert_eq!(labels.of(14), "x_rot");
+    // Without --columns the first six columns but the label: the index is read as ax.
+    let s = read_text(&p, &options, &Columns::default()).unwrap();
+    assert_eq!(s.accel_m_s2[6][0], 0.5);
+    // Six values and a time chosen at a rate: the count is wrong, and the message says so.
+    let seven = Columns {
+        main: Some((1..8).map(ColumnRef::Index).collect()),
+        ..Columns::default()
+    };
+    let e = read_text(&p, &options, &seven).unwrap_err().to_string();
+    assert!(
+        e.contains("7 columns chosen for 6 (ax, ay, az, gx, gy, gz)"),
+        "{e}"
+    );
+    // The per-part index as a time column: refused where it restarts, pointing at the rate.
+    let timed = Columns {
+        main: Some((1..8).map(ColumnRef::Index).collect()),
+        ..Columns::default()
+    };
+    let e = read_text(&p, &CsvOptions::default(), &timed)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("session.csv:7:"), "{e}");
+    assert!(e.contains("--rate-hz"), "{e}");
+    // A rate that cannot time anything.
+    let zero = CsvOptions {
+        rate_hz: Some(0.0),
+        ..CsvOptions::default()
+    };
+    let e = read_text(&p, &zero, &columns).unwrap_err().to_string();
+    assert!(e.contains("give a positive rate"), "{e}");
+}
+
+/// Two time-less files at one rate: the gyro's rows are the accelerometer's.
+#[test]
+fn two_files_without_time_share_the_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = write(dir.path(), "acc.txt", "0 0 1\n0 0 2\n0 0 3\n".into());
+    let g = write(dir.path(), "gyr.txt", "1 0 0\n2 0 0\n3 0 0\n".into());
+    let options = CsvOptions {
+        rate_hz: Some(100.0),
+        gyro_file: Some(g),
+        ..CsvOptions::default()
+    };
+    let s = read_csv(&a, &options).unwrap();
+    assert_eq!(s.t_s, vec![0.0, 0.01, 0.02]);
+    for k in 0..3 {
+        assert_eq!(s.accel_m_s2[k][2], (k + 1) as f64);
+        assert_eq!(s.gyro_rad_s[k][0], (k + 1) as f64);
+    }
 }

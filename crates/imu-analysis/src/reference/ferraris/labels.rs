@@ -3,22 +3,31 @@
 //! segments from the labels instead of recognising them, and checks each against the data.
 //!
 //! The grammar of a part's name (ASCII letters in any case; `-`, `_` and spaces separate words;
-//! a sign is `+` or `-`, before or after the axis; `p`/`n` after it also mean `+`/`-`):
+//! a sign is `+` or `-`, before or after the axis; `p`/`n` after it also mean `+`/`-`, and so
+//! do imucal's `p`/`a`, parallel and antiparallel):
 //!
 //! ```text
-//! face = [ ("face" | "side" | "pos" | "position") sep ] signed-axis
+//! face = [ ("face" | "side" | "pos" | "position") sep ] signed-axis  |  axis sep ("p" | "a")
 //! turn = ("turn" | "rot" | "rotation" | "spin") sep axis [ sign ]  |  ... sep sign axis
+//!      | axis sep ("turn" | "rot" | "rotation" | "spin")
 //! signed-axis = sign axis | axis sign          axis = "x" | "y" | "z"
 //! sep = "" | one of "-", "_", " "
 //! ```
 //!
 //! Examples: faces `+x`, `x-`, `face-x+`, `face_+z`, `pos -y`, `side zn`; turns `turn-z`,
 //! `rot_x`, `rotation y`, `turn-z-` (a turn about z, in the negative sense), `spin_+x`. A turn's
-//! sense is optional (the data gives it); when written it must agree. Any other name (`rest`,
-//! `move 3`, `setup`) is not a Ferraris part: its samples are not used. A face part's still
-//! stretches are its rests (its gravity must be along the named axis, within the plan's face
-//! tolerance), a turn part's samples are its turn (its integrated rate a full turn about the
-//! named axis); a mismatch is an error naming the part.
+//! sense is optional (the data gives it); when written it must agree. The part names of the
+//! Python package imucal (`FerrarisCalibration`: `x_p` the x axis up, its accelerometer reading
+//! +1 g, `x_a` down, `x_rot` the turn about x) are faces and turns too: its turns' sense is a
+//! convention of that package (clockwise seen from above), so `x_rot` leaves it to the data.
+//! A part named as no part of the procedure (an empty label, or one starting with `move`,
+//! `moving`, `transition`, `rest`, `setup`, `idle`, `other` or `none`: `move 3`, `rest`) is not
+//! used; any other name that does not parse (`x_q`, `acc_x_p`, `face-w`) beside names that do
+//! is an error that names it, never silently left out. A label column none of whose names is a
+//! face or a turn (`step 3`) is no Ferraris labelling: recognition finds the faces and turns. A face part's still stretches are its rests (its gravity
+//! must be along the named axis, within the plan's face tolerance), a turn part's samples are
+//! its turn (its integrated rate a full turn about the named axis); a mismatch is an error
+//! naming the part.
 
 use imu_model::Vec3;
 
@@ -47,6 +56,28 @@ pub enum PartName {
 
 const FACE_WORDS: [&str; 4] = ["position", "face", "side", "pos"];
 const TURN_WORDS: [&str; 4] = ["rotation", "turn", "spin", "rot"];
+/// First words of parts that are deliberately no face and no turn.
+const OTHER_WORDS: [&str; 8] = [
+    "move",
+    "moving",
+    "transition",
+    "rest",
+    "setup",
+    "idle",
+    "other",
+    "none",
+];
+
+/// True if `name` says its part is no part of the procedure (see the module's doc).
+fn is_other_part(name: &str) -> bool {
+    let lower = name.trim().to_ascii_lowercase();
+    lower.is_empty()
+        || OTHER_WORDS.iter().any(|w| {
+            lower.strip_prefix(w).is_some_and(|rest| {
+                rest.is_empty() || !rest.starts_with(|c: char| c.is_ascii_alphabetic())
+            })
+        })
+}
 
 /// The part `name` says (see the module's grammar), or None if it is no Ferraris part.
 pub fn parse_part(name: &str) -> Option<PartName> {
@@ -65,16 +96,24 @@ pub fn parse_part(name: &str) -> Option<PartName> {
         let (axis, sign) = signed_axis(&rest)?;
         return Some(PartName::Turn { axis, sign });
     }
+    // imucal's `x_rot`: the axis first.
+    if let Some((axis, word)) = lower.split_at_checked(1)
+        && let Some(axis) = "xyz".find(axis)
+        && TURN_WORDS.contains(&word.strip_prefix(['-', '_', ' ']).unwrap_or(word))
+    {
+        return Some(PartName::Turn { axis, sign: None });
+    }
     let rest = strip(&FACE_WORDS).unwrap_or(lower);
     let (axis, sign) = signed_axis(&rest)?;
     Some(PartName::Face { axis, sign: sign? })
 }
 
-/// `x`, `+x`, `x+`, `-x`, `x-`, `xp`, `xn`: the axis and the sign if one is written.
+/// `x`, `+x`, `x+`, `-x`, `x-`, `xp`, `xn`, imucal's `x_p`, `x_a`: the axis and the sign if
+/// one is written.
 fn signed_axis(s: &str) -> Option<(usize, Option<f64>)> {
     let sign_of = |c: char| match c {
         '+' | 'p' => Some(1.0),
-        '-' | 'n' => Some(-1.0),
+        '-' | 'n' | 'a' => Some(-1.0),
         _ => None,
     };
     let axis_of = |c: char| "xyz".find(c);
@@ -83,6 +122,7 @@ fn signed_axis(s: &str) -> Option<(usize, Option<f64>)> {
         [a] => Some((axis_of(*a)?, None)),
         [s, a] if *s == '+' || *s == '-' => Some((axis_of(*a)?, sign_of(*s))),
         [a, s] => Some((axis_of(*a)?, Some(sign_of(*s)?))),
+        [a, '-' | '_' | ' ', s @ ('p' | 'a')] => Some((axis_of(*a)?, sign_of(*s))),
         _ => None,
     }
 }
@@ -103,28 +143,31 @@ struct Part<'a> {
     range: std::ops::Range<usize>,
 }
 
-/// The runs of `series`' labels that name a face or a turn.
-fn parts(series: &ImuSeries) -> Vec<Part<'_>> {
+/// The runs of `series`' labels that name a face or a turn, and those whose names neither
+/// parse nor say they are no part (with their sample ranges).
+fn parts(series: &ImuSeries) -> (Vec<Part<'_>>, Vec<(&str, std::ops::Range<usize>)>) {
     let Some(labels) = &series.labels else {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     };
-    let mut out = Vec::new();
+    let (mut out, mut unknown) = (Vec::new(), Vec::new());
     let mut start = 0;
     for i in 1..=labels.per_sample.len() {
         if i < labels.per_sample.len() && labels.per_sample[i] == labels.per_sample[start] {
             continue;
         }
         let name = labels.of(start);
-        if let Some(says) = parse_part(name) {
-            out.push(Part {
+        match parse_part(name) {
+            Some(says) => out.push(Part {
                 name,
                 says,
                 range: start..i,
-            });
+            }),
+            None if is_other_part(name) => {}
+            None => unknown.push((name, start..i)),
         }
         start = i;
     }
-    out
+    (out, unknown)
 }
 
 impl Ferraris {
@@ -136,10 +179,30 @@ impl Ferraris {
         series: &ImuSeries,
         detected: &Segmentation,
     ) -> Result<Option<Segmentation>, FerrarisError> {
-        let parts = parts(series);
+        let (parts, unknown) = parts(series);
+        // A label column none of whose names is a face or a turn is no Ferraris labelling.
         if parts.is_empty() {
             return Ok(None);
         }
+        if !unknown.is_empty() {
+            let mut named: Vec<String> = Vec::new();
+            for (name, r) in &unknown {
+                let run = format!(
+                    "`{name}` ({:.1}-{:.1} s)",
+                    series.t_s[r.start],
+                    series.t_s[r.end - 1]
+                );
+                if named.len() < 8 {
+                    named.push(run);
+                }
+            }
+            return Err(FerrarisError::UnknownParts {
+                file: self.file.clone(),
+                parts: named.join(", "),
+                count: unknown.len(),
+            });
+        }
+
         let statics: Vec<Segment> = detected.of_kind(SegmentKind::Static).cloned().collect();
         let mut faces = Vec::new();
         for p in parts
@@ -278,12 +341,29 @@ mod tests {
             ("spin_+x", turn(0, Some(1.0))),
             ("turnz", turn(2, None)),
             ("turn--y", turn(1, Some(-1.0))),
+            // imucal's parts: `p` up (+1 g on the axis), `a` down, `rot` the turn about it.
+            ("x_p", face(0, 1.0)),
+            ("x_a", face(0, -1.0)),
+            ("Y_A", face(1, -1.0)),
+            ("z p", face(2, 1.0)),
+            ("x_rot", turn(0, None)),
+            ("y-rotation", turn(1, None)),
+            ("z_turn", turn(2, None)),
+            ("xrot", turn(0, None)),
         ] {
             assert_eq!(parse_part(name), want, "{name}");
         }
+        // Parts that say they are none, and names that are no part (an error, not ignored).
+        for name in ["move", "move 3", "Rest", "transition_2", "", "setup-1"] {
+            assert!(is_other_part(name), "{name}");
+        }
+        for name in ["x_q", "acc_x_p", "movement", "rested", "x"] {
+            assert!(!is_other_part(name), "{name}");
+        }
         // A bare axis has no sign: no face; words that are not the grammar's are no part.
         for name in [
-            "x", "face-x", "rest", "move 3", "turn", "turn-w", "+x2", "setup", "",
+            "x", "face-x", "rest", "move 3", "turn", "turn-w", "+x2", "setup", "", "x_q", "w_p",
+            "x_rotx", "x__rot", "x__p",
         ] {
             assert_eq!(parse_part(name), None, "{name}");
         }

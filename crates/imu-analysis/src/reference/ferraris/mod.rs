@@ -3,7 +3,10 @@
 //! full turn about each axis, with no table and no time windows. Each still face's true input
 //! is gravity along the sensor axis that points up (recognised from the measured gravity); each
 //! turn's is 360 degrees about the axis it turned about (recognised from the integrated rate,
-//! after removing the gyro's reading at rest) over the turn's samples. Earth's rate enters with
+//! after removing the gyro's reading at rest) over the turn's samples: the motion between two
+//! rests, bounded by where the rate leaves and rejoins the rest's, so that a session cut into
+//! parts and joined with no motion between them (another face's samples right after a turn's
+//! last rest) still gives each turn its own samples only, and a turn at either end of it counts. Earth's rate enters with
 //! its vertical part where the latitude is given; the part a heading would fix is carried as a
 //! systematic gyro bias uncertainty, as for a plan without north. A labelled session (a
 //! `part`/`label` column) whose parts are named like faces and turns (`+x`, `face-x+`,
@@ -11,8 +14,10 @@
 //! instead, each checked against what gravity and the rate say.
 
 mod labels;
+mod sign;
 
 pub use labels::{PartName, parse_part};
+pub use sign::{SignCheck, check_sign};
 
 use imu_model::Vec3;
 use imu_model::earth::{
@@ -103,6 +108,36 @@ pub enum FerrarisError {
         /// What the data say instead.
         message: String,
     },
+    /// Gravity says a gyro axis reports rotation the other way.
+    #[error(
+        "{file}: gravity says the gyro reports rotation the other way about {axes} (the \
+         coefficient of its rate in the accelerometer's change; +1 agrees): its sign is flipped, \
+         a negative gain, which a calibration does not hold. Negate that axis' scale when \
+         reading it: for a text recording --csv-gyro counts:{per_axis} (S your counts' scale, \
+         rad/s per count)"
+    )]
+    GyroSign {
+        /// The plan file.
+        file: String,
+        /// The flipped axes with their coefficients.
+        axes: String,
+        /// The per-axis scales that fix it (`S,S,-S`).
+        per_axis: String,
+    },
+    /// Labelled parts whose names are neither a face, a turn, nor a part that says it is none.
+    #[error(
+        "{file}: {count} labelled part(s) name no face and no turn: {parts}; name faces like \
+         `+x`, `face-x-` or imucal's `x_p`/`x_a`, turns like `turn-z` or `z_rot`, and parts \
+         that are neither `move` or `rest` (the grammar: reference/ferraris/labels.rs)"
+    )]
+    UnknownParts {
+        /// The plan file.
+        file: String,
+        /// The first of them, each with its time span.
+        parts: String,
+        /// How many runs of samples carry such a label.
+        count: usize,
+    },
     /// A rotating segment given to [`Ferraris::segment_truth`] is not a full turn about one
     /// axis (segments must come from [`Ferraris::segmentation`]).
     #[error(
@@ -159,21 +194,68 @@ impl Ferraris {
         })
     }
 
-    /// The still faces (as detected) and one segment per full turn (the samples between the
-    /// two still faces around it, kind [`SegmentKind::Plateau`]), in time order. Detected rate
-    /// plateaus inside a turn are replaced by the turn; quiet runs are reported as detection
-    /// reports them. A session labelled with faces and turns (module `labels`) takes them from
-    /// its labels.
+    /// The still faces (as detected) and one segment per full turn (the motion between two
+    /// still faces, or before the first or after the last, from its first to its last moving
+    /// sample with a little rest around it, kind [`SegmentKind::Plateau`]), in time order.
+    /// Detected rate plateaus inside a turn are replaced by the turn; quiet runs are reported as
+    /// detection reports them. A session labelled with faces and turns (module `labels`) takes
+    /// them from its labels.
     pub fn segmentation(
         &self,
         series: &ImuSeries,
         opts: &SegmentOptions,
     ) -> Result<Segmentation, FerrarisError> {
         let detected = crate::segment::detect(series, opts)?;
-        if let Some(labelled) = self.labelled_segmentation(series, &detected)? {
-            return Ok(labelled);
+        let seg = match self.labelled_segmentation(series, &detected)? {
+            Some(labelled) => labelled,
+            None => self.recognised_segmentation(series, detected)?,
+        };
+        self.check_gyro_sign(series, &seg)?;
+        Ok(seg)
+    }
+
+    /// Refuses a gyro whose sign gravity says is flipped on some axis (module `sign`): the
+    /// turns' sense would be taken from it and every rotation calibrated backwards.
+    fn check_gyro_sign(&self, series: &ImuSeries, seg: &Segmentation) -> Result<(), FerrarisError> {
+        let statics: Vec<Segment> = seg.of_kind(SegmentKind::Static).cloned().collect();
+        let mut moving = Vec::new();
+        let mut from = 0;
+        for s in &statics {
+            moving.push(from..s.first_sample);
+            from = s.range().end;
         }
-        self.recognised_segmentation(series, detected)
+        moving.push(from..series.len());
+        let check = check_sign(
+            series,
+            &moving,
+            crate::segment::rest_rate(&statics),
+            accel_offset(&statics),
+        );
+        let flipped = check.flipped();
+        if flipped.is_empty() {
+            return Ok(());
+        }
+        let axes = flipped
+            .iter()
+            .map(|&a| {
+                let (k, se) = check.coefficient[a].unwrap_or((f64::NAN, f64::NAN));
+                format!("{} ({k:+.2} +/- {se:.2})", ["x", "y", "z"][a])
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        let per_axis = if flipped.len() == 3 {
+            "-S".to_string()
+        } else {
+            (0..3)
+                .map(|a| if flipped.contains(&a) { "-S" } else { "S" })
+                .collect::<Vec<_>>()
+                .join(",")
+        };
+        Err(FerrarisError::GyroSign {
+            file: self.file.clone(),
+            axes,
+            per_axis,
+        })
     }
 
     /// [`Ferraris::segmentation`] by recognition: faces from gravity, turns from the rate.
@@ -196,18 +278,29 @@ impl Ferraris {
             }
         }
         let rest = crate::segment::rest_rate(&statics);
+        let noise = rest_noise_rad_s(&statics);
         let mut segments = statics.clone();
-        for pair in statics.windows(2) {
-            let window = pair[0].range().end..pair[1].first_sample;
-            if window.len() < 2 {
+        // Between two rests, and before the first and after the last (a session cut into
+        // parts may start or end with a turn whose rest after it is too short to be one).
+        let mut bounds: Vec<usize> = vec![0];
+        for s in &statics {
+            bounds.extend([s.first_sample, s.range().end]);
+        }
+        bounds.push(series.len());
+        for pair in bounds.chunks(2) {
+            let window = pair[0]..pair[1];
+            // The turn is the motion in the window, not the window: parts concatenated with no
+            // motion between them put another face's samples beside it, whose gravity is not
+            // the turn's.
+            let Some(motion) = motion_extent(series, window, rest, noise) else {
                 continue;
-            }
-            let mut turn = Segment::from_samples(series, window.clone(), SegmentKind::Plateau);
+            };
+            let mut turn = Segment::from_samples(series, motion.clone(), SegmentKind::Plateau);
             if self.turn_of(series, &turn, rest).is_some() {
                 // The rate varies through a turn by hand: the error of its mean is the sensor's
                 // noise, not the spread of the rate (which would make the turn worthless).
-                turn.std_gyro_rad_s = noise_std(&series.gyro_rad_s[window.clone()]);
-                turn.std_accel_m_s2 = noise_std(&series.accel_m_s2[window]);
+                turn.std_gyro_rad_s = noise_std(&series.gyro_rad_s[motion.clone()]);
+                turn.std_accel_m_s2 = noise_std(&series.accel_m_s2[motion]);
                 segments.push(turn);
             }
         }
@@ -356,6 +449,30 @@ impl Ferraris {
     }
 }
 
+/// The accelerometer's offset, m/s^2: the mean of the six faces' mean readings, in which
+/// gravity cancels (zero unless all six faces were seen).
+fn accel_offset(statics: &[Segment]) -> Vec3 {
+    let mut faces: Vec<(Vec3, Vec3, usize)> = Vec::new();
+    for s in statics {
+        let up = face_up(s);
+        match faces.iter_mut().find(|(u, _, _)| *u == up) {
+            Some((_, sum, n)) => {
+                *sum += s.mean_accel();
+                *n += 1;
+            }
+            None => faces.push((up, s.mean_accel(), 1)),
+        }
+    }
+    if faces.len() < 6 {
+        return Vec3::zeros();
+    }
+    faces
+        .iter()
+        .map(|(_, sum, n)| sum / *n as f64)
+        .sum::<Vec3>()
+        / 6.0
+}
+
 /// The sensor axis pointing up on the still face `s`, as a signed unit vector.
 fn face_up(s: &Segment) -> Vec3 {
     let (axis, sign, _) = nearest_axis(s.mean_accel());
@@ -369,6 +486,55 @@ fn span_s(series: &ImuSeries, s: &Segment) -> f64 {
     let r = s.range();
     let dt = (series.t_s[r.end - 1] - series.t_s[r.start]) / (r.len() - 1).max(1) as f64;
     dt * r.len() as f64
+}
+
+/// The gyro's noise at rest, rad/s: the root of the summed per-axis variances, the
+/// sample-weighted mean over `statics` (0 without any).
+fn rest_noise_rad_s(statics: &[Segment]) -> f64 {
+    let (sum, n) = statics.iter().fold((0.0, 0usize), |(sum, n), s| {
+        let var: f64 = s.std_gyro_rad_s.iter().map(|x| x * x).sum();
+        (sum + var * s.n as f64, n + s.n)
+    });
+    (sum / n.max(1) as f64).sqrt()
+}
+
+/// Samples of smoothing (each side) of the rate whose excess over the rest finds a motion, s.
+const MOTION_SMOOTH_S: f64 = 0.025;
+/// Samples kept before and after a motion's first and last moving sample, s: the rate there is
+/// within a few noise sigmas of the rest, so the angle it adds is below the noise's.
+const MOTION_PAD_S: f64 = 0.1;
+
+/// The samples of `window` from its first to its last moving one (the rate, smoothed over
+/// [`MOTION_SMOOTH_S`], more than 5 noise sigmas from `rest`), widened by [`MOTION_PAD_S`] at
+/// each end within the window; None if nothing moves in it.
+fn motion_extent(
+    series: &ImuSeries,
+    window: std::ops::Range<usize>,
+    rest: Vec3,
+    noise_rad_s: f64,
+) -> Option<std::ops::Range<usize>> {
+    if window.len() < 2 {
+        return None;
+    }
+    let rate_hz = series.sample_rate_hz();
+    let h = ((MOTION_SMOOTH_S * rate_hz).round() as usize).max(1);
+    let pad = (MOTION_PAD_S * rate_hz).round() as usize;
+    let threshold = 5.0 * noise_rad_s / ((2 * h + 1) as f64).sqrt();
+    let excess: Vec<Vec3> = series.gyro_rad_s[window.clone()]
+        .iter()
+        .map(|g| Vec3::from(*g) - rest)
+        .collect();
+    let moving = |k: usize| {
+        let lo = k.saturating_sub(h);
+        let hi = (k + h + 1).min(excess.len());
+        let mean = excess[lo..hi].iter().sum::<Vec3>() / (hi - lo) as f64;
+        mean.norm() > threshold
+    };
+    let first = (0..excess.len()).find(|&k| moving(k))?;
+    let last = (0..excess.len()).rev().find(|&k| moving(k))?;
+    Some(
+        window.start + first.saturating_sub(pad)..window.start + (last + pad + 1).min(excess.len()),
+    )
 }
 
 /// Per-axis standard deviation of the white noise of a smoothly varying signal, from its second
