@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! imu-echo [--name NAME] [--corrected|--raw|--status|--health] [--format table|csv|jsonl] [--count N]
+//!          [--publisher-user USER]
 //! ```
 //!
 //! It subscribes to `imud/NAME/{corrected,raw,status,health}` (corrected by default), sleeps on the
