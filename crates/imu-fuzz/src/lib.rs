@@ -1,6 +1,6 @@
 //! The decoders' fuzz checks in one place: what every input must satisfy (no panic, every byte
 //! accounted for exactly once, events that rebuild the stream), run by the coverage-guided
-//! cargo-fuzz targets in `fuzz/` and by this crate's stable-Rust harness ([`run`]), which replays
+//! cargo-fuzz targets in `fuzz/` and by this crate's stable-Rust harness ([`run()`]), which replays
 //! the committed corpus (`fuzz/corpus/<target>/`) and seeded mutations of it.
 //!
 //! A check panics when an invariant breaks; the harness catches the panic and reports the input.
