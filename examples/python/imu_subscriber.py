@@ -16,6 +16,11 @@ size or alignment differ, so a layout change on the Rust side shows up as an err
 Usage:
     python3 examples/python/imu_subscriber.py [--name default] [--raw] [--count N]
                                               [--format text|jsonl] [--timeout SECONDS]
+                                              [--publisher-user USER ...]
+
+Before it prints anything it checks who created each service (the owner of the service's static
+config under iceoryx2's root path, the check `imu-echo` makes): root, its own user, the user
+`imud`, or those named by --publisher-user; another user's services are refused.
 
 With --format jsonl every sample is one JSON object with the Rust field names (units included,
 e.g. "accel_m_s2") plus "stream"; NaN and infinities are printed as null.
@@ -23,9 +28,11 @@ e.g. "accel_m_s2") plus "stream"; NaN and infinities are printed as null.
 
 import argparse
 import ctypes
+import hashlib
 import json
 import math
 import os
+import pwd
 import sys
 import time
 
@@ -151,6 +158,56 @@ def open_with_retry(open_fn, service: str, name: str, deadline: float):
             time.sleep(0.05)
 
 
+def trusted_uids(users: list) -> set:
+    """The uids of --publisher-user (names or numbers), or root, this user and `imud`."""
+    if users:
+        uids = set()
+        for u in users:
+            try:
+                uids.add(int(u) if u.isdigit() else pwd.getpwnam(u).pw_uid)
+            except KeyError:
+                raise SystemExit(f"imu_subscriber: --publisher-user {u}: no such user")
+        return uids
+    uids = {0, os.geteuid()}
+    try:
+        uids.add(pwd.getpwnam("imud").pw_uid)
+    except KeyError:
+        pass
+    return uids
+
+
+def user_name(uid: int) -> str:
+    """`user NAME (uid N)`, or `uid N` for an unknown uid."""
+    try:
+        return f"user {pwd.getpwuid(uid).pw_name} (uid {uid})"
+    except KeyError:
+        return f"uid {uid}"
+
+
+def check_creator(service: str, pattern: int, trusted: set) -> None:
+    """Refuses a service whose static config another user owns. Its file name is iceoryx2's
+    hash of the messaging pattern's number and the service name (SHA-1, hex) under the
+    configured service directory, as imu-bus computes it (imu_bus::shm owner.rs)."""
+    cfg = iox2.config.global_config().global_cfg
+    digest = hashlib.sha1(f"{pattern}{service}".encode()).hexdigest()
+    path = os.path.join(
+        cfg.service_dir.to_string(),
+        cfg.prefix.to_string() + digest + cfg.service.static_config_storage_suffix.to_string(),
+    )
+    try:
+        owner = os.stat(path).st_uid
+    except FileNotFoundError:
+        raise SystemExit(f"imu_subscriber: {service} has no static config at {path}")
+    except PermissionError:
+        owner = os.stat(os.path.dirname(path)).st_uid
+    if owner not in trusted:
+        names = ", ".join(user_name(u) for u in sorted(trusted))
+        raise SystemExit(
+            f"imu_subscriber: {service} was created by {user_name(owner)}, which is not a "
+            f"trusted imud publisher (trusted: {names}); refusing its samples"
+        )
+
+
 def main() -> int:
     """Subscribes and prints until --count samples were printed (or forever)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -161,7 +218,14 @@ def main() -> int:
     parser.add_argument(
         "--timeout", type=float, default=10.0, help="seconds to wait for the daemon"
     )
+    parser.add_argument(
+        "--publisher-user",
+        action="append",
+        default=[],
+        help="a user (name or uid) whose imud to trust; repeatable (default: root, own, imud)",
+    )
     args = parser.parse_args()
+    trusted = trusted_uids(args.publisher_user)
 
     iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
     node = (
@@ -185,6 +249,7 @@ def main() -> int:
             args.name,
             deadline,
         )
+        check_creator(service, 0, trusted)  # 0: iceoryx2's publish-subscribe pattern
         subscribers.append((stream, factory, factory.subscriber_builder().create()))
     event_service = f"imud/{args.name}/event"
     event = open_with_retry(
@@ -193,6 +258,7 @@ def main() -> int:
         args.name,
         deadline,
     )
+    check_creator(event_service, 1, trusted)  # 1: iceoryx2's event pattern
     listener = event.listener_builder().create()
 
     printed = 0

@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! imu-echo [--name NAME] [--corrected|--raw|--status|--health] [--format table|csv|jsonl] [--count N]
+//!          [--publisher-user USER]
 //! ```
 //!
 //! It subscribes to `imud/NAME/{corrected,raw,status,health}` (corrected by default), sleeps on the
@@ -10,6 +11,11 @@
 //! precision, times in ns), `jsonl` as one JSON object per line with the field names of the
 //! shared-memory types (which carry their units, e.g. `accel_m_s2`). Once a second it reports
 //! the receive rate and the samples missed (gaps in `seq`) on stderr.
+//!
+//! Before printing anything, and again before every batch, it checks that the service was created
+//! by and is published by a trusted user (`--publisher-user`, repeatable; by default root, its own
+//! user and the user `imud`): iceoryx2 does not say who may publish, so a process of another user
+//! that created the services is refused rather than echoed.
 //!
 //! It may start before the daemon (it waits `--timeout-s` for it). Exit codes: 0 after
 //! `--count` samples or when stdout is closed (`| head`), 130 on SIGINT/SIGTERM, 64 on a bad
@@ -25,7 +31,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::{ArgGroup, Parser, ValueEnum};
-use imu_bus::shm::{Stream, Subscriber, Subscription};
+use imu_bus::shm::{Stream, Subscriber, Subscription, TrustedPublishers, UserId};
 
 use crate::format::Echo;
 
@@ -59,6 +65,10 @@ struct Args {
     /// Seconds to wait for the daemon's services to appear.
     #[arg(long, value_name = "SECONDS", default_value_t = 10.0, value_parser = imu_cli::finite_f64)]
     timeout_s: f64,
+    /// A user (name or uid) whose imud this client trusts; repeat for several. Default: root,
+    /// this client's own user and the user `imud`.
+    #[arg(long, value_name = "USER")]
+    publisher_user: Vec<String>,
     /// Do not print rate and drop statistics on stderr.
     #[arg(long, short)]
     quiet: bool,
@@ -120,19 +130,46 @@ fn run(args: &Args) -> Result<Outcome> {
             args.name
         )
     })?;
+    let trusted = trusted_publishers(&args.publisher_user)?;
+    subscriber
+        .verify_publisher(&trusted)
+        .context("checking who publishes")?;
     match subscriber {
-        Subscriber::Raw(sub) => echo(sub, args, &stop),
-        Subscriber::Corrected(sub) => echo(sub, args, &stop),
-        Subscriber::Status(sub) => echo(sub, args, &stop),
-        Subscriber::Health(sub) => echo(sub, args, &stop),
+        Subscriber::Raw(sub) => echo(sub, args, &trusted, &stop),
+        Subscriber::Corrected(sub) => echo(sub, args, &trusted, &stop),
+        Subscriber::Status(sub) => echo(sub, args, &trusted, &stop),
+        Subscriber::Health(sub) => echo(sub, args, &trusted, &stop),
     }
+}
+
+/// The users of `--publisher-user` (names or uids), or the default set.
+fn trusted_publishers(users: &[String]) -> Result<TrustedPublishers> {
+    if users.is_empty() {
+        return Ok(TrustedPublishers::default_for_this_process());
+    }
+    let ids = users
+        .iter()
+        .map(|u| {
+            u.parse::<u32>()
+                .ok()
+                .map(UserId)
+                .or_else(|| UserId::by_name(u))
+                .with_context(|| format!("--publisher-user {u}: no such user on this system"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(TrustedPublishers::users(ids))
 }
 
 /// How long one wait on the listener lasts at most: bounds how late a signal is noticed and
 /// when the statistics line is printed.
 const WAIT_SLICE: Duration = Duration::from_millis(200);
 
-fn echo<T: Echo>(mut sub: Subscription<T>, args: &Args, stop: &AtomicBool) -> Result<Outcome> {
+fn echo<T: Echo>(
+    mut sub: Subscription<T>,
+    args: &Args,
+    trusted: &TrustedPublishers,
+    stop: &AtomicBool,
+) -> Result<Outcome> {
     let mut out = BufWriter::new(io::stdout().lock());
     let mut stats = Stats::new(sub.service_name(), T::HAS_SEQ, args.quiet);
     let mut printer = format::Printer::<T>::new(args.format);
@@ -152,6 +189,11 @@ fn echo<T: Echo>(mut sub: Subscription<T>, args: &Args, stop: &AtomicBool) -> Re
         batch.clear();
         sub.wait_into(WAIT_SLICE, &mut batch)
             .context("receiving samples")?;
+        if !batch.is_empty() {
+            // The publisher may have changed since the last batch (a restart).
+            sub.verify_publisher(trusted)
+                .context("checking who publishes")?;
+        }
         for sample in &batch {
             printer.row(&mut out, sample).context("writing to stdout")?;
             printed += 1;

@@ -14,8 +14,8 @@ use std::time::{Duration, Instant};
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 use imu_bus::shm::{
-    Publishers, ShmError, ShmEvent, ShmOptions, Stream, Subscriber, Subscription,
-    validate_instance_name,
+    ProcessIdentity, Publishers, ShmError, ShmEvent, ShmOptions, Stream, Subscriber, Subscription,
+    TrustedPublishers, UserId, validate_instance_name,
 };
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 
@@ -400,6 +400,40 @@ fn a_second_publisher_on_the_same_instance_is_refused() {
     let err = Publishers::open(&instance, &ShmOptions::default()).expect_err("second");
     assert!(matches!(err, ShmError::AlreadyPublishing { .. }), "{err:?}");
     assert!(err.to_string().contains("already publishing"), "{err}");
+    // The error names the process that holds the service: this one, as this user.
+    let ShmError::AlreadyPublishing { holder, .. } = err else {
+        unreachable!()
+    };
+    assert_eq!(
+        holder,
+        Some(ProcessIdentity {
+            pid: std::process::id() as i32,
+            user: Some(UserId::current()),
+        })
+    );
+}
+
+#[test]
+fn a_subscriber_trusts_a_publisher_by_its_user_only() {
+    let instance = unique_instance("trust");
+    let _publishers = Publishers::open(&instance, &ShmOptions::default()).expect("publishers");
+    let sub = Subscription::<CorrectedSample>::open(&instance, Duration::from_secs(5)).unwrap();
+    let me = UserId::current();
+    let publisher = sub
+        .verify_publisher(&TrustedPublishers::users(vec![me]))
+        .expect("this user's own publisher is trusted");
+    assert_eq!(publisher.map(|p| p.pid), Some(std::process::id() as i32));
+    assert!(TrustedPublishers::default_for_this_process().contains(me));
+    // Any other user is not: the service was created by this one.
+    let other = UserId(me.0.wrapping_add(4242));
+    let err = sub
+        .verify_publisher(&TrustedPublishers::users(vec![other]))
+        .expect_err("another user's publisher is refused");
+    assert!(
+        matches!(err, ShmError::UntrustedPublisher { .. }),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("created by"), "{err}");
 }
 
 /// Not a test on its own: with [`CHILD_ENV`] set it is the body of the child process that

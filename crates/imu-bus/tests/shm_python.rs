@@ -263,3 +263,27 @@ fn the_python_example_reports_a_missing_instance() {
         "{stderr}"
     );
 }
+
+#[test]
+fn the_python_example_refuses_services_an_untrusted_user_created() {
+    if !python_peer_available() {
+        return;
+    }
+    let instance = unique_instance("untrusted");
+    let _publishers = Publishers::open(&instance, &ShmOptions::default()).expect("publishers");
+    let me = imu_bus::shm::UserId::current().0;
+    let stranger = me.wrapping_add(4242).to_string();
+    // Trusting another uid only: refused before any sample, naming the creator (this user).
+    let out = Command::new("python3")
+        .arg(example_script())
+        .args(["--name", &instance, "--timeout", "5", "--count", "1"])
+        .args(["--publisher-user", &stranger])
+        .output()
+        .expect("run python3");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(out.stdout.is_empty());
+    assert!(stderr.contains("not a trusted imud publisher"), "{stderr}");
+    assert!(stderr.contains(&format!("(uid {me})")), "{stderr}");
+    // (With the default trust, this user's own, the other tests of this file receive.)
+}

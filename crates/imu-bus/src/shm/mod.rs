@@ -52,10 +52,12 @@ use serde::Deserialize;
 use crate::sample::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
 
 mod nodes;
+mod owner;
 mod publishers;
 mod subscription;
 
 use nodes::*;
+pub use owner::{ProcessIdentity, UserId};
 pub use publishers::*;
 pub use subscription::*;
 
@@ -119,15 +121,55 @@ pub enum ShmError {
     },
     /// Another process already publishes on the service.
     #[error(
-        "another imud instance named {instance:?} is already publishing on {service:?}; stop it \
-         or choose another --name (if none runs, a dead one left resources this user may not \
-         remove: run as its user or clean /tmp/iceoryx2)"
+        "another process ({}) is already publishing on {service:?} of the imud instance named \
+         {instance:?}; stop it or choose another --name (if none runs, a dead one left resources \
+         this user may not remove: run as its user or clean /tmp/iceoryx2)",
+        .holder.map_or_else(|| "unknown".to_owned(), |h| h.to_string())
     )]
     AlreadyPublishing {
         /// The instance name.
         instance: String,
         /// The service name.
         service: String,
+        /// The publishing process, when iceoryx2 lists it.
+        holder: Option<ProcessIdentity>,
+    },
+    /// The service exists and another user created it: the daemon does not share it.
+    #[error(
+        "the shared-memory service {service:?} of the imud instance named {instance:?} was \
+         created by {owner}, not by this process's user ({} belongs to them; {}); imud does \
+         not share services another user prepared: stop that user's process or choose another \
+         --name",
+        .path.display(),
+        owner::list_holders(.holders)
+    )]
+    ForeignService {
+        /// The instance name.
+        instance: String,
+        /// The service name.
+        service: String,
+        /// The user who created it (owner of its static config under iceoryx2's root path).
+        owner: UserId,
+        /// The file (or the services directory, if this user may not look inside) they own.
+        path: std::path::PathBuf,
+        /// Processes of that user visible to this one (all of them when run as root).
+        holders: Vec<ProcessIdentity>,
+    },
+    /// The service's creator or publisher is not a user the subscriber trusts.
+    #[error(
+        "the shared-memory service {service:?} is {what} {who}, which is not a trusted imud \
+         publisher (trusted: {trusted}); refusing its samples (pass the daemon's user as the \
+         trusted publisher if this is the imud you expect)"
+    )]
+    UntrustedPublisher {
+        /// The service name.
+        service: String,
+        /// "created by" or "published by".
+        what: &'static str,
+        /// The creator's user or the publishing process.
+        who: String,
+        /// The trusted users, for the message.
+        trusted: String,
     },
     /// The service did not appear within the open timeout.
     #[error(

@@ -54,6 +54,20 @@ pub(super) fn service_name(name: &str, instance: &str) -> Result<ServiceName, Sh
     })
 }
 
+/// The process publishing on `service` (the first publisher iceoryx2 lists), if any.
+pub(super) fn publisher_identity<T: ShmPayload>(service: &IpcPubSub<T>) -> Option<ProcessIdentity> {
+    let mut pid = None;
+    service.dynamic_config().list_publishers(|details| {
+        pid = details
+            .node_id
+            .pid::<ipc::Service>()
+            .ok()
+            .map(|p| p.value());
+        CallbackProgression::Stop
+    });
+    pid.map(owner::process_identity)
+}
+
 /// One publish-subscribe service with its single publisher.
 pub(super) struct Channel<T: ShmPayload> {
     pub(super) name: String,
@@ -86,6 +100,7 @@ impl<T: ShmPayload> Channel<T> {
             PublisherCreateError::ExceedsMaxSupportedPublishers => ShmError::AlreadyPublishing {
                 instance: instance.to_owned(),
                 service: name.to_owned(),
+                holder: publisher_identity(&service),
             },
             e => ShmError::CreatePort {
                 port: "publisher",

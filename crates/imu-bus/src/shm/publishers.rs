@@ -37,11 +37,28 @@ impl Publishers {
     /// a publisher on each.
     ///
     /// Fails with [`ShmError::AlreadyPublishing`] when a live process publishes on the same
-    /// instance.
+    /// instance, and with [`ShmError::ForeignService`] when any of the services exists and
+    /// another user created it.
     pub fn open(instance: &str, options: &ShmOptions) -> Result<Publishers, ShmError> {
         quiet_once();
         validate_instance_name(instance)?;
         let names = ServiceNames::for_instance(instance);
+        // Before anything is opened: a service another user created is refused, never shared
+        // (its creator could publish into it while this daemon restarts, or feed subscribers).
+        for (service, pattern) in [
+            (&names.event, MessagingPattern::Event),
+            (&names.raw, MessagingPattern::PublishSubscribe),
+            (&names.corrected, MessagingPattern::PublishSubscribe),
+            (&names.status, MessagingPattern::PublishSubscribe),
+            (&names.health, MessagingPattern::PublishSubscribe),
+        ] {
+            owner::refuse_foreign(
+                instance,
+                service,
+                &service_name(service, instance)?,
+                pattern,
+            )?;
+        }
         let stale_nodes_removed = remove_dead_nodes(Config::global_config())?;
         let node = create_node(&node_name("imud", instance))?;
 

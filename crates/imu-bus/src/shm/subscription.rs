@@ -270,6 +270,42 @@ impl<T: ShmPayload> Subscription<T> {
         self.missed
     }
 
+    /// Checks that the service was created by, and is published by, a user in `trusted`;
+    /// returns the publishing process (`None` while no daemon publishes, e.g. during a restart:
+    /// then only the creator is checked). Call it after [`open`](Self::open) and again
+    /// whenever the publisher may have changed (a restart): iceoryx2 itself does not say who
+    /// may publish, so this is what keeps another user's samples out.
+    pub fn verify_publisher(
+        &self,
+        trusted: &TrustedPublishers,
+    ) -> Result<Option<ProcessIdentity>, ShmError> {
+        let name = service_name(&self.service_name, &self.instance)?;
+        if let Some((creator, _)) =
+            owner::service_creator(&name, MessagingPattern::PublishSubscribe)
+            && !trusted.contains(creator)
+        {
+            return Err(ShmError::UntrustedPublisher {
+                service: self.service_name.clone(),
+                what: "created by",
+                who: creator.to_string(),
+                trusted: trusted.to_string(),
+            });
+        }
+        let publisher = publisher_identity(&self.service);
+        match publisher {
+            Some(ProcessIdentity {
+                user: Some(user), ..
+            }) if trusted.contains(user) => Ok(publisher),
+            None => Ok(None),
+            Some(p) => Err(ShmError::UntrustedPublisher {
+                service: self.service_name.clone(),
+                what: "published by",
+                who: p.to_string(),
+                trusted: trusted.to_string(),
+            }),
+        }
+    }
+
     /// Publishers currently connected (0 while no daemon runs on this instance).
     pub fn publishers(&self) -> usize {
         self.service.dynamic_config().number_of_publishers()
@@ -284,6 +320,39 @@ impl<T: ShmPayload> Subscription<T> {
             }
             self.last_seq = Some(seq);
         }
+    }
+}
+
+/// The users whose services and samples a subscriber takes as imud's
+/// ([`Subscription::verify_publisher`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TrustedPublishers(Vec<UserId>);
+
+impl TrustedPublishers {
+    /// Exactly these users.
+    pub fn users(users: Vec<UserId>) -> Self {
+        TrustedPublishers(users)
+    }
+
+    /// The default of a subscriber: root, this process's own user, and the user `imud` (the
+    /// shipped unit's) when the system has one. Another user's process is refused.
+    pub fn default_for_this_process() -> Self {
+        let mut users = vec![UserId(0), UserId::current()];
+        users.extend(UserId::by_name("imud"));
+        users.dedup();
+        TrustedPublishers(users)
+    }
+
+    /// Whether `user` is trusted.
+    pub fn contains(&self, user: UserId) -> bool {
+        self.0.contains(&user)
+    }
+}
+
+impl fmt::Display for TrustedPublishers {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let list: Vec<String> = self.0.iter().map(ToString::to_string).collect();
+        f.write_str(&list.join(", "))
     }
 }
 
@@ -323,6 +392,19 @@ impl Subscriber {
             Subscriber::Corrected(_) => Stream::Corrected,
             Subscriber::Status(_) => Stream::Status,
             Subscriber::Health(_) => Stream::Health,
+        }
+    }
+
+    /// [`Subscription::verify_publisher`] of whichever stream this is.
+    pub fn verify_publisher(
+        &self,
+        trusted: &TrustedPublishers,
+    ) -> Result<Option<ProcessIdentity>, ShmError> {
+        match self {
+            Subscriber::Raw(s) => s.verify_publisher(trusted),
+            Subscriber::Corrected(s) => s.verify_publisher(trusted),
+            Subscriber::Status(s) => s.verify_publisher(trusted),
+            Subscriber::Health(s) => s.verify_publisher(trusted),
         }
     }
 
