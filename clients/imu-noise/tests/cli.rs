@@ -318,7 +318,7 @@ fn theo1_and_theoh_in_json_and_plots() {
         let theo1 = devs[0]["points"].as_array().unwrap();
         for p in theo1 {
             let m = p["m"].as_u64().unwrap();
-            assert!(m >= 10 && m % 2 == 0, "m {m}");
+            assert!(m >= 10 && m.is_multiple_of(2), "m {m}");
             assert!((p["tau_s"].as_f64().unwrap() - 0.75 * m as f64 * 0.01).abs() < 1e-12);
         }
         let last = theo1.last().unwrap()["tau_s"].as_f64().unwrap();
