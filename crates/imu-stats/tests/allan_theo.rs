@@ -259,3 +259,16 @@ fn theoh_recovers_the_true_allan_deviation_at_long_taus() {
         assert_eq!(types.last(), Some(&noise), "{name}: {types:?}");
     }
 }
+
+/// Records too short for Theo1 (m = 10 needs 11 phase points) or TheoBR's bias ratio (90) are
+/// a clear error, not a panic or an empty curve.
+#[test]
+fn short_records_are_an_error() {
+    let x = phase_from_rate(&normal_series(5, 60), 1.0);
+    let opts = Options::default();
+    assert!(deviation_from_phase(Kind::Theo1, &x, 1.0, &opts).is_ok());
+    let err = deviation_from_phase(Kind::Theoh, &x, 1.0, &opts).unwrap_err();
+    assert!(err.to_string().contains("need at least 89"), "{err}");
+    let err = deviation_from_phase(Kind::Theo1, &x[..8], 1.0, &opts).unwrap_err();
+    assert!(err.to_string().contains("too few samples"), "{err}");
+}

@@ -546,7 +546,7 @@ fn theo_points(
             })
             .ok_or(AllanError::TooShort {
                 n_samples: n - 1,
-                needed: 119,
+                needed: 89,
             })?;
             let theo_ms = theo1_factors(n, taus, split.unwrap_or(1));
             pts.extend(theo_ms.into_iter().map(|m| theo_point(m, ratio)));

@@ -88,7 +88,7 @@ fn lane_sum(a: &[f64], b: &[f64], c: &[f64], d: &[f64]) -> f64 {
 }
 
 /// TheoBR's bias ratio (SP 1065 eq. 31): the mean over i = 0..=n of AVAR(m = 9 + 3i) /
-/// Theo1(m = 12 + 4i) (the same tau), n = floor(0.1 N / 3 - 3); `None` for fewer than 120
+/// Theo1(m = 12 + 4i) (the same tau), n = floor(0.1 N / 3 - 3); `None` for fewer than 90
 /// phase points (n < 0). AVAR is the overlapping one. Its cost is that of about N/30 Theo1
 /// evaluations at m up to 0.13 N: O(N^3 / 900), a few seconds at N = 20,000 (the ratios are
 /// interleaved over two threads).
