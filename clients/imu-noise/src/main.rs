@@ -1,5 +1,5 @@
-//! `imu-noise`: Allan-family deviations (ADEV, OADEV, MDEV, HDEV, OHDEV, TDEV, TOTDEV, with
-//! confidence intervals) and IEEE Std 952/1293 noise terms of a static recording, per sensor and
+//! `imu-noise`: Allan-family deviations (ADEV, OADEV, MDEV, HDEV, OHDEV, TDEV, TOTDEV, Theo1,
+//! TheoH, with confidence intervals) and IEEE Std 952/1293 noise terms of a static recording, per sensor and
 //! axis, as a table (or `--json`), SVG figures, a self-contained HTML report and a
 //! Kalibr-compatible imu.yaml.
 //!
@@ -49,7 +49,10 @@ struct Cli {
     /// Write a self-contained HTML report here: the input, the fitted terms and every figure.
     #[arg(long, value_name = "REPORT.html")]
     report: Option<PathBuf>,
-    /// Deviations to compute, comma-separated: adev, oadev, mdev, hdev, ohdev, tdev, totdev.
+    /// Deviations to compute, comma-separated: adev, oadev, mdev, hdev, ohdev, tdev, totdev,
+    /// theo1, theoh. Theo1 reaches averaging times to 75 % of the record (tau = 0.75 m tau0);
+    /// TheoH is OADEV to 10 % of it and bias-removed Theo1 beyond. Both read --taus as averaging
+    /// times. Theo1 costs O(N m) per tau, TheoH's bias ratio O(N^3/900) (seconds at 20k samples).
     #[arg(long, value_delimiter = ',', default_value = "oadev")]
     kind: Vec<Kind>,
     /// Two-sided confidence level of the bounds (0.683 is "1 sigma", Stable32's default).

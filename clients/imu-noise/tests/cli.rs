@@ -4,7 +4,11 @@
 use std::process::Command;
 
 fn write_csv(path: &std::path::Path) {
-    // 100 Hz, 20000 samples, deterministic uniform noise (sd 0.01 per sample -> N = 1e-3).
+    write_csv_n(path, 20_000);
+}
+
+fn write_csv_n(path: &std::path::Path, n: usize) {
+    // 100 Hz, n samples, deterministic uniform noise (sd 0.01 per sample -> N = 1e-3).
     let mut state: u64 = 3;
     let mut noise = || {
         state = state
@@ -13,7 +17,7 @@ fn write_csv(path: &std::path::Path) {
         ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.01 * 12f64.sqrt()
     };
     let mut s = String::from("t,ax,ay,az,gx,gy,gz\n");
-    for i in 0..20_000 {
+    for i in 0..n {
         s += &format!(
             "{},{},{},{},{},{},{}\n",
             i as f64 / 100.0,
@@ -278,5 +282,83 @@ fn bad_kind_taus_and_confidence_are_usage_errors() {
                 "{stderr}"
             );
         }
+    }
+}
+
+/// `--kind theo1,theoh`: both in the JSON and the figures; Theo1's taus are 0.75 m tau0 with m
+/// even and reach past a third of the record, TheoH switches from OADEV (tau = m tau0) to
+/// TheoBR at 10 % of it, and TheoH's 99 % bounds hold the white-noise truth (at least 95 % of
+/// the points).
+#[test]
+fn theo1_and_theoh_in_json_and_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("short.csv");
+    // 30 s at 100 Hz: TheoH's bias ratio is O(N^3).
+    write_csv_n(&csv, 3000);
+    let plots = dir.path().join("plots");
+    let v = run_json(
+        &csv,
+        &[
+            "--kind",
+            "theo1,theoh",
+            "--taus",
+            "octave",
+            "--confidence",
+            "0.99",
+            "--plot",
+            plots.to_str().unwrap(),
+        ],
+    );
+    let record_s = 2999.0 * 0.01;
+    let (mut inside, mut total) = (0, 0);
+    for a in v.as_array().unwrap() {
+        let devs = a["deviations"].as_array().unwrap();
+        assert_eq!(devs[0]["kind"], "theo1");
+        assert_eq!(devs[1]["kind"], "theoh");
+        let theo1 = devs[0]["points"].as_array().unwrap();
+        for p in theo1 {
+            let m = p["m"].as_u64().unwrap();
+            assert!(m >= 10 && m.is_multiple_of(2), "m {m}");
+            assert!((p["tau_s"].as_f64().unwrap() - 0.75 * m as f64 * 0.01).abs() < 1e-12);
+        }
+        let last = theo1.last().unwrap()["tau_s"].as_f64().unwrap();
+        assert!(last > record_s / 3.0, "longest Theo1 tau {last}");
+        let mut seen_theo = false;
+        for p in devs[1]["points"].as_array().unwrap() {
+            let (m, tau) = (
+                p["m"].as_u64().unwrap() as f64,
+                p["tau_s"].as_f64().unwrap(),
+            );
+            let oadev_point = (tau - m * 0.01).abs() < 1e-12;
+            // OADEV below the largest octave under 10 % of the record, TheoBR from there on.
+            assert!(
+                !oadev_point || (tau < 0.1 * record_s && !seen_theo),
+                "tau {tau}"
+            );
+            seen_theo |= !oadev_point;
+            let (lo, dev, hi) = (
+                p["dev_lo"].as_f64().unwrap(),
+                p["dev"].as_f64().unwrap(),
+                p["dev_hi"].as_f64().unwrap(),
+            );
+            let truth = white_fm_truth("oadev", tau);
+            assert!(lo < dev && dev < hi, "tau {tau}");
+            total += 1;
+            if lo < truth && truth < hi {
+                inside += 1;
+            } else {
+                eprintln!("outside: tau {tau}: {lo:e} .. {hi:e}, truth {truth:e}");
+            }
+        }
+        assert!(seen_theo);
+    }
+    // 99 % bounds: at most 5 % of the points may miss the truth.
+    assert!(
+        inside * 20 >= total * 19,
+        "{inside} of {total} bounds hold the truth"
+    );
+    for kind in ["theo1", "theoh"] {
+        let svg = std::fs::read_to_string(plots.join(format!("dev-{kind}-gyro.svg"))).unwrap();
+        assert!(svg.contains(&format!("data-name=\"{}\"", kind.to_uppercase())));
     }
 }

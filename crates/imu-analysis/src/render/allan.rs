@@ -86,6 +86,8 @@ pub fn kind_title(kind: Kind) -> &'static str {
         Kind::Ohdev => "overlapping Hadamard deviation (OHDEV)",
         Kind::Tdev => "time deviation (TDEV)",
         Kind::Totdev => "total deviation (TOTDEV)",
+        Kind::Theo1 => "Theo1 deviation (THEO1, tau = 0.75 m tau0)",
+        Kind::Theoh => "hybrid Theo deviation (THEOH: OADEV, then bias-removed Theo1)",
     }
 }
 

@@ -31,6 +31,7 @@ mod kernels;
 mod noise_id;
 mod streaming;
 mod taus;
+mod theo;
 
 use serde::Serialize;
 use thiserror::Error;
@@ -45,6 +46,7 @@ use kernels::{
 pub use noise_id::{autocorrelation_alpha, b1_alpha};
 pub use streaming::StreamingOadev;
 pub use taus::TauSet;
+pub use theo::{THEO1_MIN_M, edf_theo1, theo_br_ratio, theo1_m_for, theo1_variance};
 
 /// Errors of the Allan-deviation computations.
 #[derive(Debug, Error, PartialEq)]
@@ -83,6 +85,11 @@ pub enum Kind {
     Tdev,
     /// Total deviation (reflected-phase extension, NIST SP 1065 eq. 25).
     Totdev,
+    /// Theo1 deviation (SP 1065 eq. 30) at tau = 0.75 m tau0, m even, 10 <= m <= N - 1:
+    /// Allan-compatible up to 75 % of the record (`theo.rs`).
+    Theo1,
+    /// TheoH: OADEV up to 10 % of the record, bias-removed Theo1 (TheoBR) beyond, to 75 %.
+    Theoh,
 }
 
 impl Kind {
@@ -97,16 +104,27 @@ impl Kind {
         Kind::Tdev,
     ];
 
+    /// The Theo kinds (not in [`Kind::ALL`], whose order follows the NIST reference tables).
+    pub const THEO: [Kind; 2] = [Kind::Theo1, Kind::Theoh];
+
+    /// Whether this is Theo1 or TheoH, whose points' `m` is a Theo1 averaging factor at
+    /// tau = 0.75 m tau0 (TheoH's OADEV points excepted).
+    pub fn is_theo(self) -> bool {
+        matches!(self, Kind::Theo1 | Kind::Theoh)
+    }
+
     /// Largest averaging factor m for `n_phase` phase points.
     pub fn max_m(self, n_phase: usize) -> usize {
         let n = n_phase.saturating_sub(1);
         match self {
             Kind::Adev | Kind::Oadev | Kind::Totdev => n / 2,
             Kind::Mdev | Kind::Tdev | Kind::Hdev | Kind::Ohdev => n / 3,
+            Kind::Theo1 | Kind::Theoh => n,
         }
     }
 
-    /// The estimator's shape for Greenhall's EDF (`None` for TOTDEV, which has its own).
+    /// The estimator's shape for Greenhall's EDF (`None` for TOTDEV and the Theo kinds, which
+    /// have their own).
     pub fn estimator(self) -> Option<Estimator> {
         let (d, overlapping, modified) = match self {
             Kind::Adev => (2, false, false),
@@ -114,7 +132,7 @@ impl Kind {
             Kind::Mdev | Kind::Tdev => (2, true, true),
             Kind::Hdev => (3, false, false),
             Kind::Ohdev => (3, true, false),
-            Kind::Totdev => return None,
+            Kind::Totdev | Kind::Theo1 | Kind::Theoh => return None,
         };
         Some(Estimator {
             d,
@@ -133,6 +151,8 @@ impl Kind {
             Kind::Ohdev => "ohdev",
             Kind::Tdev => "tdev",
             Kind::Totdev => "totdev",
+            Kind::Theo1 => "theo1",
+            Kind::Theoh => "theoh",
         }
     }
 }
@@ -144,10 +164,12 @@ impl std::str::FromStr for Kind {
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Kind::ALL
             .into_iter()
+            .chain(Kind::THEO)
             .find(|k| k.name() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown deviation {s:?}: use adev, oadev, mdev, hdev, ohdev, tdev or totdev"
+                    "unknown deviation {s:?}: use adev, oadev, mdev, hdev, ohdev, tdev, totdev, \
+                     theo1 or theoh"
                 )
             })
     }
@@ -231,7 +253,8 @@ pub enum EdfMethod {
 /// One deviation value with its statistics.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct DevPoint {
-    /// Averaging factor (tau = m tau0).
+    /// Averaging factor (tau = m tau0; for Theo1 and TheoH's TheoBR points the Theo1 factor,
+    /// tau = 0.75 m tau0).
     pub m: usize,
     /// Averaging time, seconds.
     pub tau_s: f64,
@@ -343,6 +366,8 @@ fn variance_at(kind: Kind, x: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usi
             let s = second_difference_sum_sq(x, m) + totdev_edge_sum_sq(x, m);
             (s / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
         }
+        // Their points come from `theo_points`.
+        Kind::Theo1 | Kind::Theoh => return None,
     })
 }
 
@@ -426,9 +451,13 @@ pub fn deviation_from_phase_with_noise(
     options: &Options,
 ) -> Result<(DevCurve, Vec<NoiseType>), AllanError> {
     check(x.len().saturating_sub(1), tau0_s)?;
-    let factors = averaging_factors(kind, x.len(), &options.taus)?;
-    let mut points = deviation_points(kind, x, tau0_s, &factors);
-    let noise = assign_intervals(kind, x, &mut points, options);
+    let mut points = if kind.is_theo() {
+        theo_points(kind, x, tau0_s, &options.taus)?
+    } else {
+        let factors = averaging_factors(kind, x.len(), &options.taus)?;
+        deviation_points(kind, x, tau0_s, &factors)
+    };
+    let noise = assign_intervals(kind, x, tau0_s, &mut points, options);
     let curve = DevCurve {
         kind,
         tau0_s,
@@ -452,6 +481,92 @@ fn averaging_factors(kind: Kind, n_phase: usize, taus: &TauSet) -> Result<Vec<us
         });
     }
     Ok(factors)
+}
+
+/// The Theo1 factors for a tau set read as averaging times f tau0: each f mapped to the even
+/// m nearest 4f/3 (`theo1_m_for`), kept if 10 <= m <= N - 1 and f >= `from`.
+fn theo1_factors(n_phase: usize, taus: &TauSet, from: usize) -> Vec<usize> {
+    let max_f = (0.75 * (n_phase.saturating_sub(1)) as f64) as usize;
+    let mut ms: Vec<usize> = taus
+        .factors(max_f)
+        .into_iter()
+        .filter(|&f| f >= from)
+        .map(theo1_m_for)
+        .filter(|&m| m >= THEO1_MIN_M && m < n_phase)
+        .collect();
+    ms.dedup();
+    ms
+}
+
+/// The factor k tau0 up to which TheoH is OADEV: the largest factor of the tau set at most
+/// 10 % of the record ((N - 1) tau0), SP 1065 section 5.2.15. `None` if there is none.
+fn theoh_split(n_phase: usize, taus: &TauSet) -> Option<usize> {
+    taus.factors(n_phase.saturating_sub(1) / 10).last().copied()
+}
+
+/// Theo1's or TheoH's points, intervals not yet set. The tau set is read as averaging times:
+/// Theo1 at the even m with 0.75 m nearest each factor; TheoH as OADEV at the factors below
+/// k (`theoh_split`) and TheoBR from k to 75 % of the record.
+fn theo_points(
+    kind: Kind,
+    x: &[f64],
+    tau0_s: f64,
+    taus: &TauSet,
+) -> Result<Vec<DevPoint>, AllanError> {
+    let n = x.len();
+    let too_short = AllanError::TooShort {
+        n_samples: n - 1,
+        needed: THEO1_MIN_M,
+    };
+    let theo_point = |m: usize, scale: f64| {
+        let var = theo::theo1_variance(x, m, tau0_s).map_or(0.0, |v| v * scale);
+        DevPoint {
+            m,
+            tau_s: 0.75 * m as f64 * tau0_s,
+            dev: var.max(0.0).sqrt(),
+            n_terms: n - m,
+            edf: 0.0,
+            dev_lo: 0.0,
+            dev_hi: 0.0,
+        }
+    };
+    let points: Vec<DevPoint> = match kind {
+        Kind::Theoh => {
+            let split = theoh_split(n, taus);
+            let below: Vec<usize> = split.map_or(Vec::new(), |k| {
+                taus.factors(k).into_iter().filter(|&m| m < k).collect()
+            });
+            let mut pts = if below.is_empty() {
+                Vec::new()
+            } else {
+                deviation_points(Kind::Oadev, x, tau0_s, &below)
+            };
+            let ratio = theo::theo_br_ratio(x, |m| {
+                variance_at(Kind::Oadev, x, m, 1.0).map_or(f64::NAN, |v| v.0)
+            })
+            .ok_or(AllanError::TooShort {
+                n_samples: n - 1,
+                needed: 89,
+            })?;
+            let theo_ms = theo1_factors(n, taus, split.unwrap_or(1));
+            pts.extend(theo_ms.into_iter().map(|m| theo_point(m, ratio)));
+            pts
+        }
+        _ => theo1_factors(n, taus, 1)
+            .into_iter()
+            .map(|m| theo_point(m, 1.0))
+            .collect(),
+    };
+    if points.is_empty() {
+        return Err(too_short);
+    }
+    Ok(points)
+}
+
+/// Whether point `p` of a `kind` curve is a Theo1/TheoBR one (its tau is 0.75 m tau0, which is
+/// never m tau0, so TheoH's OADEV points are told apart exactly).
+fn is_theo_point(kind: Kind, p: &DevPoint, tau0_s: f64) -> bool {
+    kind.is_theo() && p.tau_s != p.m as f64 * tau0_s
 }
 
 /// The deviation at every factor, intervals not yet set.
@@ -530,6 +645,7 @@ fn on_two_threads(
 fn assign_intervals(
     kind: Kind,
     x: &[f64],
+    tau0_s: f64,
     points: &mut [DevPoint],
     options: &Options,
 ) -> Vec<NoiseType> {
@@ -537,12 +653,31 @@ fn assign_intervals(
     let noise: Vec<NoiseType> = match (options.noise, options.edf) {
         (Some(t), _) => vec![t; points.len()],
         (None, EdfMethod::Sp1065) => slope_noise_types(kind, points),
+        (None, EdfMethod::Greenhall) if kind.is_theo() => {
+            // Identified at each point's own averaging time, as for OADEV.
+            let proxies: Vec<DevPoint> = points
+                .iter()
+                .map(|p| DevPoint {
+                    m: (p.tau_s / tau0_s).round().max(1.0) as usize,
+                    ..*p
+                })
+                .collect();
+            identified_noise_types(Kind::Oadev, x, &proxies)
+        }
         (None, EdfMethod::Greenhall) => identified_noise_types(kind, x, points),
     };
     for (p, &t) in points.iter_mut().zip(&noise) {
+        let theo_point = is_theo_point(kind, p, tau0_s);
+        // TheoH's short taus are OADEV points.
+        let as_kind = if kind.is_theo() && !theo_point {
+            Kind::Oadev
+        } else {
+            kind
+        };
         p.edf = match options.edf {
-            EdfMethod::Sp1065 => sp1065_edf(kind, n, p, t),
-            EdfMethod::Greenhall => match kind.estimator() {
+            _ if theo_point => edf_theo1(t.alpha(), p.m, n),
+            EdfMethod::Sp1065 => sp1065_edf(as_kind, n, p, t),
+            EdfMethod::Greenhall => match as_kind.estimator() {
                 Some(est) => edf_greenhall(t.alpha(), est, p.m, n),
                 None => edf_totdev(t.alpha(), p.m, n),
             },
@@ -649,6 +784,7 @@ fn sp1065_edf(kind: Kind, n: usize, p: &DevPoint, noise: NoiseType) -> f64 {
         // Conservative: one degree of freedom per non-overlapping difference.
         Kind::Adev | Kind::Hdev => p.n_terms as f64,
         Kind::Ohdev | Kind::Mdev | Kind::Tdev => ((n - 1) / p.m).saturating_sub(2).max(1) as f64,
+        Kind::Theo1 | Kind::Theoh => edf_theo1(noise.alpha(), p.m, n),
     }
 }
 
