@@ -34,6 +34,8 @@ const GYRO_BIAS_RAD_S: [f64; 3] = [0.01, -0.005, 0.008];
 struct Run {
     /// The publisher's JSON: what it sent.
     sent: Vec<Value>,
+    /// What a Cyclone subscriber of imud's own `/imud/imu/data` received (with `--ros2`).
+    output: Option<Value>,
     /// imud's recording and its path.
     rec: Recording,
     file: PathBuf,
@@ -50,8 +52,10 @@ fn skip(why: String) -> Option<Run> {
 }
 
 /// imud with `--ros2-input /camera/imu` and the publisher in a namespace of their own: `n`
-/// messages at `rate_hz`, the indices in `skipped` not published.
-fn confined_run(n: u32, rate_hz: f64, skipped: &[u32], qos: &str) -> Option<Run> {
+/// messages at `rate_hz`, the indices in `skipped` not published. With `output`, imud also
+/// publishes its ROS 2 topics in the namespace `/imud` (`--ros2`) and the Cyclone subscriber
+/// (`dds_imu_peer.py`) reads its `/imud/imu/data`.
+fn confined_run(n: u32, rate_hz: f64, skipped: &[u32], qos: &str, output: bool) -> Option<Run> {
     if let Err(why) = ros2_common::confinement_available() {
         return skip(why);
     }
@@ -64,7 +68,8 @@ fn confined_run(n: u32, rate_hz: f64, skipped: &[u32], qos: &str) -> Option<Run>
             // A long silence timeout: the publisher waits for imud's reader before it
             // starts, and the session must not time out (and make a new reader) meanwhile.
             "[device]\nsilence-timeout-s = 60.0\n[calibration]\npath = \"{cal}\"\n\
-             [log]\ndir = \"{logs}\"\n[publish]\nenabled = false\n[health]\nenabled = false\n",
+             [log]\ndir = \"{logs}\"\n[publish]\nenabled = false\n[health]\nenabled = false\n\
+             [ros2]\nnamespace = \"/imud\"\n",
             cal = d.join("cal.toml").display(),
             logs = d.join("logs").display(),
         ),
@@ -72,17 +77,39 @@ fn confined_run(n: u32, rate_hz: f64, skipped: &[u32], qos: &str) -> Option<Run>
     .unwrap();
     let publisher =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/python/dds_imu_publisher.py");
+    let subscriber = publisher.with_file_name("dds_imu_peer.py");
     let skip_list: Vec<String> = skipped.iter().map(u32::to_string).collect();
+    let (start_output, end_output) = if output {
+        (
+            format!(
+                r#"python3 {subscriber} --ready {d}/ready --namespace imud --topics imu --idle-s 2 --timeout-s 120 > {d}/out.json 2> {d}/out.stderr &
+O=$!
+i=0
+while [ ! -f {d}/ready ]; do
+  kill -0 $O 2>/dev/null || {{ wait $O; exit $?; }}
+  i=$((i+1)); [ $i -lt 600 ] || exit 71
+  sleep 0.05
+done
+"#,
+                subscriber = subscriber.display(),
+                d = d.display(),
+            ),
+            "wait $O; orc=$?; [ $orc -eq 0 ] || exit $orc\n",
+        )
+    } else {
+        (String::new(), "")
+    };
     let script = format!(
         r#"ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || exit 70
-IMUD_LOG=info,rustdds=error {imud} --config {d}/imud.toml --name ros2in-{pid} --ros2-input /camera/imu 2> {d}/imud.stderr &
+{start_output}IMUD_LOG=info,rustdds=error {imud} --config {d}/imud.toml --name ros2in-{pid} --ros2-input /camera/imu {ros2} 2> {d}/imud.stderr &
 I=$!
 python3 {publisher} --topic rt/camera/imu --n {n} --rate-hz {rate_hz} --qos {qos} --skip "{skips}" > {d}/peer.json 2> {d}/peer.stderr
 rc=$?
 kill -TERM $I; wait $I; irc=$?
-[ $rc -eq 0 ] || exit $rc
+{end_output}[ $rc -eq 0 ] || exit $rc
 exit $irc
 "#,
+        ros2 = if output { "--ros2" } else { "" },
         imud = env!("CARGO_BIN_EXE_imud"),
         pid = std::process::id(),
         publisher = publisher.display(),
@@ -113,8 +140,10 @@ exit $irc
     assert_eq!(files.len(), 1, "{files:?}");
     let rec = read_recording(&files[0]).unwrap();
     assert!(rec.stopped_early.is_none(), "SIGTERM must finish the file");
+    let output = output.then(|| serde_json::from_str(&read("out.json")).expect("subscriber JSON"));
     Some(Run {
         sent,
+        output,
         rec,
         file: files[0].clone(),
         dir,
@@ -178,13 +207,28 @@ fn assert_every_message_arrived_corrected(run: &Run) {
     assert!(device["clock"].contains("header.stamp"), "{device:?}");
 }
 
+#[test]
+fn imuds_own_output_topic_is_refused_as_its_input() {
+    let out = Command::new(env!("CARGO_BIN_EXE_imud"))
+        .args(["--ros2", "--ros2-input", "/imu/data", "--print-config"])
+        .env("IMUD_CONFIG", "/dev/null")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("`input.ros2-topic`") && err.contains("imud's own ROS 2 output topic"),
+        "{err}"
+    );
+}
+
 fn last_status(rec: &Recording) -> imu_bus::DaemonStatus {
     rec.statuses.last().expect("a status").1
 }
 
 #[test]
 fn every_message_of_a_cyclone_dds_publisher_arrives_corrected_and_replays() {
-    let Some(run) = confined_run(400, 100.0, &[], "reliable") else {
+    let Some(run) = confined_run(400, 100.0, &[], "reliable", true) else {
         return;
     };
     assert_eq!(run.sent.len(), 400);
@@ -197,6 +241,18 @@ fn every_message_of_a_cyclone_dds_publisher_arrives_corrected_and_replays() {
         status.protocol,
         imu_bus::sample::device_protocol::ROS2_INPUT
     );
+
+    // imud's own ROS 2 output carries the corrected stream: every sample, as logged.
+    let out = run.output.as_ref().unwrap();
+    let received = ros2_common::samples(&out["early"]["imu"], "imud's /imud/imu/data");
+    assert_eq!(received.len(), run.rec.imu.len());
+    for (got, want) in received.iter().zip(&run.rec.imu) {
+        assert_eq!(ros2_common::stamp_ns(got), want.header.stamp.to_ns());
+        let a = want.linear_acceleration;
+        let g = want.angular_velocity;
+        assert_eq!(f64s(&got["linear_acceleration"]), [a.x, a.y, a.z]);
+        assert_eq!(f64s(&got["angular_velocity"]), [g.x, g.y, g.z]);
+    }
 
     // The logged frames replayed through the same driver give the same /imu/data.
     let out = run.dir.path().join("replay");
@@ -231,7 +287,7 @@ fn every_message_of_a_cyclone_dds_publisher_arrives_corrected_and_replays() {
 #[test]
 fn messages_a_best_effort_publisher_skips_are_counted_as_losses() {
     let skipped = [60, 150, 151, 152, 300];
-    let Some(run) = confined_run(400, 100.0, &skipped, "best-effort") else {
+    let Some(run) = confined_run(400, 100.0, &skipped, "best-effort", false) else {
         return;
     };
     assert_eq!(run.sent.len(), 400 - skipped.len());
