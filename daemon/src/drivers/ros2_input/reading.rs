@@ -31,7 +31,7 @@ impl Readings {
     }
 
     /// What one frame carried: a reading, or `unusable` for a message that is no
-    /// `sensor_msgs/Imu` in little-endian CDR or whose stamp is before 1970.
+    /// `sensor_msgs/Imu` in little-endian CDR or whose stamp is zero or before 1970.
     pub fn content(&mut self, frame_bytes: &[u8], topic: &str) -> FrameContent {
         match reading_of(frame::message(frame_bytes)) {
             Ok(reading) => FrameContent {
@@ -66,6 +66,10 @@ pub fn reading_of(cdr: &[u8]) -> Result<DeviceReading, String> {
         ));
     }
     let t_ns = stamp.to_ns();
+    if t_ns == 0 {
+        // Without stamps there is no device clock: no rate, no loss count, no fit.
+        return Err("header.stamp is zero: the publisher does not stamp its messages".into());
+    }
     let v = |v: imu_bus::ros2::Vector3| Vector3::new(v.x, v.y, v.z);
     Ok(DeviceReading {
         ticks_unwrapped: t_ns,

@@ -109,7 +109,7 @@ fn bad_cdr_is_counted_as_unusable_and_damaged_bytes_rejected_never_a_panic() {
     d.start(now);
     let good = message(0, T0_NS).to_cdr();
     let mut bytes = Vec::new();
-    // A message cut short, a big-endian header, and a stamp before 1970.
+    // A message cut short, a big-endian header, a stamp before 1970 and an unset one.
     frame::encode(&good[..good.len() - 9], &mut bytes);
     let mut be = good.clone();
     be[1] = 0x00;
@@ -120,6 +120,7 @@ fn bad_cdr_is_counted_as_unusable_and_damaged_bytes_rejected_never_a_panic() {
         nanosec: 0,
     };
     frame::encode(&before_1970.to_cdr(), &mut bytes);
+    frame::encode(&message(0, 0).to_cdr(), &mut bytes);
     // Garbage between frames, then a good message, then a header claiming 1 GB, then a good
     // one, then a frame cut by the end of the line.
     bytes.extend_from_slice(b"noise");
@@ -143,8 +144,8 @@ fn bad_cdr_is_counted_as_unusable_and_damaged_bytes_rejected_never_a_panic() {
             _ => {}
         }
     }
-    assert_eq!(unusable, 3);
-    assert_eq!(d.unusable(), 3);
+    assert_eq!(unusable, 4);
+    assert_eq!(d.unusable(), 4);
     assert_eq!(readings, 2);
     // The garbage (with the bogus header's length bytes), the bogus magic, the cut frame.
     assert_eq!(
@@ -158,7 +159,7 @@ fn bad_cdr_is_counted_as_unusable_and_damaged_bytes_rejected_never_a_panic() {
     );
     let s = d.stats();
     assert_eq!(s.bytes_in, s.frame_bytes + s.rejected_bytes);
-    assert_eq!(s.frames, 5);
+    assert_eq!(s.frames, 6);
     assert_eq!(s.truncated_frames, 1);
     assert_eq!(s.malformed_frames, 1);
 }
@@ -222,6 +223,39 @@ fn a_silent_topic_fails_the_start_up_after_the_silence_timeout() {
         m.contains("/camera/imu") && m.contains("rt/camera/imu"),
         "{m}"
     );
+}
+
+/// A publisher whose clock jumps back (a restarted simulation time) starts the loss
+/// accounting again: no loss counted, no panic, every message a sample with increasing stamps.
+#[test]
+fn stamps_that_jump_back_start_the_clock_again_without_losses() {
+    let mut msgs: Vec<Imu> = (0..100).map(|k| message(k, T0_NS)).collect();
+    msgs.extend((0..100).map(|k| message(k, T0_NS - 3_600_000_000_000)));
+    let now = Instant::now();
+    let mut d = Ros2InputDriver::new(&config(), "/camera/imu");
+    d.start(now);
+    let mut pipeline = Pipeline::new(d.initial_session(), None);
+    let mut sinks = Sinks::default();
+    let mut last_stamp = 0;
+    for (i, m) in msgs.iter().enumerate() {
+        let mono = 1_000_000_000_000 + i as u64 * 5_000_000;
+        d.handle_input(&stream(std::slice::from_ref(m)), now);
+        while let Some(ev) = d.poll_event() {
+            match ev {
+                DriverEvent::Frame { frame, content } => {
+                    pipeline.on_frame(frame, &content, mono, mono, &mut sinks);
+                    let stamp = pipeline.last_stamp_ns().unwrap();
+                    assert!(stamp > last_stamp, "message {i}");
+                    last_stamp = stamp;
+                }
+                DriverEvent::Session(s) => pipeline.new_session(s),
+                _ => {}
+            }
+        }
+    }
+    let c = pipeline.counters();
+    assert_eq!(c.samples, 200);
+    assert_eq!(c.samples_lost, 0);
 }
 
 /// The pipeline fed by the driver: 600 messages at 200 Hz with 7 of them never published (one
