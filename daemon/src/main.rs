@@ -360,6 +360,14 @@ async fn run(args: Args) -> anyhow::Result<()> {
         );
         return Ok(());
     }
+    if args.sim.is_some()
+        && let Some(topic) = &config.input.ros2_topic
+    {
+        anyhow::bail!(
+            "--sim simulates a serial unit, but the configuration takes the ROS 2 topic {topic} \
+             as the device (input.ros2-topic): run one or the other"
+        );
+    }
     repair_log_dir(&config);
     let _sim = match &args.sim {
         Some(scenario) => {
