@@ -56,6 +56,8 @@ pub struct Config {
     pub name: String,
     /// The serial device and how to talk to it.
     pub device: DeviceConfig,
+    /// A ROS 2 topic taken as the device instead of the serial unit.
+    pub input: InputConfig,
     /// The calibration applied in real time.
     pub calibration: CalibrationConfig,
     /// MCAP logging.
@@ -73,6 +75,7 @@ impl Default for Config {
         Self {
             name: "default".into(),
             device: DeviceConfig::default(),
+            input: InputConfig::default(),
             calibration: CalibrationConfig::default(),
             log: LogConfig::default(),
             publish: PublishConfig::default(),
@@ -202,6 +205,52 @@ mod protocol_option {
     ) -> Result<Option<DeviceProtocol>, D::Error> {
         let name = String::deserialize(d)?;
         name.parse().map(Some).map_err(serde::de::Error::custom)
+    }
+}
+
+/// Where the samples come from when it is not the serial unit of `[device]`.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
+pub struct InputConfig {
+    /// A ROS 2 `sensor_msgs/msg/Imu` topic (e.g. `/camera/imu`) subscribed to over DDS on
+    /// `ros2.domain-id` and taken as the device (also `--ros2-input`); a relative name is put
+    /// in `ros2.namespace`. `[device]`'s path, protocol and line settings then do not apply;
+    /// its silence and reconnect timings do.
+    pub ros2_topic: Option<String>,
+}
+
+impl InputConfig {
+    /// The first problem of the section given the ROS 2 output's topics, as (key, message).
+    fn problem(&self, ros2: &Ros2Config) -> Option<(&'static str, String)> {
+        let topic = self.ros2_topic.as_deref()?;
+        const KEY: &str = "input.ros2-topic";
+        if let Err(why) = crate::ros2::config::check_topic(topic) {
+            return Some((KEY, why));
+        }
+        if !ros2.enabled {
+            return None;
+        }
+        // imud's own sensor_msgs/Imu topics: reading one back would feed the corrected
+        // stream into itself.
+        let t = &ros2.topics;
+        let input = ros2.dds_topic(topic);
+        for (key, name) in [
+            ("ros2.topics.imu", &t.imu),
+            ("ros2.topics.imu-raw", &t.imu_raw),
+        ] {
+            if input.is_some() && ros2.dds_topic(name) == input {
+                return Some((
+                    KEY,
+                    format!(
+                        "{topic:?} is imud's own ROS 2 output topic ({key} = {name:?}, DDS {}): \
+                         reading it back would feed imud's output into itself; rename that \
+                         output topic or subscribe to the driver's topic",
+                        input.unwrap_or_default()
+                    ),
+                ));
+            }
+        }
+        None
     }
 }
 
@@ -409,11 +458,20 @@ impl Config {
         Ok((config, Source { file, text }))
     }
 
+    /// What the samples come from, for messages: the ROS 2 input's topic or the device path.
+    pub fn input_name(&self) -> String {
+        match &self.input.ros2_topic {
+            Some(topic) => format!("ROS 2 topic {topic}"),
+            None => self.device.path.display().to_string(),
+        }
+    }
+
     /// Checks values that parse but make no sense.
     pub fn validate(&self, source: &Source) -> Result<(), ConfigError> {
         let problem = self
             .name_problem()
             .or_else(|| self.device_problem())
+            .or_else(|| self.input.problem(&self.ros2))
             .or_else(|| self.log_publish_problem())
             .or_else(|| self.health_problem())
             .or_else(|| self.ros2.problem());
@@ -627,6 +685,38 @@ mod tests {
             assert!(e.contains("`name`"), "{e}");
             assert!(imu_bus::shm::validate_instance_name(bad).is_err());
         }
+    }
+
+    #[test]
+    fn a_ros2_input_is_refused_when_it_is_imuds_own_output_topic() {
+        let parse = |text: &str| Config::from_toml_str(text, "i.toml");
+        let c = parse("[input]\nros2-topic = \"/camera/imu\"\n").unwrap();
+        assert_eq!(c.input.ros2_topic.as_deref(), Some("/camera/imu"));
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "printed").unwrap(), c);
+        // Without the output there is nothing to feed back.
+        assert!(parse("[input]\nros2-topic = \"/imu/data_raw\"\n").is_ok());
+        for (input, ros2) in [
+            ("/imu/data_raw", ""),
+            ("imu/data", ""),
+            ("/robot1/imu/data", "namespace = \"/robot1\"\n"),
+            ("/mine", "[ros2.topics]\nimu = \"/mine\"\n"),
+        ] {
+            let text = format!("[input]\nros2-topic = \"{input}\"\n[ros2]\nenabled = true\n{ros2}");
+            let e = parse(&text).unwrap_err().to_string();
+            assert!(e.starts_with("i.toml:2: `input.ros2-topic`"), "{e}");
+            assert!(e.contains("imud's own ROS 2 output topic"), "{e}");
+        }
+        // In another namespace the same name is another topic.
+        let ok = "[input]\nros2-topic = \"/imu/data_raw\"\n[ros2]\nenabled = true\n\
+                  namespace = \"/imud\"\n";
+        assert!(parse(ok).is_ok());
+        let e = parse("[input]\nros2-topic = \"/camera//imu\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`input.ros2-topic`") && e.contains("doubled"),
+            "{e}"
+        );
     }
 
     #[test]

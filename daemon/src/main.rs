@@ -78,6 +78,10 @@ struct Args {
     /// Publish the ROS 2 topics over DDS (sets ros2.enabled; see the [ros2] section).
     #[arg(long)]
     ros2: bool,
+    /// Take a live ROS 2 IMU as the device: subscribe to this sensor_msgs/msg/Imu topic over
+    /// DDS (domain ros2.domain-id) instead of opening a serial unit (sets input.ros2-topic).
+    #[arg(long, value_name = "TOPIC", conflicts_with_all = ["sim", "device", "protocol"])]
+    ros2_input: Option<String>,
     /// Print the effective configuration and exit.
     #[arg(long)]
     print_config: bool,
@@ -262,6 +266,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     if args.ros2 {
         config.ros2.enabled = true;
     }
+    if let Some(t) = &args.ros2_input {
+        config.input.ros2_topic = Some(t.clone());
+    }
     config.validate(&config::Source {
         file: format!("{} with command-line flags", source.file),
         text: source.text.clone(),
@@ -353,6 +360,14 @@ async fn run(args: Args) -> anyhow::Result<()> {
         );
         return Ok(());
     }
+    if args.sim.is_some()
+        && let Some(topic) = &config.input.ros2_topic
+    {
+        anyhow::bail!(
+            "--sim simulates a serial unit, but the configuration takes the ROS 2 topic {topic} \
+             as the device (input.ros2-topic): run one or the other"
+        );
+    }
     repair_log_dir(&config);
     let _sim = match &args.sim {
         Some(scenario) => {
@@ -368,6 +383,14 @@ async fn run(args: Args) -> anyhow::Result<()> {
     let mut signals = Signals::install()?;
 
     let mut daemon = build_daemon(config, Vec::new())?;
+    // A ROS 2 input's participant is made now, so a DDS problem is a start-up error (a replay
+    // makes none: its frames come from the file).
+    if let Some(topic) = &daemon.config.input.ros2_topic {
+        daemon.input_link = Some(
+            imud::ros2::input::Ros2InputLink::new(&daemon.config.ros2, topic)
+                .context("starting the ROS 2 (DDS) input")?,
+        );
+    }
     daemon.load_initial_calibration()?;
     let result = daemon.run(&mut signals).await;
     info!("shutting down");
@@ -436,7 +459,11 @@ fn build_daemon(
     let device = Device::new(&config);
     let mut pipeline = Pipeline::new(device.initial_session(), None);
     pipeline.set_health(Some(config.health.clone()));
-    let device_path = config.device.path.clone();
+    // The metadata's `path`: the device's, or the ROS 2 input's topic.
+    let device_path = match &config.input.ros2_topic {
+        Some(topic) => PathBuf::from(topic),
+        None => config.device.path.clone(),
+    };
     Ok(Daemon {
         calibration: CalibrationSource::new(
             config.calibration.path.clone(),
@@ -454,6 +481,7 @@ fn build_daemon(
             }
         }),
         calibration_noise_pending: false,
+        input_link: None,
     })
 }
 

@@ -167,7 +167,11 @@ impl Capture {
             None => base.clone(),
         };
         if let Some(device) = self.metadata.get("imud.device") {
-            if let Some(p) = device.get("protocol") {
+            // A ROS 2 input's recording names no serial protocol: its configuration's
+            // `input.ros2-topic` makes the same driver.
+            if let Some(p) = device.get("protocol")
+                && config.input.ros2_topic.is_none()
+            {
                 config.device.protocol = Some(p.parse().map_err(|e| {
                     anyhow!("{}: imud.device protocol {p:?}: {e}", self.path.display())
                 })?);

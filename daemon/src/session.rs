@@ -23,6 +23,7 @@ use crate::config::Config;
 pub use crate::drivers::DeviceIdentity;
 use crate::drivers::{Device, Driver, DriverEvent};
 use crate::pipeline::{ActiveCalibration, Pipeline, Sinks, log_rejected};
+use crate::ros2::input::Ros2InputLink;
 
 /// Host clocks now: (CLOCK_MONOTONIC ns, Unix wall-clock ns). CLOCK_MONOTONIC is system-wide, so
 /// a subscriber in another process can compare its own receipt time with a sample's.
@@ -106,6 +107,10 @@ pub fn error_chain(e: impl std::error::Error + Send + Sync + 'static) -> String 
     format!("{:#}", anyhow::Error::new(e))
 }
 
+/// What a session reads from and writes to: a serial port, or a ROS 2 input's reader.
+pub trait Port: AsyncRead + AsyncWrite + Unpin {}
+impl<T: AsyncRead + AsyncWrite + Unpin> Port for T {}
+
 /// Everything the run loop owns.
 pub struct Daemon {
     /// Effective configuration.
@@ -126,6 +131,9 @@ pub struct Daemon {
     pub on_identity: IdentityHook,
     /// The calibration was logged before the data rate was known.
     pub calibration_noise_pending: bool,
+    /// The DDS participant of a ROS 2 input (`input.ros2-topic`), made at start-up (or by the
+    /// first session) and kept: each session opens a reader on it.
+    pub input_link: Option<Ros2InputLink>,
 }
 
 /// Called with the device identity each time the device answers its start-up sequence.
@@ -262,12 +270,22 @@ impl Daemon {
         ended
     }
 
-    /// Opens the device's port.
-    fn open(&self) -> anyhow::Result<tokio_serial::SerialStream> {
+    /// Opens the device's port: the serial line, or a new reader of the ROS 2 input.
+    fn open(&mut self) -> anyhow::Result<Box<dyn Port>> {
+        if let Some(topic) = &self.config.input.ros2_topic {
+            let link = match &mut self.input_link {
+                Some(link) => link,
+                None => self
+                    .input_link
+                    .insert(Ros2InputLink::new(&self.config.ros2, topic)?),
+            };
+            return Ok(Box::new(link.open()?));
+        }
         let cfg = &self.config.device;
-        tokio_serial::new(cfg.path.to_string_lossy(), cfg.baud)
+        let port = tokio_serial::new(cfg.path.to_string_lossy(), cfg.baud)
             .open_native_async()
-            .with_context(|| format!("opening {}", cfg.path.display()))
+            .with_context(|| format!("opening {}", cfg.path.display()))?;
+        Ok(Box::new(port))
     }
 
     /// Runs until SIGTERM/SIGINT: sessions with reconnects in between.
@@ -297,7 +315,7 @@ impl Daemon {
                 SessionEnd::Lost(e) => {
                     warn!(
                         "device {} unavailable: {e:#}; retrying in {:.1} s",
-                        cfg.path.display(),
+                        self.config.input_name(),
                         backoff.as_secs_f64()
                     );
                 }
@@ -328,7 +346,7 @@ impl Daemon {
             self.reconnects += 1;
             info!(
                 "device {} is back (reconnect {})",
-                cfg.path.display(),
+                self.config.input_name(),
                 self.reconnects
             );
         }

@@ -255,6 +255,7 @@ fn decode(path: &Path, protocol: DeviceProtocol) -> String {
         notified_ready: false,
         on_identity: Box::new(|_, _| {}),
         calibration_noise_pending: false,
+        input_link: None,
     };
     // Fixed host times: the capture paced at 115200 bit/s from a fixed origin.
     let capture = Capture::read(

@@ -12,11 +12,14 @@
 //!
 //! Only code under `drivers/` names a protocol. A protocol's folder holds its start-up state
 //! machine (`startup.rs`), its frames as readings (`reading.rs`), its driver (`mod.rs`), its
-//! simulated unit for `imud --sim --offline` (`offline.rs`) and its tests.
+//! simulated unit for `imud --sim --offline` (`offline.rs`) and its tests. A ROS 2 topic
+//! taken as the device (`ros2_input/`) is one more folder: its messages arrive as a byte stream
+//! of frames like a unit's, and nothing is sent.
 
 pub mod gx1;
 pub mod mip;
 pub mod probe;
+pub mod ros2_input;
 #[cfg(test)]
 mod scripted;
 #[cfg(test)]
@@ -139,6 +142,8 @@ pub struct Device {
     config: DeviceConfig,
     gx1: Option<gx1::Gx1Driver>,
     mip: Option<mip::MipDriver>,
+    /// The ROS 2 input, when one is configured (`input.ros2-topic`): then the only driver.
+    ros2: Option<ros2_input::Ros2InputDriver>,
     /// The protocol of the session (the configured one, or the last one probed).
     protocol: DeviceProtocol,
     probe: Option<probe::Probe>,
@@ -153,6 +158,11 @@ impl Device {
             config: config.device.clone(),
             gx1: None,
             mip: None,
+            ros2: config
+                .input
+                .ros2_topic
+                .as_deref()
+                .map(|topic| ros2_input::Ros2InputDriver::new(config, topic)),
             protocol: config.device.protocol.unwrap_or_default(),
             probe: None,
             queued: VecDeque::new(),
@@ -160,6 +170,9 @@ impl Device {
     }
 
     fn driver(&mut self) -> &mut dyn Driver {
+        if let Some(d) = &mut self.ros2 {
+            return d;
+        }
         match self.protocol {
             DeviceProtocol::Gx1 => self
                 .gx1
@@ -171,6 +184,9 @@ impl Device {
     }
 
     fn driver_ref(&self) -> Option<&dyn Driver> {
+        if let Some(d) = &self.ros2 {
+            return Some(d as &dyn Driver);
+        }
         match self.protocol {
             DeviceProtocol::Gx1 => self.gx1.as_ref().map(|d| d as &dyn Driver),
             DeviceProtocol::Mip => self.mip.as_ref().map(|d| d as &dyn Driver),
@@ -208,6 +224,10 @@ impl Device {
 impl Driver for Device {
     fn start(&mut self, now: Instant) {
         self.queued.clear();
+        if let Some(d) = &mut self.ros2 {
+            d.start(now);
+            return;
+        }
         match self.config.protocol {
             Some(_) => self.driver().start(now),
             None => self.probe = Some(probe::Probe::new(&self.config, now)),
@@ -282,6 +302,7 @@ impl Driver for Device {
         let drivers = [
             self.gx1.as_ref().map(|d| d as &dyn Driver),
             self.mip.as_ref().map(|d| d as &dyn Driver),
+            self.ros2.as_ref().map(|d| d as &dyn Driver),
         ];
         for s in drivers.into_iter().flatten().map(|d| d.stats()) {
             sum.frames += s.frames;
@@ -298,6 +319,9 @@ impl Driver for Device {
     }
 
     fn initial_session(&self) -> SessionSpec {
+        if let Some(d) = &self.ros2 {
+            return d.initial_session();
+        }
         match self.protocol {
             DeviceProtocol::Gx1 => gx1::initial_session(&self.config),
             DeviceProtocol::Mip => mip::initial_session(&self.config),
@@ -320,6 +344,7 @@ fn fallback_gains(config: &DeviceConfig) -> Gains {
 pub fn status_protocol_name(code: u8) -> &'static str {
     match code {
         imu_bus::sample::device_protocol::MIP => DeviceProtocol::Mip.name(),
+        imu_bus::sample::device_protocol::ROS2_INPUT => ros2_input::NAME,
         // 0: the GX1, and every v2 status, where the byte was reserved.
         _ => DeviceProtocol::Gx1.name(),
     }

@@ -154,6 +154,11 @@ impl Ros2Config {
     }
 }
 
+/// Checks a topic name as a user writes it: absolute (`/camera/imu`) or relative (`imu/data`).
+pub(crate) fn check_topic(name: &str) -> Result<(), String> {
+    check_name(name.strip_prefix('/').unwrap_or(name))
+}
+
 /// Checks a ROS 2 name without its leading `/`: tokens of letters, digits and `_` separated by
 /// single `/`, none starting with a digit.
 fn check_name(name: &str) -> Result<(), String> {

@@ -13,7 +13,9 @@
 //!
 //! Wire names are ROS 2's: topic `rt/<namespace>/imu/data`, type
 //! `sensor_msgs::msg::dds_::Imu_`, payload plain little-endian CDR. `config.rs`: the `[ros2]`
-//! section; `publisher.rs`: the thread; `messages.rs`: the messages that are not the MCAP's.
+//! section; `publisher.rs`: the thread; `messages.rs`: the messages that are not the MCAP's;
+//! `input.rs`: the other direction, a ROS 2 IMU topic subscribed to as the device
+//! (`input.ros2-topic`), its own participant and one reader per session.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -24,6 +26,7 @@ use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 
 pub mod config;
 mod handoff;
+pub mod input;
 mod messages;
 mod publisher;
 
