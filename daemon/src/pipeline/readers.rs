@@ -12,7 +12,7 @@
 use std::os::unix::fs::{DirBuilderExt, FileTypeExt, MetadataExt, PermissionsExt};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::mpsc::{Receiver, Sender, TryRecvError};
+use std::sync::mpsc::{Receiver, Sender};
 use std::thread::JoinHandle;
 
 use imu_bus::readers::{WireRecord, encode_packet, set_dropped};
@@ -231,11 +231,9 @@ impl ReadersServer {
     /// Sends `record` to every connected reader without waiting: a full connection loses it
     /// (counted), a closed one is removed.
     pub fn send<T: WireRecord>(&mut self, record: &T) {
-        loop {
-            match self.incoming.try_recv() {
-                Ok(c) => self.connections.push(c),
-                Err(TryRecvError::Empty | TryRecvError::Disconnected) => break,
-            }
+        // New connections from the accept thread (a disconnected channel means it stopped).
+        while let Ok(c) = self.incoming.try_recv() {
+            self.connections.push(c);
         }
         if self.connections.is_empty() {
             return;
