@@ -73,6 +73,20 @@ pub enum ReadersServerError {
         /// The path.
         path: PathBuf,
     },
+    /// A live process serves the socket already (another imud of the same instance).
+    #[error(
+        "{} is served by a running process (pid {pid}, uid {uid}): another imud with this \
+         instance's readers' socket? stop it or choose another [publish] readers-socket",
+        .path.display()
+    )]
+    AlreadyServed {
+        /// The path.
+        path: PathBuf,
+        /// The serving process, as the kernel reports it.
+        pid: i32,
+        /// Its user.
+        uid: u32,
+    },
     /// A system call failed.
     #[error("cannot {what} {}", .path.display())]
     Io {
@@ -154,7 +168,13 @@ impl ReadersServer {
             Ok(m) if !m.file_type().is_socket() => {
                 return Err(ReadersServerError::NotASocket { path });
             }
-            _ => {}
+            // A socket someone still listens on is not stale: refuse rather than steal it.
+            Ok(_) => {
+                if let Some((pid, uid)) = live_server(&path) {
+                    return Err(ReadersServerError::AlreadyServed { path, pid, uid });
+                }
+            }
+            Err(_) => {}
         }
 
         let tmp = dir.join(format!(
@@ -292,6 +312,15 @@ impl Drop for ReadersServer {
     }
 }
 
+/// The pid and uid of the process listening on the socket at `path`, if one does.
+fn live_server(path: &Path) -> Option<(i32, u32)> {
+    let probe = Socket::new(Domain::UNIX, Type::SEQPACKET, None).ok()?;
+    probe.connect(&SockAddr::unix(path).ok()?).ok()?;
+    let cred =
+        nix::sys::socket::getsockopt(&probe, nix::sys::socket::sockopt::PeerCredentials).ok()?;
+    Some((cred.pid(), cred.uid()))
+}
+
 /// Takes connections until the listener is shut down.
 fn accept_loop(listener: &Socket, tx: &Sender<Connection>) {
     loop {
@@ -416,6 +445,60 @@ mod tests {
         assert_eq!(server.connections(), 0);
         drop(server);
         assert!(!path.exists(), "the socket is removed on shutdown");
+    }
+
+    #[test]
+    fn a_slow_reader_loses_packets_counted_on_both_sides_and_a_live_socket_is_not_stolen() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("readers.sock");
+        let mut server = ReadersServer::open(&path, None).unwrap();
+        // A second server on the same path refuses, naming this process.
+        let err = ReadersServer::open(&path, None).unwrap_err();
+        assert!(
+            matches!(err, ReadersServerError::AlreadyServed { pid, .. }
+                if pid == std::process::id() as i32),
+            "{err}"
+        );
+        let trusted = TrustedPublishers::default_for_this_process();
+        let mut client = ReadersClient::connect(&path, &trusted, Duration::ZERO).unwrap();
+        // The accept thread hands the connection over asynchronously: send until one arrives.
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        loop {
+            assert!(std::time::Instant::now() < deadline, "no connection");
+            server.send(&CorrectedSample::default());
+            if client.recv(Duration::from_millis(1)).unwrap().is_some() {
+                break;
+            }
+        }
+        // (The refused server's probe connection is closed and gone by now.)
+        assert_eq!(server.connections(), 1);
+        // Drain what reached the client before the counted run starts.
+        while client.recv(Duration::from_millis(1)).unwrap().is_some() {}
+        let before = (client.received(), server.drops());
+        // The client reads nothing while the server sends far more than a socket buffer holds.
+        const SENT: u64 = 20_000;
+        for seq in 1..=SENT {
+            server.send(&CorrectedSample {
+                seq,
+                ..CorrectedSample::default()
+            });
+        }
+        let dropped = server.drops() - before.1;
+        assert!(dropped > 0, "the socket buffer never filled");
+        // Everything queued is there at once (unix sockets queue at the receiver on send).
+        while client.recv(Duration::from_millis(1)).unwrap().is_some() {}
+        let received = client.received() - before.0;
+        assert_eq!(received + dropped, SENT);
+        // One more, after the drain: it arrives and tells the reader every drop, and the seq
+        // gaps account for each one.
+        server.send(&CorrectedSample {
+            seq: SENT + 1,
+            ..CorrectedSample::default()
+        });
+        let last = client.recv(Duration::from_secs(10)).unwrap();
+        assert_eq!(last.and_then(|r| r.seq()), Some(SENT + 1));
+        assert_eq!(client.server_dropped(), server.drops());
+        assert_eq!(client.missed(), dropped);
     }
 
     #[test]
