@@ -230,6 +230,7 @@ fn bench(protocol: DeviceProtocol) {
     let publishers = Publishers::open(&name, &ShmOptions::default()).expect("shared memory");
     let mut with_pub = Sinks {
         publishers: Some(publishers),
+        readers: None,
         recorder: None,
         ros2: None,
     };
@@ -250,6 +251,7 @@ fn bench(protocol: DeviceProtocol) {
     .expect("recorder");
     let mut all = Sinks {
         publishers: with_pub.publishers,
+        readers: None,
         recorder: Some(recorder),
         ros2: None,
     };

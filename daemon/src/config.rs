@@ -385,6 +385,26 @@ pub struct PublishConfig {
     pub max_subscribers: usize,
     /// Status publication interval, s.
     pub status_interval_s: f64,
+    /// The readers' socket: imud's streams for processes of other users (iceoryx2's segments
+    /// are owner-only). Served when this or `group` is set; default path
+    /// `/run/imud/<name>/readers.sock`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub readers_socket: Option<std::path::PathBuf>,
+    /// The group whose members may connect to the readers' socket (mode 0660); unset: this
+    /// user only (0600). imud's user must be a member.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
+}
+
+impl PublishConfig {
+    /// The readers' socket path for instance `name`, when one is to be served.
+    pub fn readers_socket_path(&self, name: &str) -> Option<std::path::PathBuf> {
+        match (&self.readers_socket, &self.group) {
+            (Some(path), _) => Some(path.clone()),
+            (None, Some(_)) => Some(imu_bus::readers::default_socket_path(name)),
+            (None, None) => None,
+        }
+    }
 }
 
 impl Default for PublishConfig {
@@ -395,6 +415,8 @@ impl Default for PublishConfig {
             history: 1,
             max_subscribers: 16,
             status_interval_s: 1.0,
+            readers_socket: None,
+            group: None,
         }
     }
 }
@@ -647,6 +669,32 @@ mod tests {
             Config::default(),
             "config/imud.toml must document the real defaults"
         );
+    }
+
+    #[test]
+    fn the_readers_socket_is_served_when_a_path_or_a_group_is_set() {
+        let path = |text: &str| {
+            Config::from_toml_str(text, "r.toml")
+                .unwrap()
+                .publish
+                .readers_socket_path("imu0")
+        };
+        assert_eq!(path(""), None);
+        assert_eq!(
+            path("[publish]\ngroup = \"imud-readers\"\n"),
+            Some(std::path::PathBuf::from("/run/imud/imu0/readers.sock"))
+        );
+        assert_eq!(
+            path("[publish]\nreaders-socket = \"/srv/r.sock\"\n"),
+            Some(std::path::PathBuf::from("/srv/r.sock"))
+        );
+        // Both settings survive --print-config's round trip.
+        let c = Config::from_toml_str(
+            "[publish]\nreaders-socket = \"/srv/r.sock\"\ngroup = \"g\"\n",
+            "r.toml",
+        )
+        .unwrap();
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "again").unwrap(), c);
     }
 
     #[test]

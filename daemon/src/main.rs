@@ -416,6 +416,13 @@ fn open_sinks(
     } else {
         None
     };
+    let readers = match config.publish.readers_socket_path(&config.name) {
+        Some(path) => Some(
+            imud::pipeline::readers::ReadersServer::open(&path, config.publish.group.as_deref())
+                .context("opening the readers' socket")?,
+        ),
+        None => None,
+    };
     let recorder = if config.log.enabled {
         let rc = RecordingConfig {
             dir: config.log.dir.clone(),
@@ -445,6 +452,7 @@ fn open_sinks(
     };
     Ok(Sinks {
         publishers,
+        readers,
         recorder,
         ros2,
     })

@@ -117,6 +117,7 @@ pub fn record(sim: SimOptions, config: &Config) -> anyhow::Result<OfflineReport>
         .with_context(|| format!("creating {}", config.log.dir.display()))?;
     let sinks = Sinks {
         publishers: None,
+        readers: None,
         recorder: Some(start_recorder(&sim, config)?),
         ros2: None,
     };

@@ -212,6 +212,9 @@ impl Daemon {
             status.publish_drops += d.drops();
             d.status(wall, &status);
         }
+        if let Some(r) = &mut self.sinks.readers {
+            r.send(&status);
+        }
         if let Some(p) = &mut self.sinks.publishers {
             let _ = p.publish_status(&status);
             let _ = p.notify(imu_bus::shm::ShmEvent::Status);

@@ -16,7 +16,13 @@ size or alignment differ, so a layout change on the Rust side shows up as an err
 Usage:
     python3 examples/python/imu_subscriber.py [--name default] [--raw] [--count N]
                                               [--format text|jsonl] [--timeout SECONDS]
-                                              [--publisher-user USER ...]
+                                              [--publisher-user USER ...] [--socket PATH]
+
+With --socket PATH it reads imud's readers' socket instead (e.g. /run/imud/<name>/readers.sock,
+for a process of another user in imud's readers' group; iceoryx2's segments are imud's user's
+alone) and needs no iceoryx2 package: one packet per recv, a 16-byte header ("IMRD", version 1,
+stream code, packets imud could not queue for this reader) and the record's bytes in the same C
+layout. It checks the server's uid with SO_PEERCRED against the same trusted users.
 
 Before it prints anything it checks who created each service (the owner of the service's static
 config under iceoryx2's root path, the check `imu-echo` makes): root, its own user, the user
@@ -36,7 +42,13 @@ import pwd
 import sys
 import time
 
-import iceoryx2 as iox2
+import socket
+import struct
+
+try:
+    import iceoryx2 as iox2
+except ImportError:  # only the shared-memory mode needs it
+    iox2 = None
 
 
 class RawSample(ctypes.Structure):
@@ -208,6 +220,69 @@ def check_creator(service: str, pattern: int, trusted: set) -> None:
         )
 
 
+# The readers' socket packet header (imu_bus::readers): magic, version, stream, reserved, dropped.
+HEADER = struct.Struct("<4sHBBQ")
+STREAM_CODES = {1: ("raw", RawSample), 2: ("corrected", CorrectedSample)}
+
+
+def read_socket(args, trusted: set) -> int:
+    """Prints from imud's readers' socket until --count samples were printed (or forever)."""
+    deadline = time.monotonic() + args.timeout
+    while True:
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        try:
+            sock.connect(args.socket)
+            break
+        except (FileNotFoundError, ConnectionRefusedError):
+            sock.close()
+            if time.monotonic() >= deadline:
+                raise SystemExit(
+                    f"imu_subscriber: no imud serves readers at {args.socket}: is imud running "
+                    "with [publish] readers-socket (or group) set?"
+                )
+            time.sleep(0.05)
+        except PermissionError:
+            raise SystemExit(
+                f"imu_subscriber: permission denied connecting to {args.socket}: this user is "
+                "not in the socket's group"
+            )
+    pid, uid, _gid = struct.unpack("3i", sock.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, 12))
+    if uid not in trusted:
+        names = ", ".join(user_name(u) for u in sorted(trusted))
+        raise SystemExit(
+            f"imu_subscriber: the readers' socket {args.socket} is served by pid {pid} "
+            f"({user_name(uid)}), which is not a trusted imud publisher (trusted: {names}); "
+            "refusing its samples"
+        )
+    wanted = {"raw", "corrected"} if args.raw else {"corrected"}
+    printed = 0
+    while args.count == 0 or printed < args.count:
+        packet = sock.recv(4096)
+        if not packet:
+            raise SystemExit(f"imu_subscriber: imud closed the readers' socket {args.socket}")
+        if len(packet) < HEADER.size:
+            raise SystemExit(f"imu_subscriber: {len(packet)}-byte packet is shorter than a header")
+        magic, version, code, _reserved, _dropped = HEADER.unpack_from(packet)
+        if magic != b"IMRD" or version != 1:
+            raise SystemExit(f"imu_subscriber: not an imud readers' packet (version {version})")
+        if code not in STREAM_CODES:
+            continue  # status and health: not printed by this example
+        stream, payload = STREAM_CODES[code]
+        body = packet[HEADER.size :]
+        if len(body) != ctypes.sizeof(payload):
+            raise SystemExit(f"imu_subscriber: {stream} record of {len(body)} bytes")
+        if stream not in wanted:
+            continue
+        s = payload.from_buffer_copy(body)
+        if args.format == "jsonl":
+            print(json.dumps({"stream": stream, **to_dict(s)}))
+        else:
+            print(as_text(stream, s))
+        sys.stdout.flush()
+        printed += 1
+    return 0
+
+
 def main() -> int:
     """Subscribes and prints until --count samples were printed (or forever)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -224,8 +299,20 @@ def main() -> int:
         default=[],
         help="a user (name or uid) whose imud to trust; repeatable (default: root, own, imud)",
     )
+    parser.add_argument(
+        "--socket",
+        metavar="PATH",
+        help="read imud's readers' socket at PATH instead of shared memory",
+    )
     args = parser.parse_args()
     trusted = trusted_uids(args.publisher_user)
+    if args.socket:
+        return read_socket(args, trusted)
+    if iox2 is None:
+        raise SystemExit(
+            "imu_subscriber: the iceoryx2 package is missing (pip install -r "
+            "requirements-dev.txt), or use --socket"
+        )
 
     iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
     node = (

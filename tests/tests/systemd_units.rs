@@ -23,6 +23,9 @@ fn unit_keeps_the_settings_imud_depends_on() {
         "DevicePolicy=closed",
         "DeviceAllow=char-ttyUSB rw",
         "StateDirectory=imud/%i",
+        // The readers' socket: its directory, and the group imud gives it to.
+        "RuntimeDirectory=imud/%i",
+        "SupplementaryGroups=imud-readers",
     ] {
         assert!(has(required), "systemd/imud@.service lacks `{required}`");
     }
@@ -36,7 +39,12 @@ fn unit_keeps_the_settings_imud_depends_on() {
     let rules = std::fs::read_to_string(repo_root().join("systemd/99-imud.rules")).unwrap();
     assert!(rules.contains("SYSTEMD_WANTS") && rules.contains("SYMLINK+=\"imu0\""));
     let sysusers = std::fs::read_to_string(repo_root().join("systemd/imud.sysusers")).unwrap();
-    assert!(sysusers.lines().any(|l| l.trim() == "m imud dialout"));
+    for line in ["m imud dialout", "g imud-readers -", "m imud imud-readers"] {
+        assert!(
+            sysusers.lines().any(|l| l.trim() == line),
+            "systemd/imud.sysusers lacks `{line}`"
+        );
+    }
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! imu-echo [--name NAME] [--corrected|--raw|--status|--health] [--format table|csv|jsonl] [--count N]
-//!          [--publisher-user USER]
+//!          [--publisher-user USER] [--socket PATH]
 //! ```
 //!
 //! It subscribes to `imud/NAME/{corrected,raw,status,health}` (corrected by default), sleeps on the
@@ -16,6 +16,12 @@
 //! by and is published by a trusted user (`--publisher-user`, repeatable; by default root, its own
 //! user and the user `imud`): iceoryx2 does not say who may publish, so a process of another user
 //! that created the services is refused rather than echoed.
+//!
+//! With `--socket PATH` it reads imud's readers' socket instead (`[publish] readers-socket`,
+//! `/run/imud/NAME/readers.sock` by default): the way a process of another user in the daemon's
+//! readers' group gets the streams, since iceoryx2's segments are the daemon user's alone. It
+//! checks the server's user with `SO_PEERCRED` against the same trusted users, and reports the
+//! packets the daemon could not queue for it besides the `seq` gaps.
 //!
 //! It may start before the daemon (it waits `--timeout-s` for it). Exit codes: 0 after
 //! `--count` samples or when stdout is closed (`| head`), 130 on SIGINT/SIGTERM, 64 on a bad
@@ -31,6 +37,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::{ArgGroup, Parser, ValueEnum};
+use imu_bus::readers::{ReadersClient, WireRecord};
 use imu_bus::shm::{Stream, Subscriber, Subscription, TrustedPublishers, UserId};
 
 use crate::format::Echo;
@@ -69,6 +76,10 @@ struct Args {
     /// this client's own user and the user `imud`.
     #[arg(long, value_name = "USER")]
     publisher_user: Vec<String>,
+    /// Read imud's readers' socket at PATH (e.g. /run/imud/NAME/readers.sock) instead of
+    /// shared memory: for processes of other users in the daemon's `[publish] group`.
+    #[arg(long, value_name = "PATH")]
+    socket: Option<std::path::PathBuf>,
     /// Do not print rate and drop statistics on stderr.
     #[arg(long, short)]
     quiet: bool,
@@ -124,6 +135,17 @@ fn run(args: &Args) -> Result<Outcome> {
     };
     let timeout = Duration::try_from_secs_f64(args.timeout_s)
         .with_context(|| format!("--timeout-s {} is not a duration", args.timeout_s))?;
+    if let Some(path) = &args.socket {
+        let trusted = trusted_publishers(&args.publisher_user)?;
+        let client = ReadersClient::connect(path, &trusted, timeout)
+            .with_context(|| format!("reading the {stream} stream from imud's readers' socket"))?;
+        return match stream {
+            Stream::Raw => echo_socket::<imu_bus::RawSample>(client, args, &stop),
+            Stream::Corrected => echo_socket::<imu_bus::CorrectedSample>(client, args, &stop),
+            Stream::Status => echo_socket::<imu_bus::DaemonStatus>(client, args, &stop),
+            Stream::Health => echo_socket::<imu_bus::CalibrationHealth>(client, args, &stop),
+        };
+    }
     let subscriber = Subscriber::open(&args.name, stream, timeout).with_context(|| {
         format!(
             "subscribing to the {stream} stream of imud instance {:?}",
@@ -206,6 +228,57 @@ fn echo<T: Echo>(
         out.flush().context("writing to stdout")?;
         stats.tick(&sub);
     }
+}
+
+/// [`echo`] for the readers' socket: the records of `T`'s stream, the others skipped.
+fn echo_socket<T: Echo + WireRecord>(
+    mut client: ReadersClient,
+    args: &Args,
+    stop: &AtomicBool,
+) -> Result<Outcome> {
+    let mut out = BufWriter::new(io::stdout().lock());
+    let mut printer = format::Printer::<T>::new(args.format);
+    printer.header(&mut out).context("writing to stdout")?;
+    let mut printed = 0u64;
+    let started = Instant::now();
+    let mut last_report = started;
+    let report = |client: &ReadersClient, printed: u64, last: bool| {
+        if args.quiet {
+            return;
+        }
+        eprintln!(
+            "imu-echo: {}{}: {printed} printed in {:.1} s, {} missed (seq gaps), {} packets the \
+             daemon could not queue for this reader",
+            client.path().display(),
+            if last { "" } else { " (running)" },
+            started.elapsed().as_secs_f64(),
+            client.missed(),
+            client.server_dropped()
+        );
+    };
+    while args.count != Some(printed) {
+        if stop.load(Ordering::Relaxed) {
+            out.flush().context("writing to stdout")?;
+            report(&client, printed, true);
+            return Ok(Outcome::Interrupted);
+        }
+        if let Some(record) = client.recv(WAIT_SLICE).context("receiving samples")?
+            && let Some(sample) = T::take(record)
+        {
+            printer
+                .row(&mut out, &sample)
+                .context("writing to stdout")?;
+            printed += 1;
+        }
+        if last_report.elapsed() >= Stats::PERIOD {
+            out.flush().context("writing to stdout")?;
+            report(&client, printed, false);
+            last_report = Instant::now();
+        }
+    }
+    out.flush().context("writing to stdout")?;
+    report(&client, printed, true);
+    Ok(Outcome::Done)
 }
 
 /// The once-a-second rate and drop report on stderr.

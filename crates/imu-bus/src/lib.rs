@@ -9,11 +9,14 @@
 //!   metadata with the scenario and the truth error model), keyed by the device's timer ticks.
 //! - [`mcap_read`]: a tolerant streaming MCAP reader that reads a truncated file (a process killed
 //!   mid-write) up to its last good record and says where it stopped ([`mcap_read::Unfinished`]).
+//! - [`readers`]: imud's streams on a Unix socket for processes in its readers' group (the
+//!   records' C-layout bytes behind a small header), and the client that checks the server.
 //! - [`recover`]: repairs such a file (summary, indexes, footer) so every reader opens it.
 //! - [`ros1`]: ROS 1 serialization and bag files (2.0), read in the same tolerant way;
 //!   [`ros2`]: CDR, the message types, rosbag2 directories and their sqlite3 storage.
 
 pub mod mcap_read;
+pub mod readers;
 pub mod recording;
 pub mod recover;
 pub mod ros1;

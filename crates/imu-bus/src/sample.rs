@@ -232,7 +232,8 @@ pub struct DaemonStatus {
     /// Log records dropped because the writer queue was full or logging was stopped.
     pub log_drops: u64,
     /// Samples the shared-memory publishers could not publish (a failed loan or send, see
-    /// `shm::Publishers::drops`); samples a slow subscriber lost to overwriting are not counted.
+    /// `shm::Publishers::drops`), plus packets the readers' socket could not queue for a slow
+    /// reader (`readers`); samples a slow subscriber lost to overwriting are not counted.
     pub publish_drops: u64,
     /// Device reconnects after a loss.
     pub reconnects: u64,

@@ -287,3 +287,99 @@ fn the_python_example_refuses_services_an_untrusted_user_created() {
     assert!(stderr.contains(&format!("(uid {me})")), "{stderr}");
     // (With the default trust, this user's own, the other tests of this file receive.)
 }
+
+/// A listening readers' socket of this process in a fresh directory.
+fn readers_listener(dir: &std::path::Path) -> (socket2::Socket, PathBuf) {
+    let path = dir.join("readers.sock");
+    let s = socket2::Socket::new(socket2::Domain::UNIX, socket2::Type::SEQPACKET, None).unwrap();
+    s.bind(&socket2::SockAddr::unix(&path).unwrap()).unwrap();
+    s.listen(4).unwrap();
+    (s, path)
+}
+
+#[test]
+fn the_python_example_reads_the_readers_socket_exactly() {
+    use imu_bus::readers::encode_packet;
+    use std::io::Write;
+    // The socket mode needs python3 only, not its iceoryx2 package.
+    if Command::new("python3").arg("--version").output().is_err() {
+        assert!(
+            std::env::var_os("IMUD_REQUIRE_PEERS").is_none(),
+            "python3 is missing"
+        );
+        eprintln!("SKIPPED: python3 is missing");
+        return;
+    }
+    const PAIRS: u64 = 12;
+    let dir = tempfile::tempdir().unwrap();
+    let (listener, path) = readers_listener(dir.path());
+    let child = Command::new("python3")
+        .arg(example_script())
+        .arg("--socket")
+        .arg(&path)
+        .args(["--raw", "--format", "jsonl", "--timeout", "30"])
+        .args(["--count", &(2 * PAIRS).to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start python3");
+    let (mut conn, _) = listener.accept().unwrap();
+    let mut packet = Vec::new();
+    for seq in 0..PAIRS {
+        encode_packet(&raw_sample(seq), &mut packet);
+        conn.write_all(&packet).unwrap();
+        // A status between the samples: skipped by the example, never misread.
+        encode_packet(&imu_bus::DaemonStatus::default(), &mut packet);
+        conn.write_all(&packet).unwrap();
+        encode_packet(&corrected_sample(seq), &mut packet);
+        conn.write_all(&packet).unwrap();
+    }
+    let out = child.wait_with_output().expect("python output");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "python: {stderr}");
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len() as u64, 2 * PAIRS, "{stdout}\n{stderr}");
+    for (i, line) in lines.iter().enumerate() {
+        let seq = i as u64 / 2;
+        let want = if i % 2 == 0 {
+            expected_raw(&raw_sample(seq))
+        } else {
+            expected_corrected(&corrected_sample(seq))
+        };
+        assert_same(&serde_json::from_str(line).unwrap(), &want, line);
+    }
+}
+
+#[test]
+fn the_python_example_refuses_a_socket_served_by_an_untrusted_user() {
+    if Command::new("python3").arg("--version").output().is_err() {
+        assert!(
+            std::env::var_os("IMUD_REQUIRE_PEERS").is_none(),
+            "python3 is missing"
+        );
+        eprintln!("SKIPPED: python3 is missing");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (_listener, path) = readers_listener(dir.path());
+    let other = imu_bus::shm::UserId::current().0.wrapping_add(1);
+    let out = Command::new("python3")
+        .arg(example_script())
+        .arg("--socket")
+        .arg(&path)
+        .args(["--publisher-user", &other.to_string(), "--count", "1"])
+        .output()
+        .expect("run python3");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(out.stdout.is_empty(), "{stderr}");
+    assert!(
+        stderr.contains("which is not a trusted imud publisher"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("pid {}", std::process::id())),
+        "{stderr}"
+    );
+}

@@ -8,11 +8,13 @@
 //!
 //! Files: `reading.rs` (what a driver hands over: a [`DeviceReading`] per data frame, a
 //! [`SessionSpec`] per session), `loss/` (gap accounting on the device clock, the one home of
-//! it); `sinks.rs` (the calibration in force and the outputs). Here: the steps every device
+//! it); `sinks.rs` (the calibration in force and the outputs), `readers.rs` (the readers'
+//! socket server). Here: the steps every device
 //! shares (stamp, correct, watch health, publish) and the status. Nothing here knows a
 //! protocol: the drivers (`crate::drivers`) decode frames into these types.
 
 pub mod loss;
+pub mod readers;
 mod reading;
 mod sinks;
 
@@ -495,6 +497,9 @@ impl Pipeline {
                 self.counters.publish_errors += 1;
             }
         }
+        if let Some(r) = &mut sinks.readers {
+            r.send(&event.report);
+        }
         sinks.log(LogRecord::Health(event.report));
         self.health_report = Some(event.report);
     }
@@ -513,6 +518,10 @@ impl Pipeline {
             if !sent {
                 self.counters.publish_errors += 1;
             }
+        }
+        if let Some(r) = &mut sinks.readers {
+            r.send(&raw);
+            r.send(&corrected);
         }
         sinks.log(LogRecord::Sample {
             frame: self.pending_frame.take(),
@@ -547,6 +556,10 @@ impl Pipeline {
             samples_lost: self.counters.samples_lost,
             log_drops,
             publish_drops: sinks.publishers.as_ref().map_or(0, Publishers::drops)
+                + sinks
+                    .readers
+                    .as_ref()
+                    .map_or(0, readers::ReadersServer::drops)
                 + self.counters.publish_errors,
             reconnects,
             calibration_id: self.calibration.as_ref().map_or(0, |c| c.id),

@@ -1,4 +1,5 @@
 //! Where the per-frame path's output goes, and the calibration it applies.
+//! (The readers' socket server is its own file, `readers.rs`.)
 
 use imu_bus::recording::{ImuNoiseVariances, LogRecord, Recorder};
 use imu_bus::shm::Publishers;
@@ -30,6 +31,8 @@ impl ActiveCalibration {
 pub struct Sinks {
     /// Shared-memory publishers.
     pub publishers: Option<Publishers>,
+    /// The readers' socket (the same streams for the readers' group).
+    pub readers: Option<super::readers::ReadersServer>,
     /// The MCAP recorder.
     pub recorder: Option<Recorder>,
     /// The ROS 2 topics over DDS (gets what is logged, through its own bounded queue).
