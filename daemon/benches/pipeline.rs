@@ -16,7 +16,7 @@ use imu_proto::reply::Reply;
 use imud::config::DeviceConfig;
 use imud::drivers::gx1::{self, Gx1Driver};
 use imud::drivers::mip::{self, MipDriver, MipTimebase};
-use imud::drivers::{Driver, DriverEvent};
+use imud::drivers::{Driver, DriverEvent, FrameSlot};
 use imud::pipeline::{
     Acquisition, ActiveCalibration, GainFallback, Gains, Pipeline, SessionSpec, Sinks, log_rejected,
 };
@@ -108,6 +108,8 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
     let (stream, spacing_ns) = frames(protocol);
     let mut per_frame_ns = Vec::with_capacity(BATCHES);
     let now = Instant::now();
+    // The caller's frame slot, as the session keeps one for its reads.
+    let mut slot = FrameSlot::default();
     for b in 0..BATCHES {
         // MIP stamps run on: the batch's packets shifted by the batch's time.
         let batch = match protocol {
@@ -118,11 +120,9 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
         for (k, frame) in batch.iter().enumerate() {
             let t = (b * BATCH + k) as u64 * spacing_ns;
             driver.handle_input(frame, now);
-            while let Some(ev) = driver.poll_event() {
+            while let Some(ev) = driver.poll_event(&mut slot) {
                 match ev {
-                    DriverEvent::Frame { frame, content } => {
-                        pipeline.on_frame(frame, &content, t, t, sinks);
-                    }
+                    DriverEvent::Frame => pipeline.on_frame(&mut slot, t, t, sinks),
                     DriverEvent::Rejected {
                         bytes,
                         offset,

@@ -20,7 +20,7 @@ use imu_bus::truth::TruthWriter;
 use imu_sim::{DeviceCore, SimOptions};
 
 use crate::config::Config;
-use crate::drivers::{DriverEvent, OfflineUnit, offline_unit};
+use crate::drivers::{DriverEvent, FrameSlot, OfflineUnit, offline_unit};
 use crate::pipeline::{ActiveCalibration, Pipeline, SampleClock, Sinks, log_rejected};
 
 /// What an offline run produced.
@@ -163,6 +163,7 @@ impl Run {
                 files: Vec::new(),
                 truth: sim.truth_out.clone(),
             },
+            slot: FrameSlot::default(),
         })
     }
 
@@ -277,6 +278,8 @@ struct Run {
     truth: Option<TruthWriter>,
     queue_capacity: usize,
     report: OfflineReport,
+    /// Where the driver puts each frame.
+    slot: FrameSlot,
 }
 
 impl Run {
@@ -292,11 +295,11 @@ impl Run {
         self.unit.step(k, t_s, bytes, &mut truths);
         let driver = self.unit.driver();
         driver.handle_input(bytes, std::time::Instant::now());
-        while let Some(ev) = driver.poll_event() {
+        while let Some(ev) = driver.poll_event(&mut self.slot) {
             match ev {
-                DriverEvent::Frame { frame, content } => {
+                DriverEvent::Frame => {
                     self.pipeline
-                        .on_frame(frame, &content, mono, wall, &mut self.sinks);
+                        .on_frame(&mut self.slot, mono, wall, &mut self.sinks);
                 }
                 DriverEvent::Rejected {
                     bytes,

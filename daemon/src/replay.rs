@@ -11,6 +11,21 @@
 //! start-up is replayed. A raw capture has no times: its bytes arrive at the line's pace
 //! (`device.baud`, 10 bits a byte) from the moment the replay starts.
 //!
+//! A recording that spans a reconnect is replayed as the live run had it, one device session
+//! after another: the daemon records a status with the device disconnected as soon as a session
+//! is lost (its first status while it waits to retry), so a status that says disconnected after
+//! one that said connected marks the end of a session, and the frames read after it are the
+//! next session's. At that boundary the replay does what the daemon did: the decoder's partial
+//! frame is ended and a reconnect is counted; the driver starts again (a new session: the tick
+//! unwrapping, the clock fit, the gap accounting and the rate start afresh) where the live
+//! session began to stream. A recording says where that was: the first frame a sample was made
+//! of (the recorder writes that frame's `/imu/raw_frame` record and then its `/imu/raw` one,
+//! with at most the temperature taken from it between them);
+//! the frames before it, a start-up's replies and data a unit still streaming sent before the
+//! start-up stopped it, were logged only and are replayed so. A session lost during its
+//! start-up (never connected) leaves no boundary; it made no samples, so the next session's
+//! samples come out the same.
+//!
 //! `--speed 1` keeps the recorded pace, `--speed 10` ten times faster, `max` as fast as the CPU
 //! allows; the stamps are the recorded ones whatever the speed.
 
@@ -70,6 +85,9 @@ pub struct Chunk {
     pub mono_ns: u64,
     /// Host wall time of the read, ns.
     pub wall_ns: u64,
+    /// A recording's frame that the live run made a sample of (its `/imu/raw` record follows
+    /// it in the file); false for a raw capture's bytes.
+    pub sampled: bool,
 }
 
 /// A capture read into memory.
@@ -83,6 +101,9 @@ pub struct Capture {
     pub chunks: Vec<Chunk>,
     /// A recording's metadata (empty for raw captures).
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// Indices into `chunks` where a new device session began (a reconnect in the live run),
+    /// in order; empty for a single session and for raw captures.
+    pub session_starts: Vec<usize>,
 }
 
 /// Bytes of a raw capture handed over at once.
@@ -120,6 +141,7 @@ impl Capture {
                     bytes: c.to_vec(),
                     mono_ns: start.0 + t,
                     wall_ns: start.1 + t,
+                    sampled: false,
                 }
             })
             .collect();
@@ -128,21 +150,45 @@ impl Capture {
             kind,
             chunks,
             metadata: BTreeMap::new(),
+            session_starts: Vec::new(),
         })
     }
 
     fn read_recording(path: &Path) -> anyhow::Result<Self> {
         let mut chunks = Vec::new();
+        // (host monotonic time, device connected) of every status, in recorded order.
+        let mut statuses = Vec::new();
+        // The recorder writes a sample's frame and then its raw sample, one after the other, or
+        // with the temperature taken from that frame between them (a MIP unit's, recorded once
+        // a second).
+        let mut after_frame = false;
         let report = for_each_record(path, |m| {
-            if let RecordedMessage::Frame(f) = m {
-                chunks.push(Chunk {
+            let frame = match m {
+                RecordedMessage::Frame(_) => true,
+                RecordedMessage::Temperature(_) => after_frame,
+                _ => false,
+            };
+            match m {
+                RecordedMessage::Frame(f) => chunks.push(Chunk {
                     bytes: f.bytes,
                     mono_ns: f.t_host_monotonic_ns,
                     wall_ns: f.t_host_wall_ns,
-                });
+                    sampled: false,
+                }),
+                RecordedMessage::Raw(_) if after_frame => {
+                    if let Some(c) = chunks.last_mut() {
+                        c.sampled = true;
+                    }
+                }
+                RecordedMessage::Status { status, .. } => {
+                    statuses.push((status.t_host_monotonic_ns, status.device_connected != 0))
+                }
+                _ => {}
             }
+            after_frame = frame;
         })
         .with_context(|| format!("reading the recording {}", path.display()))?;
+        let session_starts = session_starts(&chunks, &statuses);
         if chunks.is_empty() {
             bail!(
                 "{}: the recording holds no /imu/raw_frame records",
@@ -154,6 +200,7 @@ impl Capture {
             kind: CaptureKind::Recording,
             chunks,
             metadata: report.metadata,
+            session_starts,
         })
     }
 
@@ -193,6 +240,25 @@ impl Capture {
         config.device.configure = false;
         Ok(config)
     }
+}
+
+/// Where the live run's device sessions began, as indices into `chunks`: the first chunk read
+/// after each status that says the device is disconnected following one that said it was
+/// connected (see the module docs). `statuses` are (host monotonic ns, connected) in recorded
+/// order; both lists carry the daemon's own CLOCK_MONOTONIC times.
+pub fn session_starts(chunks: &[Chunk], statuses: &[(u64, bool)]) -> Vec<usize> {
+    let mut starts = Vec::new();
+    let mut connected = false;
+    for &(t_ns, now_connected) in statuses {
+        if connected && !now_connected {
+            let i = chunks.partition_point(|c| c.mono_ns <= t_ns);
+            if i > 0 && i < chunks.len() && starts.last() != Some(&i) {
+                starts.push(i);
+            }
+        }
+        connected = now_connected;
+    }
+    starts
 }
 
 /// Hex bytes from `text`: pairs of hex digits, separated by white space or not; `#` starts a
@@ -246,7 +312,15 @@ impl Daemon {
         };
         let t0 = first.mono_ns;
         let origin = Instant::now();
-        self.device.start(origin);
+        // A recording's session starts, as the live one streamed, at its first frame that made
+        // a sample: the frames before it (a start-up's, and data a unit still streaming sent
+        // before start-up stopped it) were logged only, and so they are here. A capture without
+        // that knowledge starts at once.
+        let start_at_samples = capture.chunks.iter().any(|c| c.sampled);
+        let mut started = !start_at_samples;
+        if started {
+            self.device.start(origin);
+        }
         let status_every_ns = (self.config.publish.status_interval_s * 1e9) as u64;
         let mut next_status = t0 + status_every_ns;
         let mut report = ReplayReport {
@@ -255,7 +329,8 @@ impl Daemon {
         };
         let mut ready = false;
         let (mut mono, mut wall) = (first.mono_ns, first.wall_ns);
-        for c in &capture.chunks {
+        let mut session_starts = capture.session_starts.iter().peekable();
+        for (i, c) in capture.chunks.iter().enumerate() {
             // Recorded times never go back; a capture that does is taken as it is.
             let since = Duration::from_nanos(c.mono_ns.saturating_sub(t0));
             if let Speed::Times(x) = speed {
@@ -269,6 +344,22 @@ impl Daemon {
             while let Some(t) = self.device.poll_timeout().filter(|t| *t <= now) {
                 self.device.handle_timeout(t);
                 ready |= self.end_of_start(mono, wall)?;
+            }
+            if session_starts.next_if_eq(&&i).is_some() {
+                // The live run lost the device here and reconnected: the session ends, as the
+                // daemon's reconnect loop ended it, and the next starts as the first did.
+                self.device.flush();
+                ready |= self.end_of_start(mono, wall)?;
+                self.publish_status_at(false, mono, wall);
+                self.reconnects += 1;
+                started = !start_at_samples;
+                if started {
+                    self.device.start(now);
+                }
+            }
+            if !started && c.sampled {
+                self.device.start(now);
+                started = true;
             }
             (mono, wall) = (c.mono_ns, c.wall_ns);
             self.device.handle_input(&c.bytes, now);
@@ -324,6 +415,36 @@ mod tests {
         assert!(e.to_string().starts_with("c.hex:2: 'g'"), "{e}");
         let e = parse_hex("756\n", Path::new("c.hex")).unwrap_err();
         assert!(e.to_string().contains("c.hex:1: an odd number"), "{e}");
+    }
+
+    #[test]
+    fn a_status_saying_disconnected_after_connected_starts_the_next_session() {
+        let chunk = |mono_ns| Chunk {
+            bytes: vec![0x75],
+            mono_ns,
+            wall_ns: mono_ns,
+            sampled: false,
+        };
+        let chunks: Vec<Chunk> = [5, 15, 30, 55, 65, 80, 95, 120]
+            .into_iter()
+            .map(chunk)
+            .collect();
+        let statuses = [
+            // Start-up of the first session: not yet connected, no boundary.
+            (10, false),
+            (20, true),
+            (50, true),
+            // Lost after the chunk at 55: the next read (65) begins the second session.
+            (60, false),
+            (70, false),
+            (90, true),
+            // Lost again, and the last one at shutdown with nothing read after it.
+            (100, false),
+            (130, true),
+            (140, false),
+        ];
+        assert_eq!(session_starts(&chunks, &statuses), vec![4, 7]);
+        assert!(session_starts(&chunks, &[(10, true), (20, true)]).is_empty());
     }
 
     #[test]

@@ -21,7 +21,7 @@ use tracing::{error, info, warn};
 
 use crate::config::Config;
 pub use crate::drivers::DeviceIdentity;
-use crate::drivers::{Device, Driver, DriverEvent};
+use crate::drivers::{Device, Driver, DriverEvent, FrameSlot};
 use crate::pipeline::{ActiveCalibration, Pipeline, Sinks, log_rejected};
 use crate::ros2::input::Ros2InputLink;
 
@@ -253,11 +253,12 @@ impl Daemon {
         wall: u64,
     ) -> Option<Result<(), anyhow::Error>> {
         let mut ended = None;
-        while let Some(ev) = self.device.poll_event() {
+        let mut slot = FrameSlot::default();
+        while let Some(ev) = self.device.poll_event(&mut slot) {
             match ev {
-                DriverEvent::Frame { frame, content } => {
+                DriverEvent::Frame => {
                     self.pipeline
-                        .on_frame(frame, &content, mono, wall, &mut self.sinks);
+                        .on_frame(&mut slot, mono, wall, &mut self.sinks);
                 }
                 DriverEvent::Rejected {
                     bytes,

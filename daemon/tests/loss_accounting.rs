@@ -6,7 +6,7 @@
 use imu_proto::reply::Reply;
 use imud::config::DeviceConfig;
 use imud::drivers::gx1::{self, Gx1Driver};
-use imud::drivers::{Driver, DriverEvent};
+use imud::drivers::{Driver, DriverEvent, FrameSlot};
 use imud::pipeline::{GainFallback, Gains, Pipeline, Sinks, log_rejected};
 
 const TICK_S: f64 = 6.5536e-3;
@@ -87,11 +87,10 @@ fn deliver(
     let wall_ns = t_ns + 1_700_000_000_000_000_000;
     let before = p.counters().samples;
     let mut sinks = Sinks::default();
-    while let Some(ev) = decoder.poll_event() {
+    let mut slot = FrameSlot::default();
+    while let Some(ev) = decoder.poll_event(&mut slot) {
         match ev {
-            DriverEvent::Frame { frame, content } => {
-                p.on_frame(frame, &content, t_ns, wall_ns, &mut sinks);
-            }
+            DriverEvent::Frame => p.on_frame(&mut slot, t_ns, wall_ns, &mut sinks),
             DriverEvent::Rejected {
                 bytes,
                 offset,

@@ -1,13 +1,18 @@
 //! `imud replay` against live runs: a recording of `imud --sim` (a real pty, real time)
-//! replayed reproduces its `/imu/data` and `/imu/raw` bit for bit, for either protocol; its
-//! bytes as a raw capture (`.bin`) and as a hex dump give the same device readings; a new
-//! calibration re-corrects the stream without changing the raw samples.
+//! replayed reproduces its `/imu/data` and `/imu/raw` bit for bit, for either protocol, and so
+//! does the recording of a live run whose device was unplugged and reconnected (two device
+//! sessions); its bytes as a raw capture (`.bin`) and as a hex dump give the same device
+//! readings; a new calibration re-corrects the stream without changing the raw samples.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use imu_bus::DaemonStatus;
 use imu_bus::recording::{Recording, read_recording};
+use imu_bus::shm::Subscription;
+use imu_proto::DeviceProtocol;
+use imu_sim::{Pacing, Scenario, SimOptions};
 
 /// A child process killed (and reaped) when dropped.
 struct Killed(Child);
@@ -185,4 +190,125 @@ fn a_replay_with_a_new_calibration_re_corrects_the_same_raw_samples() {
         .zip(&original.imu)
         .all(|(a, b)| a.linear_acceleration != b.linear_acceleration);
     assert!(moved);
+}
+
+/// Statuses from `sub` until one satisfies `until` (or 30 s pass: the test fails, with `log`).
+fn wait_for_status(
+    sub: &mut Subscription<DaemonStatus>,
+    log: &Path,
+    what: &str,
+    until: impl Fn(&DaemonStatus) -> bool,
+) -> DaemonStatus {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        if let Some(s) = sub
+            .wait(Duration::from_millis(100))
+            .unwrap()
+            .into_iter()
+            .find(|s| until(s))
+        {
+            return s;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "{what}: {}",
+            std::fs::read_to_string(log).unwrap_or_default()
+        );
+    }
+}
+
+/// A live imud (start-up, protocol configured) on the simulator's pty, the device unplugged
+/// once after 1.5 s of stream and reconnected; its recording, two device sessions.
+fn live_with_reconnect(dir: &Path, protocol: DeviceProtocol) -> PathBuf {
+    let text = format!(
+        r#"
+name = "replay-reconnect"
+rate-hz = 100.0
+[device]
+baud = 115200
+protocol = "{protocol}"
+[[segment]]
+kind = "static"
+orientation = {{ x = "north", z = "up" }}
+duration-s = 600.0
+"#
+    );
+    let opts = SimOptions {
+        scenario: Scenario::from_toml_str(&text, "reconnect scenario").unwrap(),
+        scenario_text: text,
+        truth: imu_model::Calibration::identity(),
+        seed: 3,
+        truth_out: None,
+        link: Some(dir.join("imu0")),
+        pacing: Pacing::RealTime,
+        linger: Duration::ZERO,
+    };
+    let log = dir.join("live.stderr");
+    let name = format!("{}-reconnect-{protocol}", unique(dir));
+    let child = imud()
+        .args([
+            "--name",
+            &name,
+            "--baud",
+            "115200",
+            "--protocol",
+            protocol.name(),
+        ])
+        .arg("--device")
+        .arg(dir.join("imu0"))
+        .arg("--log-dir")
+        .arg(dir.join("live"))
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap())
+        .spawn()
+        .unwrap();
+    let mut child = Killed(child);
+    let mut status = Subscription::<DaemonStatus>::open(&name, Duration::from_secs(10)).unwrap();
+    let sim = imu_sim::spawn(opts).unwrap();
+    let first = wait_for_status(&mut status, &log, "first session", |s| {
+        s.device_connected == 1 && s.samples >= 150
+    });
+    sim.unplug(Duration::from_millis(300));
+    wait_for_status(&mut status, &log, "reconnected", |s| {
+        s.reconnects == 1 && s.device_connected == 1 && s.samples >= first.samples + 150
+    });
+    let ok = Command::new("kill")
+        .args(["-TERM", &child.0.id().to_string()])
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok);
+    assert!(
+        child.0.wait().unwrap().success(),
+        "{}",
+        std::fs::read_to_string(&log).unwrap_or_default()
+    );
+    sim.stop();
+    sim.join().unwrap();
+    recording_in(&dir.join("live"))
+}
+
+#[test]
+fn a_recording_that_spans_a_reconnect_replays_as_two_sessions_bit_for_bit() {
+    for protocol in [DeviceProtocol::Gx1, DeviceProtocol::Mip] {
+        let dir = tempfile::tempdir().unwrap();
+        let file = live_with_reconnect(dir.path(), protocol);
+        let original = read_recording(&file).unwrap();
+        let reconnects = |rec: &Recording| rec.statuses.iter().map(|(_, s)| s.reconnects).max();
+        assert_eq!(reconnects(&original), Some(1), "{protocol}");
+        assert!(
+            original.imu.len() > 300,
+            "{protocol}: {}",
+            original.imu.len()
+        );
+        let again = replay(dir.path(), &file, "again", &[]);
+        assert_eq!(again.imu.len(), original.imu.len(), "{protocol}");
+        assert!(again.imu == original.imu, "{protocol}: /imu/data differs");
+        assert!(again.raw == original.raw, "{protocol}: /imu/raw differs");
+        assert!(again.frames == original.frames, "{protocol}: frames differ");
+        // The replay had the live run's sessions: one reconnect, no samples lost across it.
+        assert_eq!(reconnects(&again), Some(1), "{protocol}");
+        let lost = |rec: &Recording| rec.statuses.last().map(|(_, s)| s.samples_lost);
+        assert_eq!(lost(&again), lost(&original), "{protocol}");
+    }
 }

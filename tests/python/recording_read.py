@@ -85,13 +85,12 @@ def convert(topic, m):
         for f in ["t_host_monotonic_ns", "frames", "samples", "checksum_failures", "resyncs",
                   "garbage_bytes", "truncated_frames", "samples_lost", "log_drops", "publish_drops",
                   "reconnects", "calibration_id", "device_connected", "logging", "gains_fallback",
-                  "health_accel", "health_gyro", "protocol",
+                  "health_accel", "health_gyro", "protocol", "configuration_unverified", "reserved",
                   "gain_scale_accel", "gain_scale_gyro", "gain_scale_mag",
                   "packets_unusable", "fields_skipped"]:
             out[f] = getattr(m, f)
         for f in ["tick_period_est_s", "clock_drift_ppm", "temp_c", "clock_offset_s", "clock_residual_s"]:
             out[f] = num(getattr(m, f))
-        out["reserved"] = list(bytes(m.reserved)) if isinstance(m.reserved, (bytes, bytearray)) else [int(x) for x in m.reserved]
         return out
     if topic == "/imud/health":
         out = {"header": stamp(m.header)}

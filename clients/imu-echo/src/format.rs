@@ -154,6 +154,7 @@ impl Echo for DaemonStatus {
         col("health_accel", "accel", 12),
         col("health_gyro", "gyro", 12),
         col("protocol", "protocol", 8),
+        col("configuration_unverified", "unverified", 10),
         col("packets_unusable", "unusable", 8),
         col("fields_skipped", "skipped", 8),
     ];
@@ -188,6 +189,7 @@ impl Echo for DaemonStatus {
             device_protocol::ROS2_INPUT => "ros2-input",
             _ => "3dm-gx1",
         }));
+        out.push(Cell::U(self.configuration_unverified.into()));
         out.push(Cell::U(self.packets_unusable));
         out.push(Cell::U(self.fields_skipped));
     }
@@ -441,5 +443,26 @@ mod tests {
         assert!(v["temp_c"].is_null(), "NaN becomes null");
         let status = render(Format::Jsonl, &[DaemonStatus::default()]);
         assert!(status.contains("\"publish_drops\":0"), "{status}");
+    }
+
+    #[test]
+    fn a_passive_units_status_says_its_configuration_was_not_verified() {
+        let passive = DaemonStatus {
+            configuration_unverified: 1,
+            ..DaemonStatus::default()
+        };
+        for (status, want) in [(passive, "1"), (DaemonStatus::default(), "0")] {
+            let csv = render(Format::Csv, &[status]);
+            let mut lines = csv.lines();
+            let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+            let row: Vec<&str> = lines.next().unwrap().split(',').collect();
+            let i = header
+                .iter()
+                .position(|&h| h == "configuration_unverified")
+                .expect("a column");
+            assert_eq!(row[i], want, "{csv}");
+            let table = render(Format::Table, &[status]);
+            assert!(table.lines().next().unwrap().contains("unverified"));
+        }
     }
 }

@@ -57,7 +57,8 @@
 //! 112 double   temp_c;             120 uint8_t  device_connected;
 //! 121 uint8_t  logging;            122 uint8_t  gains_fallback;
 //! 123 uint8_t  health_accel;       124 uint8_t  health_gyro;
-//! 125 uint8_t  protocol;           126 uint8_t  reserved[2];
+//! 125 uint8_t  protocol;           126 uint8_t  configuration_unverified;
+//! 127 uint8_t  reserved;
 //! 128 double   clock_offset_s;
 //! 136 double   clock_residual_s;   144 uint16_t gain_scale_accel;
 //! 146 uint16_t gain_scale_gyro;    148 uint16_t gain_scale_mag;
@@ -260,8 +261,14 @@ pub struct DaemonStatus {
     pub health_gyro: u8,
     /// The protocol the device speaks ([`device_protocol`]; a byte reserved in v2).
     pub protocol: u8,
+    /// 1 when the device's configuration was not verified: a passive unit
+    /// (`device.configure = false`), asked nothing, its stream taken as it is (its rate and
+    /// clock learned from the data, its scale words the configured ones). 0 when start-up
+    /// set up and read back the unit (and in every status before this field: a reserved
+    /// byte, zero, so the layout and type name are unchanged).
+    pub configuration_unverified: u8,
     /// Reserved, zero.
-    pub reserved: [u8; 2],
+    pub reserved: u8,
     /// Host monotonic time, s, at which the device's unwrapped tick count was 0, from the clock
     /// fit (a sample's time is `clock_offset_s + ticks * tick_period_est_s` plus the link's least
     /// latency; NaN until known).
@@ -517,7 +524,8 @@ mod tests {
         assert_eq!(offset_of!(DaemonStatus, health_accel), 123);
         assert_eq!(offset_of!(DaemonStatus, health_gyro), 124);
         assert_eq!(offset_of!(DaemonStatus, protocol), 125);
-        assert_eq!(offset_of!(DaemonStatus, reserved), 126);
+        assert_eq!(offset_of!(DaemonStatus, configuration_unverified), 126);
+        assert_eq!(offset_of!(DaemonStatus, reserved), 127);
         assert_eq!(offset_of!(DaemonStatus, clock_offset_s), 128);
         assert_eq!(offset_of!(DaemonStatus, clock_residual_s), 136);
         assert_eq!(offset_of!(DaemonStatus, gain_scale_accel), 144);

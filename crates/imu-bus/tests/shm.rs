@@ -95,7 +95,8 @@ fn daemon_status(n: u64) -> DaemonStatus {
         health_accel: 1,
         health_gyro: 3,
         protocol: 1,
-        reserved: [0; 2],
+        configuration_unverified: 1,
+        reserved: 0,
         clock_offset_s: -0.0,
         clock_residual_s: f64::NAN,
         gain_scale_accel: 7000,
@@ -180,10 +181,11 @@ fn status_bits(s: &DaemonStatus) -> Vec<u64> {
         s.gain_scale_gyro.into(),
         s.gain_scale_mag.into(),
         s.protocol.into(),
+        s.configuration_unverified.into(),
+        s.reserved.into(),
         s.packets_unusable,
         s.fields_skipped,
     ];
-    v.extend(s.reserved.iter().map(|&b| u64::from(b)));
     v.extend(s.reserved_end.iter().map(|&b| u64::from(b)));
     v
 }

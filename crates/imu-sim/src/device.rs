@@ -75,7 +75,8 @@ fn derive_seed(seed: u64, stream: u64) -> u64 {
 }
 
 impl DeviceCore {
-    /// A powered-on device, not streaming, for `scenario` with the `truth` error model.
+    /// A powered-on device for `scenario` with the `truth` error model: idle, or streaming
+    /// raw sensor bits in continuous mode if the scenario's device powers up streaming.
     pub fn new(scenario: Scenario, truth: Calibration, seed: u64) -> Self {
         let timeline = scenario.compile(seed);
         let rate = scenario.rate_hz;
@@ -88,6 +89,11 @@ impl DeviceCore {
                 .map(|n| NoiseGenerator::new(n, rate, derive_seed(seed, i as u64 + 1)))
         });
         let g = scenario.device.gain_scale;
+        // A unit saved in continuous mode streams raw sensor bits from power-up.
+        let streaming = scenario
+            .device
+            .power_up_streaming
+            .then_some(Command::RawSensorBits);
         let eeprom = BTreeMap::from([
             (GYRO_GAIN_SCALE_ADDR, g.gyro),
             (ACCEL_GAIN_SCALE_ADDR, g.accel),
@@ -99,7 +105,7 @@ impl DeviceCore {
             truth,
             noise,
             eeprom,
-            streaming: None,
+            streaming,
             seq: 0,
             gyro_offset_rad_s: Vector3::zeros(),
             tare_ned_from_sensor: None,

@@ -225,6 +225,10 @@ fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, Strin
         ("serial-number".into(), s.device.serial_number.to_string()),
         ("firmware".into(), s.device.firmware.to_string()),
         (
+            "power-up-streaming".into(),
+            s.device.power_up_streaming.to_string(),
+        ),
+        (
             "gain-scale-accel".into(),
             s.device.gain_scale.accel.to_string(),
         ),

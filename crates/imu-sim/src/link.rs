@@ -5,7 +5,8 @@
 //! never sees a hang-up while no host has the port open (a real device keeps talking to an
 //! unplugged cable too), and at the end of a scenario it can tell when the host has read the last
 //! byte before closing. Time runs in one of two modes:
-//! - real time: the scenario clock follows the wall clock from the first data request, samples go
+//! - real time: the scenario clock follows the wall clock from the first data request (from
+//!   power-up for a device that powers up streaming), samples go
 //!   out at the scenario rate and bytes are paced to the configured baud rate (a 3DM-GX1; a MIP
 //!   unit's USB virtual serial port is not paced);
 //! - fast: a virtual clock advances one sample period per data reply and bytes go out as fast as
@@ -478,6 +479,12 @@ impl Loop<'_> {
         // Samples leave on time to a few microseconds, not the default 50 us timer slack (best
         // effort: without it they are only later).
         let _ = nix::sys::prctl::set_timerslack(1_000);
+        if self.device.is_streaming() {
+            // Powered up streaming: the scenario clock starts now, with no host command, and
+            // the first sample follows one period later.
+            let t = self.now_s(true);
+            self.next_sample_t_s = Some(t + self.device.core().sample_period_s());
+        }
         let mut end_at: Option<Instant> = None;
         while !stop.load(Ordering::Relaxed) {
             let unplug_ms = self.options.unplug_ms.swap(0, Ordering::Relaxed);

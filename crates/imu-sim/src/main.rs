@@ -18,7 +18,8 @@ use imu_sim::{Pacing, SimOptions};
 /// The first line on stdout is the device path (e.g. /dev/pts/7); open it with imud, a serial
 /// terminal or any 3DM-GX1 driver and speak the documented protocol. The device starts idle, like
 /// a real one after power-on: the scenario clock starts at the first data request (a poll such as
-/// 0x01 or 0x07, or continuous mode 10 00 <cmd>). The program exits 0 when the scenario ends.
+/// 0x01 or 0x07, or continuous mode 10 00 <cmd>); with --power-up-streaming it streams from
+/// power-up instead. The program exits 0 when the scenario ends.
 ///
 /// The scenario (TOML, see config/scenarios/) says how the sensor moves: static positions,
 /// index-table steps, rate-table plateaus, rotations, impacts, random poses; the latitude (Earth
@@ -62,6 +63,12 @@ struct Args {
     /// `resume` (base command 0x06) starts the stream, see imu_sim::mip_device.
     #[arg(long, value_name = "PROTOCOL")]
     protocol: Option<DeviceProtocol>,
+    /// The device powers up streaming, without any command, as a unit set up and saved with the
+    /// vendor's tool: a 3DM-GX1 in continuous mode (raw sensor bits, 0x01), a MIP unit with its
+    /// IMU stream resumed; the scenario clock starts at once (scenario key
+    /// `device.power-up-streaming`).
+    #[arg(long)]
+    power_up_streaming: bool,
     /// Print the scenario's segments and duration and exit without opening a device.
     #[arg(long)]
     describe: bool,
@@ -107,6 +114,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         opts.scenario
             .set_protocol(protocol, &args.scenario.display().to_string())?;
     }
+    opts.scenario.device.power_up_streaming |= args.power_up_streaming;
     if args.describe {
         return describe(&opts);
     }

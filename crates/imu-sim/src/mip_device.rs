@@ -7,6 +7,8 @@
 //!   scaled accel (0x04), scaled gyro (0x05), scaled mag (0x06) and the reference time (0xD5),
 //!   each at decimation [`MIP_IMU_BASE_RATE_HZ`] / `rate-hz`; it streams once it is resumed (or
 //!   the stream is enabled again after `resume`). Set-to-idle stops it; resume restarts it.
+//!   With the scenario's `device.power-up-streaming` it powers up already streaming (a unit
+//!   set up and saved with the vendor's tool).
 //! - Scaled vectors are the measured values (truth model + noise) as f32 in g, rad/s and gauss;
 //!   delta theta and delta velocity are the sample's rate and acceleration times the sample
 //!   period (the device integrates nothing finer); raw fields are the GX1's nominal raw-bit
@@ -85,16 +87,18 @@ pub struct MipDevice {
 }
 
 impl MipDevice {
-    /// A powered-on unit, idle, around the physics of `core`.
+    /// A powered-on unit around the physics of `core`: idle, or streaming its default IMU
+    /// format if the scenario's device powers up streaming (saved so with the vendor's tool).
     pub fn new(core: DeviceCore) -> Self {
         let decimation = decimation_for(core.scenario().rate_hz);
+        let idle = !core.scenario().device.power_up_streaming;
         Self {
             core,
             decoder: MipDecoder::new(),
             requests: VecDeque::new(),
             format: default_format(decimation),
             stream_enabled: true,
-            idle: true,
+            idle,
             temperature: None,
         }
     }
@@ -395,6 +399,20 @@ mod tests {
         let mut replies = MipReply::decode_packet(&packet).unwrap();
         assert_eq!(replies.len(), 1);
         replies.remove(0)
+    }
+
+    #[test]
+    fn a_unit_saved_streaming_streams_from_power_up_and_idles_on_command() {
+        let text = "name = \"saved\"\nrate-hz = 100.0\n[device]\nprotocol = \"mip\"\n\
+                    power-up-streaming = true\n[[segment]]\nkind = \"static\"\nduration-s = 1.0\n";
+        let scenario = Scenario::from_toml_str(text, "saved.toml").unwrap();
+        let mut d = MipDevice::new(DeviceCore::new(scenario, Calibration::identity(), 1));
+        assert!(d.is_streaming(), "streams with no command");
+        let (packet, _) = d.data_packet(0.01);
+        let data = ImuData::decode_packet(&packet).unwrap();
+        assert!(data.accel_g.is_some() && data.reference_time_ns.is_some());
+        assert_eq!(ask(&mut d, &MipCommand::SetToIdle).code, AckCode::Ok);
+        assert!(!d.is_streaming());
     }
 
     #[test]

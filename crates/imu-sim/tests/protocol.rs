@@ -343,6 +343,51 @@ async fn startup_sequence_streaming_and_truth_agree() {
     }));
 }
 
+/// A unit set up and saved with the vendor's tool: it streams raw sensor bits from power-up,
+/// with no command from the host (`--power-up-streaming`), every frame its truth record.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_unit_powered_up_streaming_sends_raw_bits_without_any_command() {
+    let sim = start_sim(&["--fast", "--power-up-streaming"]);
+    let mut port = open(&sim.device);
+    let mut dec = ReplyDecoder::new();
+    // Read until the device falls silent (the scenario ended); nothing is ever written.
+    let mut frames = Vec::new();
+    let mut buf = vec![0u8; 1 << 16];
+    while let Ok(Ok(n)) = tokio::time::timeout(Duration::from_secs(2), port.read(&mut buf)).await {
+        if n == 0 {
+            break;
+        }
+        dec.push(&buf[..n]);
+        while let Some(ev) = dec.next_event() {
+            match ev {
+                DecodeEvent::Frame { reply, .. } => frames.push(reply),
+                DecodeEvent::Rejected { bytes, .. } => panic!("rejected {bytes:02X?}"),
+            }
+        }
+    }
+    let (stderr, sim) = sim.wait_ok();
+    assert!(stderr.contains("0 bytes in"), "{stderr}");
+    let truth = read_truth(&sim.truth_out).unwrap();
+    assert_eq!(
+        truth.run.get("power-up-streaming").map(String::as_str),
+        Some("true")
+    );
+    // The whole scenario from power-up, one sample a period: the first at one period, and
+    // samples until the scenario's end, on the device's 120 ppm fast clock.
+    let total_s = 2.0 + 4.0 * 1.0 + 3.0 * 0.5 + (0.5 + 1.0 + 1.0 + 1.0 + 0.5);
+    let expected = (total_s * 200.0 * (1.0 + 120e-6)) as usize;
+    assert!(
+        frames.len() >= expected - 1 && frames.len() <= expected + 1,
+        "{} frames, expected about {expected}",
+        frames.len()
+    );
+    assert_eq!(truth.samples.len(), frames.len(), "{stderr}");
+    for (k, (reply, t)) in frames.iter().zip(&truth.samples).enumerate() {
+        assert_eq!(t.seq, k as u64);
+        assert_raw_matches_truth(reply, t, (8500, 10000, 2000));
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn polled_mode_interleaves_temperature_and_skips_garbage() {
     let sim = start_sim(&["--fast"]);

@@ -5,10 +5,11 @@
 //! ([`Driver::handle_input`]) and the time when a deadline it asked for passed
 //! ([`Driver::handle_timeout`]), writes what it asks to send ([`Driver::poll_transmit`]) and
 //! takes its events ([`Driver::poll_event`]): every frame it decoded (with the reading or
-//! temperature it carried), the session it set up for the pipeline, the identity when start-up
-//! is done, or why start-up failed. Time is always passed in (`now`), never read, so start-up
-//! and probing are tested at CPU speed against a scripted peer (`tests.rs`), with late,
-//! corrupt, missing and out-of-order replies and no sleeps.
+//! temperature it carried, written in the caller's [`FrameSlot`]), the session it set up for
+//! the pipeline, the identity when start-up is done, or why start-up failed. Time is always
+//! passed in (`now`), never read, so start-up and probing are tested at CPU speed against a
+//! scripted peer (`tests.rs`), with late, corrupt, missing and out-of-order replies and no
+//! sleeps.
 //!
 //! Only code under `drivers/` names a protocol. A protocol's folder holds its start-up state
 //! machine (`startup.rs`), its frames as readings (`reading.rs`), its driver (`mod.rs`), its
@@ -33,6 +34,7 @@ use imu_proto::DeviceProtocol;
 use imu_proto::decoder::{DecoderStats, RejectReason};
 
 use crate::config::{Config, DeviceConfig};
+pub use crate::pipeline::FrameSlot;
 use crate::pipeline::{FrameContent, Gains, SessionSpec};
 
 /// Tries of one exchange before it counts as failed.
@@ -83,13 +85,9 @@ impl DeviceIdentity {
 /// What a driver has for the session.
 #[derive(Debug)]
 pub enum DriverEvent {
-    /// A good frame: logged once; its reading and temperature (if any) go through the pipeline.
-    Frame {
-        /// The frame's bytes and stream offset.
-        frame: SampleFrame,
-        /// What it carried (nothing while it is only logged: the start-up's replies).
-        content: FrameContent,
-    },
+    /// A good frame, in the [`FrameSlot`] passed to [`Driver::poll_event`]: logged once; its
+    /// reading and temperature (if any) go through the pipeline.
+    Frame,
     /// Bytes that are not (part of) a good frame.
     Rejected {
         /// The bytes.
@@ -110,6 +108,31 @@ pub enum DriverEvent {
     Failed(anyhow::Error),
 }
 
+/// An event a driver holds back until it is polled, with its frame if it is one (handed over
+/// in the caller's slot then). Only start-up and a passive unit's first packet hold frames
+/// back; a frame on the per-frame path goes straight into the slot.
+#[derive(Debug)]
+pub(crate) enum Held {
+    /// A good frame and what it carried.
+    Frame(SampleFrame, FrameContent),
+    /// Any other event.
+    Event(DriverEvent),
+}
+
+impl Held {
+    /// The event, its frame (if any) put into `slot`.
+    pub(crate) fn hand_over(self, slot: &mut FrameSlot) -> DriverEvent {
+        match self {
+            Held::Frame(frame, content) => {
+                slot.frame = frame;
+                slot.content = content;
+                DriverEvent::Frame
+            }
+            Held::Event(e) => e,
+        }
+    }
+}
+
 /// One protocol's device, sans IO (see the module docs).
 pub trait Driver {
     /// Starts (again, after a reconnect) the start-up sequence at `now`. The decoder is kept,
@@ -117,15 +140,18 @@ pub trait Driver {
     fn start(&mut self, now: Instant);
     /// Bytes read from the device at `now`.
     fn handle_input(&mut self, bytes: &[u8], now: Instant);
-    /// The next event, if any.
-    fn poll_event(&mut self) -> Option<DriverEvent>;
+    /// The next event, if any; a [`DriverEvent::Frame`]'s frame and content are in `slot`
+    /// (overwritten by each frame).
+    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent>;
     /// Appends the next bytes to write to `out`; false when there are none.
     fn poll_transmit(&mut self, out: &mut Vec<u8>) -> bool;
     /// When [`Driver::handle_timeout`] is next due.
     fn poll_timeout(&self) -> Option<Instant>;
     /// A deadline passed; `now` is the time.
     fn handle_timeout(&mut self, now: Instant);
-    /// Ends any partial frame (the line closed): it is rejected as truncated.
+    /// The line closed: ends any partial frame (it is rejected as truncated) and the session,
+    /// so frames decoded before the next [`Driver::start`] are logged only, as a start-up's
+    /// are (a replay hands a new session's start-up bytes over before it starts the driver).
     fn flush(&mut self);
     /// What leaves the device idle on shutdown, if anything.
     fn stop_bytes(&self) -> Option<Vec<u8>>;
@@ -148,7 +174,7 @@ pub struct Device {
     protocol: DeviceProtocol,
     probe: Option<probe::Probe>,
     /// Events queued by the device itself (the probe's bytes, logged as frames only).
-    queued: VecDeque<DriverEvent>,
+    queued: VecDeque<Held>,
 }
 
 impl Device {
@@ -207,13 +233,13 @@ impl Device {
         let driver = self.driver();
         driver.handle_input(heard, now);
         let mut logged = VecDeque::new();
-        while let Some(ev) = driver.poll_event() {
+        let mut slot = FrameSlot::default();
+        while let Some(ev) = driver.poll_event(&mut slot) {
             logged.push_back(match ev {
-                DriverEvent::Frame { frame, .. } => DriverEvent::Frame {
-                    frame,
-                    content: FrameContent::default(),
-                },
-                other => other,
+                DriverEvent::Frame => {
+                    Held::Frame(std::mem::take(&mut slot.frame), FrameContent::default())
+                }
+                other => Held::Event(other),
             });
         }
         driver.start(now);
@@ -241,9 +267,9 @@ impl Driver for Device {
         }
     }
 
-    fn poll_event(&mut self) -> Option<DriverEvent> {
-        if let Some(ev) = self.queued.pop_front() {
-            return Some(ev);
+    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
+        if let Some(held) = self.queued.pop_front() {
+            return Some(held.hand_over(slot));
         }
         if let Some(p) = &mut self.probe {
             let now = p.now();
@@ -251,7 +277,7 @@ impl Driver for Device {
                 Ok((protocol, heard)) => {
                     self.probe = None;
                     self.probed(protocol, &heard, now);
-                    self.poll_event()
+                    self.poll_event(slot)
                 }
                 Err(e) => {
                     self.probe = None;
@@ -259,7 +285,7 @@ impl Driver for Device {
                 }
             };
         }
-        self.driver().poll_event()
+        self.driver().poll_event(slot)
     }
 
     fn poll_transmit(&mut self, out: &mut Vec<u8>) -> bool {

@@ -10,7 +10,7 @@ use imu_proto::DeviceProtocol;
 use imu_sim::virtual_device::Request;
 use imu_sim::{DeviceCore, Scenario, VirtualDevice};
 
-use super::{DeviceIdentity, Driver, DriverEvent};
+use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot};
 use crate::pipeline::{DeviceReading, Pipeline, SessionSpec, Sinks, log_rejected};
 
 const SCENARIO: &str = include_str!("../../../config/scenarios/demo.toml");
@@ -58,21 +58,35 @@ pub struct Peer {
 }
 
 impl Peer {
-    /// A device speaking `protocol` that follows `script`; `streaming` powers it up
-    /// streaming (a GX1 in continuous mode).
+    /// A device speaking `protocol` that follows `script`, powered up idle at `origin`.
     pub fn new(protocol: DeviceProtocol, script: Script, origin: Instant) -> Self {
+        Self::powered_up(protocol, script, false, origin)
+    }
+
+    /// The same, powered up at `origin` idle or, with `streaming`, streaming with no command
+    /// (the simulator's `device.power-up-streaming`: a GX1 saved in continuous mode, a MIP
+    /// unit saved resumed).
+    fn powered_up(
+        protocol: DeviceProtocol,
+        script: Script,
+        streaming: bool,
+        origin: Instant,
+    ) -> Self {
         let mut scenario = Scenario::from_toml_str(SCENARIO, "demo").expect("demo scenario");
+        scenario.device.power_up_streaming = streaming;
         scenario.set_protocol(protocol, "test").expect("protocol");
         let truth = imu_model::Calibration::from_toml_str(TRUTH, "truth").expect("truth model");
         let core = DeviceCore::new(scenario, truth, 7);
         let period = Duration::from_secs_f64(core.sample_period_s());
+        let device = VirtualDevice::new(protocol, core);
+        let stream = device.is_streaming().then_some((origin, 0));
         Self {
-            device: VirtualDevice::new(protocol, core),
+            device,
             script,
             answers: 0,
             held: None,
             in_flight: Vec::new(),
-            stream: None,
+            stream,
             period,
             origin,
             requests: Vec::new(),
@@ -86,14 +100,10 @@ impl Peer {
         Self::new(protocol, Box::new(|_, _| Fate::Deliver), origin)
     }
 
-    /// Makes the device stream from `now` (as if it powered up so): `cmd` a GX1 data command
-    /// sent to it in continuous mode, or a MIP unit resumed.
-    pub fn start_streaming(&mut self, bytes: &[u8], now: Instant) {
-        self.device.push(bytes);
-        while let Some(Ok(r)) = self.device.next_request() {
-            let _ = self.device.handle(r, self.t_s(now));
-        }
-        self.stream = self.device.is_streaming().then_some((now, 0));
+    /// A well-behaved device that powered up streaming at `origin`, as one set up and saved
+    /// with the vendor's tool.
+    pub fn streaming(protocol: DeviceProtocol, origin: Instant) -> Self {
+        Self::powered_up(protocol, Box::new(|_, _| Fate::Deliver), true, origin)
     }
 
     fn t_s(&self, now: Instant) -> f64 {
@@ -256,14 +266,15 @@ impl<D: Driver> Harness<D> {
 
     fn take_events(&mut self) {
         let t_ns = self.host_ns();
-        while let Some(ev) = self.driver.poll_event() {
+        let mut slot = FrameSlot::default();
+        while let Some(ev) = self.driver.poll_event(&mut slot) {
             match ev {
-                DriverEvent::Frame { frame, content } => {
+                DriverEvent::Frame => {
                     self.seen.frames += 1;
-                    self.seen.readings.extend(content.reading);
-                    self.seen.temperatures += u64::from(content.temperature.is_some());
+                    self.seen.readings.extend(slot.content.reading);
+                    self.seen.temperatures += u64::from(slot.content.temperature.is_some());
                     self.pipeline
-                        .on_frame(frame, &content, t_ns, t_ns, &mut self.sinks);
+                        .on_frame(&mut slot, t_ns, t_ns, &mut self.sinks);
                 }
                 DriverEvent::Rejected {
                     bytes,

@@ -11,7 +11,14 @@ use imu_sim::virtual_device::Request;
 use super::scripted::{Fate, Harness, Peer};
 use super::*;
 use crate::config::AcquisitionMode;
-use crate::pipeline::Acquisition;
+use crate::pipeline::{Acquisition, Sinks};
+
+/// The status's `configuration_unverified` byte as the harness's pipeline would publish it.
+fn configuration_unverified(h: &Harness<Device>) -> u8 {
+    h.pipeline
+        .status(&h.driver.stats(), &Sinks::default(), 0, true, 0)
+        .configuration_unverified
+}
 
 fn probing(mode: AcquisitionMode, peer: impl FnOnce(Instant) -> Peer) -> Harness<Device> {
     let mut config = Config::default();
@@ -26,15 +33,7 @@ fn probing(mode: AcquisitionMode, peer: impl FnOnce(Instant) -> Peer) -> Harness
 #[test]
 fn a_streaming_gx1_is_recognised_without_a_command() {
     let mut h = probing(AcquisitionMode::Continuous, |o| {
-        let mut p = Peer::clean(DeviceProtocol::Gx1, o);
-        p.start_streaming(
-            &Command::SetContinuous {
-                command: Command::RawSensorBits.code(),
-            }
-            .to_bytes(),
-            o,
-        );
-        p
+        Peer::streaming(DeviceProtocol::Gx1, o)
     });
     h.start_up();
     assert!(h.seen.ready.is_some(), "{:?}", h.seen.failed);
@@ -56,6 +55,7 @@ fn an_idle_gx1_answers_the_firmware_query() {
     h.start_up();
     assert_eq!(h.seen.ready.as_ref().map(|i| i.protocol), Some("3dm-gx1"));
     assert_eq!(h.written[0].1, Command::FirmwareVersion.to_bytes());
+    assert_eq!(configuration_unverified(&h), 0);
     // It listened first.
     assert_eq!(h.written[0].0 - h.origin, probe::LISTEN);
 }
@@ -109,6 +109,8 @@ fn a_probed_mip_unit_configured_polled_reports_its_measured_rate() {
     let rate = h.pipeline.sample_rate_hz().expect("measured after 2 s");
     assert!((rate - 100.0).abs() < 0.5, "{rate} Hz (poll rate 40)");
     assert_eq!(h.pipeline.counters().samples_lost, 0);
+    // Set up and read back: verified.
+    assert_eq!(configuration_unverified(&h), 0);
 }
 
 fn passive(
@@ -124,16 +126,7 @@ fn passive(
 
 /// A unit that powered up streaming: a GX1 in continuous mode, a MIP unit resumed.
 fn streaming_peer(protocol: DeviceProtocol, origin: Instant) -> Peer {
-    let mut p = Peer::clean(protocol, origin);
-    let start = match protocol {
-        DeviceProtocol::Gx1 => Command::SetContinuous {
-            command: Command::RawSensorBits.code(),
-        }
-        .to_bytes(),
-        DeviceProtocol::Mip => MipCommand::Resume.to_packet().as_bytes().to_vec(),
-    };
-    p.start_streaming(&start, origin);
-    p
+    Peer::streaming(protocol, origin)
 }
 
 fn detail<'a>(id: &'a DeviceIdentity, key: &str) -> Option<&'a str> {
@@ -173,6 +166,8 @@ fn a_passive_streaming_unit_is_published_sample_for_sample_and_never_sent_a_byte
         let rate = h.pipeline.sample_rate_hz().expect("measured");
         assert!((rate - 100.0).abs() < 1.0, "{what}: {rate}");
         assert_eq!(h.pipeline.session().acquisition, Acquisition::Streaming);
+        // Asked nothing: the status says so.
+        assert_eq!(configuration_unverified(&h), 1, "{what}");
     }
 }
 
@@ -256,9 +251,10 @@ fn a_passive_seven_series_stream_interleaving_filter_and_system_sets() {
     let mut p = crate::pipeline::Pipeline::new(d.initial_session(), None);
     let mut sinks = crate::pipeline::Sinks::default();
     let mut ready = false;
-    while let Some(ev) = d.poll_event() {
+    let mut slot = FrameSlot::default();
+    while let Some(ev) = d.poll_event(&mut slot) {
         match ev {
-            DriverEvent::Frame { frame, content } => p.on_frame(frame, &content, 1, 1, &mut sinks),
+            DriverEvent::Frame => p.on_frame(&mut slot, 1, 1, &mut sinks),
             DriverEvent::Session(s) => p.new_session(s),
             DriverEvent::Ready => ready = true,
             DriverEvent::Identified(_) => {}

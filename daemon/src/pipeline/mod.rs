@@ -38,7 +38,7 @@ use crate::health::HealthMonitor;
 use loss::GapAccounting;
 pub use loss::TickKind;
 pub use reading::{
-    Acquisition, Counts, DeviceReading, FrameContent, GainFallback, Gains, SessionSpec,
+    Acquisition, Counts, DeviceReading, FrameContent, FrameSlot, GainFallback, Gains, SessionSpec,
     TemperatureCadence, TickLength, Timebase,
 };
 pub use sinks::{ActiveCalibration, Sinks};
@@ -241,18 +241,22 @@ impl Pipeline {
         &self.clock
     }
 
-    /// Handles one good frame from the device received at the given host times: it is logged
-    /// once (with its sample, if it makes one), its temperature kept and recorded, its reading
-    /// through the shared steps.
+    /// Handles one good frame from the device (in the driver's `slot`) received at the given
+    /// host times: it is logged once (with its sample, if it makes one), its temperature kept
+    /// and recorded, its reading through the shared steps. The slot's frame is taken only if a
+    /// sink logs it.
     pub fn on_frame(
         &mut self,
-        frame: SampleFrame,
-        content: &FrameContent,
+        slot: &mut FrameSlot,
         t_mono_ns: u64,
         t_wall_ns: u64,
         sinks: &mut Sinks,
     ) {
-        self.hold_frame(frame);
+        self.counters.frames += 1;
+        if sinks.logs() {
+            self.hold_frame(std::mem::take(&mut slot.frame));
+        }
+        let content = &slot.content;
         self.counters.fields_skipped += u64::from(content.fields_skipped);
         if let Some((temp_c, cadence)) = content.temperature {
             self.temp_c = temp_c;
@@ -292,16 +296,16 @@ impl Pipeline {
     /// Logs one good frame and counts it, without making a sample of it (the start-up's and the
     /// probe's bytes).
     pub fn log_frame(&mut self, frame: SampleFrame, t_mono_ns: u64, t_wall_ns: u64, sinks: &Sinks) {
+        self.counters.frames += 1;
         self.hold_frame(frame);
         self.flush_frame(t_mono_ns, t_wall_ns, sinks);
     }
 
-    /// Counts one good frame and keeps it for the sample it may make (logged with it, as one
-    /// record). Every event that holds a frame flushes it before it returns, so none is held
-    /// from an earlier event.
+    /// Keeps a good frame for the sample it may make (logged with it, as one record). Every
+    /// event that holds a frame flushes it before it returns, so none is held from an earlier
+    /// event.
     fn hold_frame(&mut self, frame: SampleFrame) {
         debug_assert!(self.pending_frame.is_none(), "a frame held past its event");
-        self.counters.frames += 1;
         self.pending_frame = Some(frame);
     }
 
@@ -523,11 +527,15 @@ impl Pipeline {
             r.send(&raw);
             r.send(&corrected);
         }
-        sinks.log(LogRecord::Sample {
-            frame: self.pending_frame.take(),
-            raw,
-            corrected,
-        });
+        // The record is built only for a sink that takes it: it is the largest thing the
+        // per-frame path moves.
+        if sinks.logs() {
+            sinks.log(LogRecord::Sample {
+                frame: self.pending_frame.take(),
+                raw,
+                corrected,
+            });
+        }
     }
 
     /// Builds the status record from the pipeline's, the decoder's and the sinks' counters.
@@ -572,7 +580,8 @@ impl Pipeline {
             health_accel: health_accel.code(),
             health_gyro: health_gyro.code(),
             protocol: self.session.status_protocol,
-            reserved: [0; 2],
+            configuration_unverified: u8::from(!self.session.configuration_verified),
+            reserved: 0,
             clock_offset_s: self.clock.offset_s().unwrap_or(f64::NAN),
             clock_residual_s: self.clock.residual_s().unwrap_or(f64::NAN),
             gain_scale_accel: self.session.gains.accel,

@@ -2,6 +2,7 @@
 //! frame, and per session a [`SessionSpec`] (its clock, its acquisition, the device's scale words
 //! if it has any). Nothing here knows a protocol: the drivers (`crate::drivers`) fill these in.
 
+use imu_bus::recording::SampleFrame;
 use imu_model::Measured;
 
 use super::loss::TickKind;
@@ -189,6 +190,9 @@ pub struct SessionSpec {
     pub acquisition: Acquisition,
     /// The status's `protocol` byte (`imu_bus::sample::device_protocol`).
     pub status_protocol: u8,
+    /// Start-up set up and read back the device; false for a passive unit (asked nothing,
+    /// its stream taken as it is), which the status says (`configuration_unverified`).
+    pub configuration_verified: bool,
 }
 
 /// What one good frame from the device carried, beyond its bytes.
@@ -202,4 +206,27 @@ pub struct FrameContent {
     pub unusable: bool,
     /// Data fields the codec skipped (unknown descriptors, unexpected sizes).
     pub fields_skipped: u32,
+}
+
+/// Where a driver puts each good frame it decodes: owned by whoever runs the driver and reused
+/// frame after frame, so the frame's bytes and what it carried are written in place once and
+/// read by the pipeline in place, not moved through every event on the way (a frame with its
+/// reading is some 300 bytes; moving it from driver to pipeline three times cost a quarter of
+/// the decode stage).
+#[derive(Debug, Clone, Default)]
+pub struct FrameSlot {
+    /// The frame's bytes and stream offset.
+    pub frame: SampleFrame,
+    /// What it carried (nothing while it is only logged: the start-up's replies).
+    pub content: FrameContent,
+}
+
+impl FrameSlot {
+    /// Puts a frame of `bytes` at stream `offset` in the slot (no allocation: a frame fits the
+    /// slot's inline buffer); its content is set apart, in place.
+    pub fn set_frame(&mut self, bytes: &[u8], offset: u64) {
+        self.frame.stream_offset = offset;
+        self.frame.bytes.clear();
+        self.frame.bytes.extend_from_slice(bytes);
+    }
 }

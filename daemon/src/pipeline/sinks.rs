@@ -75,6 +75,11 @@ impl Sinks {
         });
     }
 
+    /// True if anything logs records (the recorder, ROS 2).
+    pub(crate) fn logs(&self) -> bool {
+        self.recorder.is_some() || self.ros2.is_some()
+    }
+
     pub(crate) fn log(&self, record: LogRecord) {
         if let Some(d) = &self.ros2 {
             d.offer(&record);

@@ -129,6 +129,10 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
         kv("logging", s.logging.to_string()),
         kv("gains_fallback", s.gains_fallback.to_string()),
         kv(
+            "configuration_unverified",
+            s.configuration_unverified.to_string(),
+        ),
+        kv(
             "health_accel",
             imu_bus::sample::health_state::name(s.health_accel).into(),
         ),
@@ -199,14 +203,9 @@ mod tests {
         let mut p = Pipeline::new(gx1::session(&device, gains), None);
         for (k, reply) in replies.iter().enumerate() {
             driver.handle_input(&reply.to_bytes(), std::time::Instant::now());
-            while let Some(DriverEvent::Frame { frame, content }) = driver.poll_event() {
-                p.on_frame(
-                    frame,
-                    &content,
-                    k as u64 * 1_000,
-                    k as u64 * 2_000,
-                    &mut sinks,
-                );
+            let mut slot = crate::drivers::FrameSlot::default();
+            while let Some(DriverEvent::Frame) = driver.poll_event(&mut slot) {
+                p.on_frame(&mut slot, k as u64 * 1_000, k as u64 * 2_000, &mut sinks);
             }
         }
         let stats = sinks.recorder.take().unwrap().finish().unwrap();

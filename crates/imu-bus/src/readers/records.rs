@@ -237,10 +237,11 @@ impl WireRecord for DaemonStatus {
             self.health_accel,
             self.health_gyro,
             self.protocol,
+            self.configuration_unverified,
+            self.reserved,
         ] {
             p.u8(v);
         }
-        p.bytes(&self.reserved);
         p.f64(self.clock_offset_s);
         p.f64(self.clock_residual_s);
         p.u16(self.gain_scale_accel);
@@ -275,7 +276,8 @@ impl WireRecord for DaemonStatus {
             health_accel: g.u8(),
             health_gyro: g.u8(),
             protocol: g.u8(),
-            reserved: g.array(),
+            configuration_unverified: g.u8(),
+            reserved: g.u8(),
             clock_offset_s: g.f64(),
             clock_residual_s: g.f64(),
             gain_scale_accel: g.u16(),

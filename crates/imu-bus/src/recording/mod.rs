@@ -116,7 +116,7 @@ pub type FrameData = smallvec::SmallVec<[u8; FRAME_INLINE_BYTES]>;
 
 /// The accepted frame a [`LogRecord::Sample`] was decoded from; its host times are the raw
 /// sample's (`t_host_wall_ns`, `t_host_monotonic_ns`: the read that completed it).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct SampleFrame {
     /// Offset of the frame's first byte in the device byte stream.
     pub stream_offset: u64,

@@ -218,7 +218,8 @@ uint8 gains_fallback          # GainScales that are configured fallbacks: 1 acce
 uint8 health_accel            # live calibration health: 0 unknown, 1 ok, 2 degraded, 3 stale, 4 uncalibrated
 uint8 health_gyro
 uint8 protocol                # 0 3dm-gx1, 1 mip (recordings before this field: 0)
-uint8[2] reserved
+uint8 configuration_unverified # 1: passive unit, asked nothing (recordings before this field: 0)
+uint8 reserved
 float64 clock_offset_s        # host monotonic s at device tick 0, from the clock fit; NaN until known
 float64 clock_residual_s      # RMS residual of the clock fit, s; NaN until known
 uint16 gain_scale_accel       # GainScales in force

@@ -427,7 +427,8 @@ impl RosMessage for DaemonStatusMsg {
         w.u8(s.health_accel);
         w.u8(s.health_gyro);
         w.u8(s.protocol);
-        w.u8_array(&s.reserved);
+        w.u8(s.configuration_unverified);
+        w.u8(s.reserved);
         w.f64(s.clock_offset_s);
         w.f64(s.clock_residual_s);
         w.u16(s.gain_scale_accel);
@@ -463,7 +464,8 @@ impl RosMessage for DaemonStatusMsg {
                 health_accel: r.u8("health_accel")?,
                 health_gyro: r.u8("health_gyro")?,
                 protocol: r.u8("protocol")?,
-                reserved: r.u8_array("reserved")?,
+                configuration_unverified: r.u8("configuration_unverified")?,
+                reserved: r.u8("reserved")?,
                 clock_offset_s: r.f64("clock_offset_s")?,
                 clock_residual_s: r.f64("clock_residual_s")?,
                 gain_scale_accel: r.u16("gain_scale_accel")?,

@@ -198,6 +198,11 @@ pub struct DeviceSpec {
     pub eeprom_read_fails: bool,
     /// How long "capture gyro bias" (0x06) takes before it answers, seconds (real-time mode).
     pub capture_bias_s: f64,
+    /// The unit powers up streaming, without any command: set up once with the vendor's tool
+    /// and saved (a 3DM-GX1 in continuous mode sending raw sensor bits 0x01, a MIP unit with
+    /// its IMU stream resumed). The scenario clock starts at power-up (`imu-sim
+    /// --power-up-streaming` sets it too).
+    pub power_up_streaming: bool,
 }
 
 impl Default for DeviceSpec {
@@ -213,6 +218,7 @@ impl Default for DeviceSpec {
             baud: 38_400,
             eeprom_read_fails: false,
             capture_bias_s: 3.0,
+            power_up_streaming: false,
         }
     }
 }

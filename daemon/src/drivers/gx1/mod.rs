@@ -16,7 +16,6 @@ use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use imu_bus::recording::{FrameData, SampleFrame};
 use imu_bus::sample::device_protocol;
 use imu_proto::command::Command;
 use imu_proto::decoder::{DecodeEvent, DecoderStats, ReplyDecoder};
@@ -28,7 +27,7 @@ use tracing::info;
 pub use startup::plausible_gain_scale;
 use startup::{Out, Outcome, Startup};
 
-use super::{DeviceIdentity, Driver, DriverEvent, fallback_gains};
+use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot, fallback_gains};
 use crate::config::{AcquisitionMode, DeviceConfig, SampleCommand};
 use crate::pipeline::{
     Acquisition, FrameContent, Gains, SessionSpec, TemperatureCadence, TickKind, TickLength,
@@ -64,6 +63,8 @@ pub fn session(config: &DeviceConfig, gains: Gains) -> SessionSpec {
             },
         },
         status_protocol: device_protocol::GX1,
+        // A passive unit is asked nothing; otherwise start-up reads the gains back.
+        configuration_verified: config.configure,
     }
 }
 
@@ -251,6 +252,9 @@ impl Gx1Driver {
     }
 
     /// What a good reply carries: a temperature, or (once the session is set) a reading.
+    /// Inlined into `poll_event`, so the content is built where it goes, in the caller's slot,
+    /// rather than on the stack and copied there.
+    #[inline(always)]
     fn content(&mut self, reply: &Reply) -> FrameContent {
         if let Reply::Temperature { raw, .. } = *reply {
             return FrameContent {
@@ -312,7 +316,8 @@ impl Driver for Gx1Driver {
         self.decoder.push(bytes);
     }
 
-    fn poll_event(&mut self) -> Option<DriverEvent> {
+    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
+        // Start-up's events (no frames among them) go before the frames decoded after it.
         if let Some(ev) = self.events.pop_front() {
             return Some(ev);
         }
@@ -322,19 +327,15 @@ impl Driver for Gx1Driver {
                 bytes,
                 offset,
             } => {
-                let content = self.content(&reply);
+                // Written in place: the content is most of a frame's bytes on this path.
+                slot.content = self.content(&reply);
                 if let Some(s) = &mut self.startup {
                     let outcome = s.on_reply(&reply, self.now, &mut self.out);
                     self.on_outcome(outcome);
                     self.flush_if_asked();
                 }
-                DriverEvent::Frame {
-                    frame: SampleFrame {
-                        stream_offset: offset,
-                        bytes: FrameData::from_slice(&bytes),
-                    },
-                    content,
-                }
+                slot.set_frame(&bytes, offset);
+                DriverEvent::Frame
             }
             DecodeEvent::Rejected {
                 bytes,
@@ -395,6 +396,9 @@ impl Driver for Gx1Driver {
 
     fn flush(&mut self) {
         self.decoder.flush();
+        // No readings until the next start sets the gains again.
+        self.session_gains = None;
+        self.polling = None;
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {

@@ -59,6 +59,7 @@ pub fn saturated(c: &Counts) -> bool {
 }
 
 /// Physical units with the GainScales in force.
+#[inline]
 pub fn to_units(c: &Counts, g: Gains) -> Measured {
     let unit = |v: i32, gain: u16| {
         if c.scaled {
@@ -75,6 +76,7 @@ pub fn to_units(c: &Counts, g: Gains) -> Measured {
 }
 
 /// The reading of a data reply whose 16-bit timer unwrapped to `ticks_unwrapped`.
+#[inline]
 pub fn reading(reply: &Reply, counts: Counts, ticks_unwrapped: u64, gains: Gains) -> DeviceReading {
     DeviceReading {
         ticks_unwrapped,

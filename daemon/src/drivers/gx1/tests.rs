@@ -213,15 +213,7 @@ fn a_lost_stream_acknowledgement_is_proven_by_samples() {
 #[test]
 fn a_unit_found_streaming_is_stopped_first() {
     let mut h = harness(AcquisitionMode::Continuous, |o| {
-        let mut p = Peer::clean(DeviceProtocol::Gx1, o);
-        p.start_streaming(
-            &Command::SetContinuous {
-                command: Command::RawSensorBits.code(),
-            }
-            .to_bytes(),
-            o,
-        );
-        p
+        Peer::streaming(DeviceProtocol::Gx1, o)
     });
     h.start_up();
     assert!(h.seen.ready.is_some(), "{:?}", h.seen.failed);
@@ -280,9 +272,10 @@ fn streaming(mode: AcquisitionMode, fallback: GainFallback) -> (Gx1Driver, Pipel
 /// Feeds `bytes` to `driver` and every event to `pipeline` at host time `t_ns`.
 fn feed(driver: &mut Gx1Driver, p: &mut Pipeline, bytes: &[u8], t_ns: u64, sinks: &mut Sinks) {
     driver.handle_input(bytes, Instant::now());
-    while let Some(ev) = driver.poll_event() {
+    let mut slot = FrameSlot::default();
+    while let Some(ev) = driver.poll_event(&mut slot) {
         match ev {
-            DriverEvent::Frame { frame, content } => p.on_frame(frame, &content, t_ns, t_ns, sinks),
+            DriverEvent::Frame => p.on_frame(&mut slot, t_ns, t_ns, sinks),
             DriverEvent::Rejected {
                 bytes,
                 offset,

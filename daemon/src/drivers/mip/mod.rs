@@ -28,25 +28,37 @@ pub use reading::MipTimebase;
 pub use startup::preferred_mip_format;
 use startup::{Configured, Outcome, Startup};
 
-use super::{DeviceIdentity, Driver, DriverEvent};
+use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot, Held};
 use crate::config::{AcquisitionMode, DeviceConfig};
 use crate::pipeline::{Acquisition, FrameContent, Gains, SessionSpec};
 
-/// The session of a unit streaming on `timebase`'s clock. It streams whatever mode the
-/// configuration names: its samples are paced by the unit, so losses are counted and the
-/// data rate is measured.
+/// The session of a unit streaming on `timebase`'s clock, set up by start-up. It streams
+/// whatever mode the configuration names: its samples are paced by the unit, so losses are
+/// counted and the data rate is measured.
 pub fn session(timebase: MipTimebase) -> SessionSpec {
     SessionSpec {
         gains: Gains::NOT_APPLICABLE,
         timebase: timebase.timebase(),
         acquisition: Acquisition::Streaming,
         status_protocol: device_protocol::MIP,
+        configuration_verified: true,
+    }
+}
+
+/// The session of a passive unit streaming on `timebase`'s clock: asked nothing.
+pub fn passive_session(timebase: MipTimebase) -> SessionSpec {
+    SessionSpec {
+        configuration_verified: false,
+        ..session(timebase)
     }
 }
 
 /// The pipeline's session before a unit answered.
-pub fn initial_session(_config: &DeviceConfig) -> SessionSpec {
-    session(MipTimebase::ReferenceTime)
+pub fn initial_session(config: &DeviceConfig) -> SessionSpec {
+    SessionSpec {
+        configuration_verified: config.configure,
+        ..session(MipTimebase::ReferenceTime)
+    }
 }
 
 /// What is wrong with `config` for a MIP unit, if anything: (the dotted key, the message).
@@ -70,7 +82,7 @@ pub struct MipDriver {
     startup: Option<Startup>,
     /// Passive: listening for the first usable IMU packet until this time.
     learning: Option<Instant>,
-    events: VecDeque<DriverEvent>,
+    events: VecDeque<Held>,
     now: Instant,
 }
 
@@ -88,6 +100,11 @@ impl MipDriver {
             events: VecDeque::new(),
             now: Instant::now(),
         }
+    }
+
+    /// Queues an event for the session.
+    fn push(&mut self, ev: DriverEvent) {
+        self.events.push_back(Held::Event(ev));
     }
 
     /// Packets of data sets other than the IMU's, by descriptor set.
@@ -139,23 +156,21 @@ impl MipDriver {
                 ", no temperature"
             },
         );
-        self.events
-            .push_back(DriverEvent::Session(session(timebase)));
+        self.push(DriverEvent::Session(passive_session(timebase)));
         let not_asked = "not asked (passive)".to_string();
-        self.events
-            .push_back(DriverEvent::Identified(Box::new(DeviceIdentity {
-                protocol: imu_proto::DeviceProtocol::Mip.name(),
-                model: not_asked.clone(),
-                firmware: not_asked.clone(),
-                serial: not_asked,
-                details: vec![
-                    ("clock".into(), timebase.name().into()),
-                    ("magnetometer".into(), data.mag_gauss.is_some().to_string()),
-                    ("temperature".into(), data.temperature.is_some().to_string()),
-                    ("configuration-verified".into(), "false".into()),
-                ],
-            })));
-        self.events.push_back(DriverEvent::Ready);
+        self.push(DriverEvent::Identified(Box::new(DeviceIdentity {
+            protocol: imu_proto::DeviceProtocol::Mip.name(),
+            model: not_asked.clone(),
+            firmware: not_asked.clone(),
+            serial: not_asked,
+            details: vec![
+                ("clock".into(), timebase.name().into()),
+                ("magnetometer".into(), data.mag_gauss.is_some().to_string()),
+                ("temperature".into(), data.temperature.is_some().to_string()),
+                ("configuration-verified".into(), "false".into()),
+            ],
+        })));
+        self.push(DriverEvent::Ready);
         true
     }
 
@@ -164,20 +179,18 @@ impl MipDriver {
             None => {}
             Some(Outcome::Configured(c)) => {
                 self.readings.restart(c.choice.timebase);
-                self.events
-                    .push_back(DriverEvent::Session(session(c.choice.timebase)));
+                self.push(DriverEvent::Session(session(c.choice.timebase)));
                 let identity = self.identity_of(&c);
-                self.events
-                    .push_back(DriverEvent::Identified(Box::new(identity)));
+                self.push(DriverEvent::Identified(Box::new(identity)));
             }
             Some(Outcome::Done) => {
                 self.startup = None;
                 self.streaming = true;
-                self.events.push_back(DriverEvent::Ready);
+                self.push(DriverEvent::Ready);
             }
             Some(Outcome::Failed(e)) => {
                 self.startup = None;
-                self.events.push_back(DriverEvent::Failed(e));
+                self.push(DriverEvent::Failed(e));
             }
         }
     }
@@ -248,16 +261,17 @@ impl Driver for MipDriver {
         self.decoder.push(bytes);
     }
 
-    fn poll_event(&mut self) -> Option<DriverEvent> {
-        if let Some(ev) = self.events.pop_front() {
-            return Some(ev);
+    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
+        if let Some(held) = self.events.pop_front() {
+            return Some(held.hand_over(slot));
         }
         Some(match self.decoder.next_event()? {
             MipEvent::Packet { packet, offset } => {
                 // Passive: the first usable packet sets the session, which goes out before it.
                 let learned = self.learning.is_some() && self.learn(&packet);
                 // The start-up's packets are logged only: no samples before the unit resumed.
-                let content = if self.streaming {
+                // Written in place: the content is most of a frame's bytes on this path.
+                slot.content = if self.streaming {
                     self.readings.content(&packet)
                 } else {
                     FrameContent::default()
@@ -266,18 +280,18 @@ impl Driver for MipDriver {
                     let outcome = s.on_packet(&packet, self.now);
                     self.on_outcome(outcome);
                 }
-                let frame = DriverEvent::Frame {
-                    frame: SampleFrame {
+                if learned {
+                    // The session (queued by `learn`) goes out before its first sample.
+                    let frame = SampleFrame {
                         stream_offset: offset,
                         bytes: FrameData::from_slice(packet.as_bytes()),
-                    },
-                    content,
-                };
-                if learned {
-                    self.events.push_back(frame);
-                    return self.events.pop_front();
+                    };
+                    self.events
+                        .push_back(Held::Frame(frame, std::mem::take(&mut slot.content)));
+                    return self.events.pop_front().map(|held| held.hand_over(slot));
                 }
-                frame
+                slot.set_frame(packet.as_bytes(), offset);
+                DriverEvent::Frame
             }
             MipEvent::Rejected {
                 bytes,
@@ -312,7 +326,7 @@ impl Driver for MipDriver {
         self.now = now;
         if self.learning.is_some_and(|t| now >= t) {
             self.learning = None;
-            self.events.push_back(DriverEvent::Failed(anyhow::anyhow!(
+            self.push(DriverEvent::Failed(anyhow::anyhow!(
                 "no MIP IMU data packet with accel, gyro and a timestamp heard within {:.1} s \
                  (passive: nothing is sent to the unit)",
                 self.config.silence_timeout_s
@@ -326,6 +340,9 @@ impl Driver for MipDriver {
 
     fn flush(&mut self) {
         self.decoder.flush();
+        // No readings until the next start: the unit is not known to stream.
+        self.streaming = false;
+        self.learning = None;
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {

@@ -98,6 +98,7 @@ impl Readings {
         self.unwrapper = TickUnwrapper::with_bits(timebase.tick_bits());
     }
 
+    #[cold]
     fn unusable(&mut self, why: impl FnOnce() -> String) -> FrameContent {
         self.unusable += 1;
         if self.unusable == 1 {
@@ -128,7 +129,10 @@ impl Readings {
     }
 
     /// What `packet` carries: nothing for a packet of another descriptor set (a reply), else
-    /// its temperature and its sample, or an unusable packet.
+    /// its temperature and its sample, or an unusable packet. Inlined into the driver's
+    /// `poll_event`, so the content is built where it goes, in the caller's slot, rather than
+    /// on the stack and copied there.
+    #[inline(always)]
     pub fn content(&mut self, packet: &Packet) -> FrameContent {
         let set = packet.descriptor_set();
         if set != IMU_DATA {
@@ -137,7 +141,10 @@ impl Readings {
             }
             return FrameContent::default();
         }
-        let data = match ImuData::decode_packet(packet) {
+        // Read where it was decoded (by reference): moving the decoded packet out of its
+        // result copied it on every sample.
+        let decoded = ImuData::decode_packet(packet);
+        let data = match &decoded {
             Ok(data) => data,
             Err(e) => {
                 return self.unusable(|| format!("an IMU data packet could not be decoded: {e}"));

@@ -24,9 +24,9 @@ use imu_bus::sample::device_protocol;
 use imu_proto::decoder::DecoderStats;
 use tracing::info;
 
-use super::{DeviceIdentity, Driver, DriverEvent};
+use super::{DeviceIdentity, Driver, DriverEvent, Held};
 use crate::config::Config;
-use crate::pipeline::{Acquisition, Gains, SessionSpec};
+use crate::pipeline::{Acquisition, FrameSlot, Gains, SessionSpec};
 use frame::{FrameDecoder, FrameEvent};
 
 /// The input's name in the status, logs and metadata (`imud.device` `protocol`).
@@ -38,6 +38,8 @@ pub fn session() -> SessionSpec {
         gains: Gains::NOT_APPLICABLE,
         timebase: reading::TIMEBASE,
         acquisition: Acquisition::Streaming,
+        // Nothing is asked of the publisher: imud takes what it sends.
+        configuration_verified: false,
         status_protocol: device_protocol::ROS2_INPUT,
     }
 }
@@ -56,7 +58,7 @@ pub struct Ros2InputDriver {
     streaming: bool,
     /// Waiting for the first usable message until this time.
     waiting: Option<Instant>,
-    events: VecDeque<DriverEvent>,
+    events: VecDeque<Held>,
 }
 
 impl Ros2InputDriver {
@@ -90,10 +92,12 @@ impl Ros2InputDriver {
              header stamps as the device clock, rate learned from them",
             self.topic, self.dds_topic, self.domain_id
         );
-        self.events.push_back(DriverEvent::Session(session()));
         self.events
-            .push_back(DriverEvent::Identified(Box::new(self.identity())));
-        self.events.push_back(DriverEvent::Ready);
+            .push_back(Held::Event(DriverEvent::Session(session())));
+        self.events.push_back(Held::Event(DriverEvent::Identified(Box::new(
+            self.identity(),
+        ))));
+        self.events.push_back(Held::Event(DriverEvent::Ready));
     }
 
     /// What the recording metadata (`imud.device`) says of the input.
@@ -143,26 +147,26 @@ impl Driver for Ros2InputDriver {
         self.decoder.push(bytes);
     }
 
-    fn poll_event(&mut self) -> Option<DriverEvent> {
-        if let Some(ev) = self.events.pop_front() {
-            return Some(ev);
+    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
+        if let Some(held) = self.events.pop_front() {
+            return Some(held.hand_over(slot));
         }
         Some(match self.decoder.next_event()? {
             FrameEvent::Frame { offset, bytes } => {
                 let content = self.readings.content(&bytes, &self.topic);
-                let frame = DriverEvent::Frame {
-                    frame: SampleFrame {
+                if !self.streaming && content.reading.is_some() {
+                    // The session's events go before its first frame.
+                    self.open_session();
+                    let frame = SampleFrame {
                         stream_offset: offset,
                         bytes: FrameData::from_vec(bytes),
-                    },
-                    content,
-                };
-                if !self.streaming && content.reading.is_some() {
-                    self.open_session();
-                    self.events.push_back(frame);
-                    return self.events.pop_front();
+                    };
+                    self.events.push_back(Held::Frame(frame, content));
+                    return self.events.pop_front().map(|held| held.hand_over(slot));
                 }
-                frame
+                slot.content = content;
+                slot.set_frame(&bytes, offset);
+                DriverEvent::Frame
             }
             FrameEvent::Rejected {
                 offset,
@@ -188,19 +192,21 @@ impl Driver for Ros2InputDriver {
     fn handle_timeout(&mut self, now: Instant) {
         if self.waiting.is_some_and(|t| now >= t) {
             self.waiting = None;
-            self.events.push_back(DriverEvent::Failed(anyhow::anyhow!(
+            self.events.push_back(Held::Event(DriverEvent::Failed(anyhow::anyhow!(
                 "no usable sensor_msgs/msg/Imu message on {} (DDS topic {}, domain {}) within \
                  {:.1} s: is the publisher running on this domain (ROS_DOMAIN_ID)?",
                 self.topic,
                 self.dds_topic,
                 self.domain_id,
                 self.silence.as_secs_f64()
-            )));
+            ))));
         }
     }
 
     fn flush(&mut self) {
         self.decoder.flush();
+        // The next usable message opens a new session (as after a reconnect).
+        self.streaming = false;
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {

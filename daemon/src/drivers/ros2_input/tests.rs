@@ -12,6 +12,22 @@ use super::frame::{self, FrameDecoder, FrameEvent};
 use super::*;
 use crate::pipeline::{Pipeline, Sinks};
 
+/// An event the test keeps: a frame taken out of the driver's slot with its content.
+#[derive(Debug)]
+enum Ev {
+    Frame(FrameSlot),
+    Other(DriverEvent),
+}
+
+/// The driver's next event, a frame moved out of the slot the driver wrote it in.
+fn poll(d: &mut Ros2InputDriver) -> Option<Ev> {
+    let mut slot = FrameSlot::default();
+    d.poll_event(&mut slot).map(|ev| match ev {
+        DriverEvent::Frame => Ev::Frame(slot),
+        other => Ev::Other(other),
+    })
+}
+
 /// A 200 Hz message `k` stamped from `t0_ns`, with values that identify it.
 fn message(k: u64, t0_ns: u64) -> Imu {
     let kf = k as f64;
@@ -60,12 +76,12 @@ fn every_message_becomes_a_reading_with_its_values_and_stamp_in_any_chunking() {
         let mut events = Vec::new();
         for c in bytes.chunks(chunk) {
             d.handle_input(c, now);
-            while let Some(ev) = d.poll_event() {
+            while let Some(ev) = poll(&mut d) {
                 events.push(ev);
             }
         }
-        assert!(matches!(&events[0], DriverEvent::Session(s) if *s == session()));
-        let DriverEvent::Identified(id) = &events[1] else {
+        assert!(matches!(&events[0], Ev::Other(DriverEvent::Session(s)) if *s == session()));
+        let Ev::Other(DriverEvent::Identified(id)) = &events[1] else {
             panic!("{:?}", events[1]);
         };
         assert_eq!(id.protocol, NAME);
@@ -73,11 +89,11 @@ fn every_message_becomes_a_reading_with_its_values_and_stamp_in_any_chunking() {
             id.details
                 .contains(&("dds-topic".into(), "rt/camera/imu".into()))
         );
-        assert!(matches!(events[2], DriverEvent::Ready));
+        assert!(matches!(events[2], Ev::Other(DriverEvent::Ready)));
         let readings: Vec<_> = events[3..]
             .iter()
             .map(|ev| match ev {
-                DriverEvent::Frame { content, .. } => content.reading.unwrap(),
+                Ev::Frame(slot) => slot.content.reading.unwrap(),
                 other => panic!("{other:?}"),
             })
             .collect();
@@ -134,13 +150,15 @@ fn bad_cdr_is_counted_as_unusable_and_damaged_bytes_rejected_never_a_panic() {
     d.handle_input(&bytes, now);
     d.flush();
     let (mut unusable, mut readings, mut rejected) = (0, 0, Vec::new());
-    while let Some(ev) = d.poll_event() {
+    while let Some(ev) = poll(&mut d) {
         match ev {
-            DriverEvent::Frame { content, .. } => {
-                unusable += u32::from(content.unusable);
-                readings += u32::from(content.reading.is_some());
+            Ev::Frame(slot) => {
+                unusable += u32::from(slot.content.unusable);
+                readings += u32::from(slot.content.reading.is_some());
             }
-            DriverEvent::Rejected { bytes, reason, .. } => rejected.push((reason, bytes.len())),
+            Ev::Other(DriverEvent::Rejected { bytes, reason, .. }) => {
+                rejected.push((reason, bytes.len()))
+            }
             _ => {}
         }
     }
@@ -213,9 +231,9 @@ fn a_silent_topic_fails_the_start_up_after_the_silence_timeout() {
     let due = d.poll_timeout().unwrap();
     assert_eq!(due - t0, Duration::from_secs_f64(2.0));
     d.handle_timeout(t0 + Duration::from_secs(1));
-    assert!(d.poll_event().is_none());
+    assert!(poll(&mut d).is_none());
     d.handle_timeout(due);
-    let Some(DriverEvent::Failed(e)) = d.poll_event() else {
+    let Some(Ev::Other(DriverEvent::Failed(e))) = poll(&mut d) else {
         panic!("no failure");
     };
     let m = e.to_string();
@@ -240,15 +258,15 @@ fn stamps_that_jump_back_start_the_clock_again_without_losses() {
     for (i, m) in msgs.iter().enumerate() {
         let mono = 1_000_000_000_000 + i as u64 * 5_000_000;
         d.handle_input(&stream(std::slice::from_ref(m)), now);
-        while let Some(ev) = d.poll_event() {
+        while let Some(ev) = poll(&mut d) {
             match ev {
-                DriverEvent::Frame { frame, content } => {
-                    pipeline.on_frame(frame, &content, mono, mono, &mut sinks);
+                Ev::Frame(mut slot) => {
+                    pipeline.on_frame(&mut slot, mono, mono, &mut sinks);
                     let stamp = pipeline.last_stamp_ns().unwrap();
                     assert!(stamp > last_stamp, "message {i}");
                     last_stamp = stamp;
                 }
-                DriverEvent::Session(s) => pipeline.new_session(s),
+                Ev::Other(DriverEvent::Session(s)) => pipeline.new_session(s),
                 _ => {}
             }
         }
@@ -282,12 +300,12 @@ fn skipped_messages_are_counted_as_losses_at_the_learned_rate() {
         // Received 1 to 4 ms after its stamp, on a monotonic clock 1000 s behind.
         let mono = stamp_ns - T0_NS + 1_000_000_000_000 + 1_000_000 + (rng >> 33) % 3_000_000;
         d.handle_input(&stream(std::slice::from_ref(m)), now);
-        while let Some(ev) = d.poll_event() {
+        while let Some(ev) = poll(&mut d) {
             match ev {
-                DriverEvent::Frame { frame, content } => {
-                    pipeline.on_frame(frame, &content, mono, stamp_ns, &mut sinks);
+                Ev::Frame(mut slot) => {
+                    pipeline.on_frame(&mut slot, mono, stamp_ns, &mut sinks);
                 }
-                DriverEvent::Session(s) => pipeline.new_session(s),
+                Ev::Other(DriverEvent::Session(s)) => pipeline.new_session(s),
                 _ => {}
             }
         }
