@@ -33,6 +33,15 @@ pub trait Effect: Debug + Send + Sync {
     fn forward(&self, x: Vec3, c: &Conditions) -> Vec3;
     /// Exact inverse of [`Effect::forward`] for the same conditions.
     fn inverse(&self, y: Vec3, c: &Conditions) -> Vec3;
+    /// [`Effect::inverse`] of every value of `ys` in place, all at the same conditions `c`.
+    /// The result is bit-for-bit that of `inverse` on each value; an effect whose inverse
+    /// prepares something from its parameters alone (a matrix factorisation) overrides this to
+    /// prepare it once for the batch.
+    fn inverse_batch(&self, ys: &mut [Vec3], c: &Conditions) {
+        for y in ys {
+            *y = self.inverse(*y, c);
+        }
+    }
     /// Number of parameters.
     fn n_params(&self) -> usize {
         self.params().len()

@@ -22,6 +22,15 @@ impl TriadModel {
             .fold(measured, |v, e| e.inverse(v, c))
     }
 
+    /// [`TriadModel::inverse`] of every value of `measured` in place, all at the same
+    /// conditions `c` (the samples of one move, say): bit-for-bit the same values, with each
+    /// effect's per-call preparation (the misalignment's factorisation) made once per batch.
+    pub fn inverse_batch(&self, measured: &mut [Vec3], c: &Conditions) {
+        for e in self.effect_slots().into_iter().rev().flatten() {
+            e.inverse_batch(measured, c);
+        }
+    }
+
     /// The paper's base model (Eq. 1-2): bias, scale and misalignment, all zero.
     pub const PAPER_BASE: [EffectKind; 3] = [
         EffectKind::Bias,

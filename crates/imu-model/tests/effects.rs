@@ -228,6 +228,35 @@ fn check_all_subsets(triad: Triad, seed: u64) {
     );
 }
 
+/// The batch inverse (one misalignment factorisation per batch, as the workbench integrates a
+/// move) gives bit-for-bit the values of the per-sample inverse, for every effect of every
+/// triad together and for the gain effects alone.
+#[test]
+fn batch_inverse_is_bit_identical_to_the_per_sample_inverse() {
+    let mut rng = rng(4);
+    for triad in [Triad::Accel, Triad::Gyro, Triad::Mag] {
+        let all = applicable(triad);
+        let gains: Vec<EffectKind> = all.iter().copied().filter(|k| k.is_gain()).collect();
+        for kinds in [all, gains] {
+            let model = random_model(&kinds, triad, &mut rng);
+            let c = random_conditions(&mut rng);
+            let ys: Vec<Vec3> = (0..64)
+                .map(|_| model.forward(random_input(triad, &mut rng), &c))
+                .collect();
+            let mut batch = ys.clone();
+            model.inverse_batch(&mut batch, &c);
+            for (y, b) in ys.iter().zip(&batch) {
+                let one = model.inverse(*y, &c);
+                assert_eq!(
+                    one.map(f64::to_bits),
+                    b.map(f64::to_bits),
+                    "{triad} {kinds:?}: {y:?}"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn inverse_undoes_forward_for_every_accel_subset() {
     check_all_subsets(Triad::Accel, 1);

@@ -174,7 +174,7 @@ pub fn session_covariance(
             shared.flicker_tau_s.max(1e-9)
         }
     };
-    let d = |k: usize, l: usize| {
+    let structure = |k: usize, l: usize| {
         if unit == 0.0 || k == l {
             0.0
         } else {
@@ -182,6 +182,23 @@ pub fn session_covariance(
             unit * flicker_structure((points[k].t_s - points[l].t_s).abs() / t)
         }
     };
+    // The structure function of every pair, evaluated once (each element of the covariance
+    // needs three, and the workbench builds this matrix for every likelihood it profiles):
+    // the same value either way round, so the matrix is symmetric exactly.
+    let pairs: Vec<f64> = if shared.flicker_tau_max_s.is_none() && unit != 0.0 {
+        let mut m = vec![0.0; n * n];
+        for k in 0..n {
+            for l in k + 1..n {
+                let v = structure(k, l);
+                m[k * n + l] = v;
+                m[l * n + k] = v;
+            }
+        }
+        m
+    } else {
+        Vec::new()
+    };
+    let d = |k: usize, l: usize| pairs.get(k * n + l).copied().unwrap_or(0.0);
     let bank = flicker_bank(shared);
     let flicker = |k: usize, l: usize| {
         if shared.flicker_tau_max_s.is_some() {

@@ -14,11 +14,18 @@ impl<'a> Workbench<'a> {
         let mut added: Vec<(Triad, EffectKind)> = Vec::new();
         let mut held_out: Option<HeldOut> = None;
         let mut base_diagnoses = None;
+        // The last step's diagnoses and which triad's model changed since: a diagnosis depends
+        // on its own triad's model alone, so the other triad's is kept, not recomputed.
+        let mut previous: Option<([TriadDiagnosis; 2], usize)> = None;
         loop {
-            let diags = [
-                self.diagnose(Triad::Accel, &models[0])?,
-                self.diagnose(Triad::Gyro, &models[1])?,
-            ];
+            let diags = match previous.take() {
+                Some(([accel, _], 1)) => [accel, self.diagnose(Triad::Gyro, &models[1])?],
+                Some(([_, gyro], _)) => [self.diagnose(Triad::Accel, &models[0])?, gyro],
+                None => [
+                    self.diagnose(Triad::Accel, &models[0])?,
+                    self.diagnose(Triad::Gyro, &models[1])?,
+                ],
+            };
             if base_diagnoses.is_none() {
                 base_diagnoses = Some(diags.clone());
             }
@@ -59,6 +66,7 @@ impl<'a> Workbench<'a> {
                 .model
                 .clone()
                 .expect("claimed candidates carry their refitted model");
+            previous = Some((diags, i));
         }
     }
 

@@ -2,7 +2,7 @@
 //! poses.
 
 use super::*;
-use crate::calibrate::reference_free::{MoveData, fit_gains};
+use crate::calibrate::reference_free::{MoveData, fit_gains, move_residuals};
 use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution};
 
 /// Gain models fitted to the moves between poses, and their residuals.
@@ -31,16 +31,16 @@ impl MovesFitter<'_> {
     fn whitened(&self, g: &TriadModel) -> Vec<f64> {
         self.moves
             .iter()
-            .flat_map(|m| m.residual(g).map(|v| v / m.sigma_rad))
+            .zip(move_residuals(self.moves, g))
+            .flat_map(|(m, r)| r.map(|v| v / m.sigma_rad))
             .collect()
     }
 
     /// RMS of the direction errors of a gain model, rad.
     fn raw_rms(&self, g: &TriadModel) -> f64 {
-        let sq: f64 = self
-            .moves
+        let sq: f64 = move_residuals(self.moves, g)
             .iter()
-            .map(|m| m.residual(g).iter().map(|v| v * v).sum::<f64>())
+            .map(|r| r.iter().map(|v| v * v).sum::<f64>())
             .sum();
         (sq / self.n_res.max(1) as f64).sqrt()
     }
@@ -139,14 +139,22 @@ impl<'a> Workbench<'a> {
             excess: (chi2_0 - dof_0 as f64).max(1e-12),
             residual_rms_rad: verdict.residual_rms_rad,
         };
-        let mut candidates: Vec<Candidate> = EffectKind::ALL
-            .into_iter()
-            .filter(|k| k.is_gain() && !kinds.contains(k))
-            .map(|k| self.moves_candidate(&fitter, &baseline, k))
-            .collect();
+        // Each candidate's gain fit is kept for the held-out check of a claim (the same fit).
+        let (mut candidates, fitted): (Vec<Candidate>, Vec<(EffectKind, Option<TriadModel>)>) =
+            EffectKind::ALL
+                .into_iter()
+                .filter(|k| k.is_gain() && !kinds.contains(k))
+                .map(|k| {
+                    let (c, g) = self.moves_candidate(&fitter, &baseline, k);
+                    (c, (k, g))
+                })
+                .unzip();
         let ambiguities = rank_and_claim(&mut candidates, verdict.consistent, triad, &self.opts);
         for c in candidates.iter_mut().filter(|c| c.claimed) {
-            c.held_out = self.moves_held_out(&fitter, &gains, &kinds, c.effect);
+            let fit = fitted.iter().find(|(k, _)| *k == c.effect);
+            c.held_out = fit
+                .and_then(|(_, g)| g.as_ref())
+                .and_then(|cand| self.moves_held_out(&fitter, &gains, cand));
             c.claimed = c.held_out.as_ref().is_some_and(|h| h.confirmed);
         }
         let text = moves_text(&kinds, &verdict, &candidates);
@@ -160,15 +168,39 @@ impl<'a> Workbench<'a> {
     }
 
     /// Gain effect `k` added to the model's gains and fitted to the moves: a scored
-    /// candidate, or one that says why the moves cannot observe it.
-    fn moves_candidate(&self, fitter: &MovesFitter, b: &MovesBaseline, k: EffectKind) -> Candidate {
-        let triad = Triad::Gyro;
-        let (n_res, chi2_0) = (fitter.n_res, b.chi2_0);
+    /// candidate, or one that says why the moves cannot observe it; with the fitted gain model
+    /// when the fit succeeded.
+    fn moves_candidate(
+        &self,
+        fitter: &MovesFitter,
+        b: &MovesBaseline,
+        k: EffectKind,
+    ) -> (Candidate, Option<TriadModel>) {
         let mut with = b.kinds.to_vec();
         with.push(k);
-        let Ok((g, Some(sol))) = fitter.fit(&fitter.gain_model(&with)) else {
-            return unobservable_candidate(k, triad, "the moves cannot fit it".into());
-        };
+        match fitter.fit(&fitter.gain_model(&with)) {
+            Ok((g, Some(sol))) => {
+                let c = self.moves_candidate_scored(fitter, b, k, &g, &sol);
+                (c, Some(g))
+            }
+            _ => (
+                unobservable_candidate(k, Triad::Gyro, "the moves cannot fit it".into()),
+                None,
+            ),
+        }
+    }
+
+    /// Gain effect `k` scored from its fit `g` (solution `sol`) to the moves.
+    fn moves_candidate_scored(
+        &self,
+        fitter: &MovesFitter,
+        b: &MovesBaseline,
+        k: EffectKind,
+        g: &TriadModel,
+        sol: &LsqSolution,
+    ) -> Candidate {
+        let triad = Triad::Gyro;
+        let (n_res, chi2_0) = (fitter.n_res, b.chi2_0);
         let new_params = sol.free.len().saturating_sub(b.free0);
         let not_obs: Vec<String> = sol
             .unobservable
@@ -181,17 +213,17 @@ impl<'a> Workbench<'a> {
             c.not_observable = not_obs;
             return c;
         }
-        let chi2_1 = fitter.chi2_of(&g).max(1e-300);
+        let chi2_1 = fitter.chi2_of(g).max(1e-300);
         let f = ((chi2_0 - chi2_1).max(0.0) / new_params as f64) / (chi2_1 / sol.dof.max(1) as f64);
         let p = distributions::f_sf(f, new_params as f64, sol.dof.max(1) as f64);
         let lr = n_res as f64 * (chi2_0 / chi2_1).ln();
         let pattern: Vec<f64> = fitter
-            .whitened(&g)
+            .whitened(g)
             .iter()
             .zip(&b.base_pattern)
             .map(|(a, b)| b - a)
             .collect();
-        let rms = fitter.raw_rms(&g);
+        let rms = fitter.raw_rms(g);
         let mut spec = fitter.full.clone();
         spec.add(k);
         let (ids, units) = (g.param_ids(), g.param_units(triad));
@@ -205,7 +237,7 @@ impl<'a> Workbench<'a> {
             },
         );
         let best = best_param_text(&params);
-        let model = merged(&spec, &[b.offsets, &g]);
+        let model = merged(&spec, &[b.offsets, g]);
         CandidateScore {
             effect: k,
             triad,
@@ -269,18 +301,15 @@ impl<'a> Workbench<'a> {
         }
     }
 
-    /// Gain effect `k` added to the model's gain effects `kinds` (fitted to all moves:
-    /// `gains`) held against held-out moves: both gain models refitted on the training folds.
+    /// A candidate gain model `cand` (a gain effect added to the model's gains, fitted to all
+    /// moves) held against held-out moves with the model's gains `gains` (also fitted to all
+    /// moves): both gain models refitted on the training folds.
     fn moves_held_out(
         &self,
         fitter: &MovesFitter,
         gains: &TriadModel,
-        kinds: &[EffectKind],
-        k: EffectKind,
+        cand: &TriadModel,
     ) -> Option<HeldOut> {
-        let mut with = kinds.to_vec();
-        with.push(k);
-        let cand = fitter.fit(&fitter.gain_model(&with)).ok()?.0;
         let sums = |g: &TriadModel, moves: &[MoveData], which: &[usize]| {
             let mut s = WeightedSums::default();
             for &i in which {
@@ -294,13 +323,13 @@ impl<'a> Workbench<'a> {
         let all: Vec<usize> = (0..fitter.moves.len()).collect();
         let in_sample = (
             sums(gains, fitter.moves, &all),
-            sums(&cand, fitter.moves, &all),
+            sums(cand, fitter.moves, &all),
         );
         cross_validate(all.len(), HeldOutUnit::Moves, in_sample, |train, test| {
             let moves: Vec<MoveData> = train.iter().map(|&i| fitter.moves[i].clone()).collect();
             let sub = self.moves_fitter(&moves, fitter.full);
             let g0 = sub.fit(gains).ok()?.0;
-            let g1 = sub.fit(&cand).ok()?.0;
+            let g1 = sub.fit(cand).ok()?.0;
             Some((sums(&g0, fitter.moves, test), sums(&g1, fitter.moves, test)))
         })
     }

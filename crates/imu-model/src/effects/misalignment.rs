@@ -145,6 +145,13 @@ impl Effect for Misalignment {
             .solve(&y)
             .unwrap_or_else(|| Vec3::repeat(f64::NAN))
     }
+    fn inverse_batch(&self, ys: &mut [Vec3], _c: &Conditions) {
+        // One factorisation for the batch; each solve is the one `inverse` makes.
+        let lu = self.matrix().lu();
+        for y in ys {
+            *y = lu.solve(y).unwrap_or_else(|| Vec3::repeat(f64::NAN));
+        }
+    }
 }
 
 impl EffectDef for Misalignment {

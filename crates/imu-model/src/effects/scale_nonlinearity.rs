@@ -107,7 +107,12 @@ pub(crate) fn solve(y: f64, k2: f64, k3: f64) -> f64 {
             2.0 * y / (1.0 + d.sqrt())
         };
     }
-    let (a, b) = monotone_interval(k2, k3);
+    solve_within(y, k2, k3, monotone_interval(k2, k3))
+}
+
+/// [`solve`] for `k3 != 0` with the curve's monotone interval `(a, b)` given (computed once for
+/// many values by [`Effect::inverse_batch`]).
+fn solve_within(y: f64, k2: f64, k3: f64, (a, b): (f64, f64)) -> f64 {
     let start = y.abs().max(1.0) * 2.0;
     // Bracket: curve(lo) <= y <= curve(hi), expanding geometrically towards the interval ends.
     let mut hi = start.min(b);
@@ -204,6 +209,23 @@ impl Effect for ScaleNonlinearity {
     }
     fn inverse(&self, y: Vec3, _c: &Conditions) -> Vec3 {
         Vec3::from_fn(|i, _| solve(y[i], self.quadratic[i], self.cubic[i]))
+    }
+    fn inverse_batch(&self, ys: &mut [Vec3], _c: &Conditions) {
+        // Each axis's monotone interval once for the batch; every value is then solved as
+        // `solve` solves it (the same early returns, the same iteration).
+        let interval: [Option<(f64, f64)>; 3] = std::array::from_fn(|i| {
+            let (k2, k3) = (self.quadratic[i], self.cubic[i]);
+            (k3 != 0.0).then(|| monotone_interval(k2, k3))
+        });
+        for y in ys {
+            *y = Vec3::from_fn(|i, _| {
+                let (k2, k3) = (self.quadratic[i], self.cubic[i]);
+                match interval[i] {
+                    Some(ab) => solve_within(y[i], k2, k3, ab),
+                    None => solve(y[i], k2, k3),
+                }
+            });
+        }
     }
 }
 

@@ -27,7 +27,9 @@ mod observability;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-pub use observability::{Weakest, find_unobservable, jacobian, weakest_combination};
+pub use observability::{
+    Weakest, find_unobservable, find_unobservable_keeping, jacobian, weakest_combination,
+};
 
 /// A least-squares problem: residuals as a function of the parameters, and the linear map that
 /// whitens them (identity unless the problem says otherwise). The engine differentiates the raw
@@ -112,13 +114,31 @@ pub fn minimize<R: Residuals + ?Sized>(
     free: &[usize],
     opts: &LsqOptions,
 ) -> Minimum {
-    let mut r = f.residuals(p);
+    minimize_from(f, p, free, opts, None).0
+}
+
+/// [`minimize`] given the whitened residuals and the Jacobian at the start `p` (`start`, when
+/// the caller has them: they are not evaluated again), also returning the Jacobian at the
+/// minimum when the last one computed is there (the search ended with no downhill step), so
+/// that the caller's covariance need not evaluate it again. The steps are those of
+/// [`minimize`].
+pub fn minimize_from<R: Residuals + ?Sized>(
+    f: &mut R,
+    p: &mut Vec<f64>,
+    free: &[usize],
+    opts: &LsqOptions,
+    start: Option<(DVector<f64>, DMatrix<f64>)>,
+) -> (Minimum, Option<DMatrix<f64>>) {
+    let (mut r, mut next_j) = match start {
+        Some((r, j)) => (r, Some(j)),
+        None => (f.residuals(p), None),
+    };
     let mut cost = r.norm_squared();
     let mut lambda = 1e-3;
     let mut iterations = 0;
     while iterations < opts.max_iterations {
         iterations += 1;
-        let j = jacobian(f, p, free);
+        let j = next_j.take().unwrap_or_else(|| jacobian(f, p, free));
         let a = j.transpose() * &j;
         let g = j.transpose() * &r;
         let mut improved = false;
@@ -145,12 +165,13 @@ pub fn minimize<R: Residuals + ?Sized>(
                 lambda = (lambda / 10.0).max(1e-12);
                 improved = true;
                 if change < opts.tolerance {
-                    return Minimum {
+                    let min = Minimum {
                         cost,
                         residuals: r,
                         iterations,
                         converged: true,
                     };
+                    return (min, None);
                 }
                 break;
             }
@@ -158,20 +179,22 @@ pub fn minimize<R: Residuals + ?Sized>(
         }
         if !improved {
             // No downhill step at any damping: at the minimum to machine precision.
-            return Minimum {
+            let min = Minimum {
                 cost,
                 residuals: r,
                 iterations,
                 converged: true,
             };
+            return (min, Some(j));
         }
     }
-    Minimum {
+    let min = Minimum {
         cost,
         residuals: r,
         iterations,
         converged: false,
-    }
+    };
+    (min, None)
 }
 
 /// Covariance of the free parameters from the whitened Jacobian at the minimum:
@@ -269,7 +292,7 @@ pub fn least_squares<R: Residuals>(
     let mut free: Vec<usize> = (0..p.len())
         .filter(|&i| !fixed.get(i).copied().unwrap_or(false))
         .collect();
-    let unobservable = find_unobservable(&mut residual, &p, &mut free, names, opts);
+    let (unobservable, j0) = find_unobservable_keeping(&mut residual, &p, &mut free, names, opts);
     if free.is_empty() {
         return Err(LsqError::NothingToFit);
     }
@@ -279,10 +302,12 @@ pub fn least_squares<R: Residuals>(
             n_free: free.len(),
         });
     }
-    let min = minimize(&mut residual, &mut p, &free, opts);
+    // The start's residuals and Jacobian are the ones just computed; the Jacobian at the
+    // minimum is evaluated only if the search did not end on it.
+    let (min, j_min) = minimize_from(&mut residual, &mut p, &free, opts, Some((r0, j0)));
     let dof = n_res - free.len();
     let reduced_chi2 = min.cost / dof as f64;
-    let j = jacobian(&mut residual, &p, &free);
+    let j = j_min.unwrap_or_else(|| jacobian(&mut residual, &p, &free));
     let nf = free.len();
     let covariance =
         covariance(&j, reduced_chi2).unwrap_or_else(|| DMatrix::from_element(nf, nf, f64::NAN));

@@ -55,9 +55,29 @@ pub fn find_unobservable<R: Residuals + ?Sized>(
     names: &[String],
     opts: &LsqOptions,
 ) -> Vec<Unobservable> {
+    find_unobservable_keeping(f, p, free, names, opts).0
+}
+
+/// [`find_unobservable`], also returning the Jacobian at `p` of the parameters left in `free`
+/// (the first step of a fit from `p` needs it). The Jacobian is evaluated once: each column
+/// perturbs its own parameter alone, so a dropped parameter's column is dropped, not the
+/// matrix recomputed, and the columns kept are bit-for-bit those a new evaluation would give.
+pub fn find_unobservable_keeping<R: Residuals + ?Sized>(
+    f: &mut R,
+    p: &[f64],
+    free: &mut Vec<usize>,
+    names: &[String],
+    opts: &LsqOptions,
+) -> (Vec<Unobservable>, DMatrix<f64>) {
     let mut out = Vec::new();
+    if free.is_empty() {
+        return (out, DMatrix::zeros(0, 0));
+    }
+    let full = jacobian(f, p, free);
+    // The columns of `full` of the parameters still in `free`.
+    let mut columns: Vec<usize> = (0..free.len()).collect();
     while !free.is_empty() {
-        let j = jacobian(f, p, free);
+        let j = full.select_columns(columns.iter());
         let (norms, eig) = normalised_eigen(&j);
         let max_norm = norms.iter().copied().fold(0.0, f64::max);
         if let Some(c) = norms
@@ -69,6 +89,7 @@ pub fn find_unobservable<R: Residuals + ?Sized>(
                 reason: "the data do not excite it (zero Jacobian column)".into(),
             });
             free.remove(c);
+            columns.remove(c);
             continue;
         }
         let (k, lam) = smallest(&eig);
@@ -97,8 +118,9 @@ pub fn find_unobservable<R: Residuals + ?Sized>(
             ),
         });
         free.remove(drop);
+        columns.remove(drop);
     }
-    out
+    (out, full.select_columns(columns.iter()))
 }
 
 /// The weakest parameter combination of a Jacobian.

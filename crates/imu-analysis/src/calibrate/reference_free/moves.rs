@@ -28,12 +28,18 @@ impl MoveData {
     /// The rotation `sensor_before_from_sensor_after` integrated with the rate corrected by
     /// `gains` (midpoint rule on consecutive samples).
     pub(super) fn rotation(&self, gains: &TriadModel) -> UnitQuaternion<f64> {
+        // The whole move corrected at once (its conditions are those of the pose before):
+        // the same values as sample by sample, the model's per-call preparation made once.
+        let mut w = self.rate_rad_s.clone();
+        gains.inverse_batch(&mut w, &self.conditions);
+        self.integrate(&w)
+    }
+
+    /// The rotation integrated from the corrected rate `w` (one value per sample).
+    fn integrate(&self, w: &[Vec3]) -> UnitQuaternion<f64> {
         let mut q = UnitQuaternion::identity();
-        let mut w0 = gains.inverse(self.rate_rad_s[0], &self.conditions);
-        for r in &self.rate_rad_s[1..] {
-            let w1 = gains.inverse(*r, &self.conditions);
-            q *= UnitQuaternion::from_scaled_axis((w0 + w1) * (0.5 * self.step_s));
-            w0 = w1;
+        for pair in w.windows(2) {
+            q *= UnitQuaternion::from_scaled_axis((pair[0] + pair[1]) * (0.5 * self.step_s));
         }
         q
     }
@@ -41,11 +47,99 @@ impl MoveData {
     /// Predicted minus measured up direction after the move, in the plane normal to the
     /// measured one, rad.
     pub(crate) fn residual(&self, gains: &TriadModel) -> [f64; 2] {
-        let predicted = self
-            .rotation(gains)
-            .inverse_transform_vector(&self.up_before);
+        self.residual_of(self.rotation(gains))
+    }
+
+    /// [`MoveData::residual`] of the integrated rotation `q`.
+    fn residual_of(&self, q: UnitQuaternion<f64>) -> [f64; 2] {
+        let predicted = q.inverse_transform_vector(&self.up_before);
         [self.e1.dot(&predicted), self.e2.dot(&predicted)]
     }
+}
+
+/// Fewest moves worth a thread of their own in [`move_residuals`] (a move is a few hundred
+/// samples integrated: tens of microseconds, against a thread's start of about as much).
+const MIN_MOVES_PER_THREAD: usize = 8;
+
+/// [`MoveData::residual`] of every move under `gains`, in order. The moves are integrated on
+/// the available cores: each move's integration is independent of the others, so the values
+/// are bit-for-bit those of a sequential loop. The gain fits evaluate this for every
+/// parameter step and Jacobian column, where nearly all of the workbench's time goes.
+pub(crate) fn move_residuals(moves: &[MoveData], gains: &TriadModel) -> Vec<[f64; 2]> {
+    on_cores(moves, |_, m| m.residual(gains))
+}
+
+/// `f(k, move k)` for every move, in order, the moves split over the available cores.
+fn on_cores<T: Send>(moves: &[MoveData], f: impl Fn(usize, &MoveData) -> T + Sync) -> Vec<T> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = cores.min(moves.len() / MIN_MOVES_PER_THREAD).max(1);
+    let f = &f;
+    let part = move |start: usize, part: &[MoveData]| -> Vec<T> {
+        part.iter()
+            .enumerate()
+            .map(|(i, m)| f(start + i, m))
+            .collect()
+    };
+    if threads == 1 {
+        return part(0, moves);
+    }
+    let chunk = moves.len().div_ceil(threads);
+    std::thread::scope(|s| {
+        let rest: Vec<_> = moves[chunk..]
+            .chunks(chunk)
+            .enumerate()
+            .map(|(c, p)| s.spawn(move || part(chunk * (c + 1), p)))
+            .collect();
+        let mut out = part(0, &moves[..chunk]);
+        for h in rest {
+            out.extend(h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
+        }
+        out
+    })
+}
+
+/// The first stage of a gain model's inverse (its last effect in canonical order, the first
+/// undone) applied to every move's rate, with the bits of that stage's parameters: while a
+/// gain fit changes only the other stages' parameters (most Jacobian columns), it is reused.
+/// The cubic nonlinearity's inverse, an iteration per value, is the costly first stage.
+pub(crate) struct FirstStage {
+    key: Vec<u64>,
+    rates: Vec<Vec<Vec3>>,
+}
+
+/// [`move_residuals`] with the first inverse stage taken from `cache` when its parameters
+/// have not changed (else computed and kept): bit-for-bit the same residuals, as the stages
+/// are applied to each value in the same order either way.
+pub(crate) fn move_residuals_cached(
+    moves: &[MoveData],
+    gains: &TriadModel,
+    cache: &mut Option<FirstStage>,
+) -> Vec<[f64; 2]> {
+    let stages: Vec<&dyn imu_model::Effect> =
+        gains.effect_slots().into_iter().rev().flatten().collect();
+    let Some((head, rest)) = stages.split_first() else {
+        return move_residuals(moves, gains);
+    };
+    let mut key: Vec<u64> = head.params().iter().map(|v| v.to_bits()).collect();
+    key.push(head.kind() as u64);
+    if cache.as_ref().is_none_or(|c| c.key != key) {
+        let rates = on_cores(moves, |_, m| {
+            let mut w = m.rate_rad_s.clone();
+            head.inverse_batch(&mut w, &m.conditions);
+            w
+        });
+        *cache = Some(FirstStage { key, rates });
+    }
+    let Some(first) = cache.as_ref() else {
+        return move_residuals(moves, gains);
+    };
+    on_cores(moves, |k, m| {
+        let mut w = first.rates[k].clone();
+        for e in rest {
+            e.inverse_batch(&mut w, &m.conditions);
+        }
+        m.residual_of(m.integrate(&w))
+    })
 }
 
 /// Two unit vectors completing `u` to an orthonormal basis.
@@ -68,11 +162,12 @@ pub(crate) fn fit_gains(
     lsq: &LsqOptions,
 ) -> Result<LsqSolution, LsqError> {
     let mut work = gains.clone();
+    let mut first = None;
     let residual = |p: &[f64]| {
         work.set_params(p);
         let mut r = DVector::zeros(2 * moves.len());
-        for (k, m) in moves.iter().enumerate() {
-            let [a, b] = m.residual(&work);
+        let res = move_residuals_cached(moves, &work, &mut first);
+        for (k, (m, [a, b])) in moves.iter().zip(res).enumerate() {
             r[2 * k] = a / m.sigma_rad;
             r[2 * k + 1] = b / m.sigma_rad;
         }

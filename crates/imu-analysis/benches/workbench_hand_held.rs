@@ -1,0 +1,124 @@
+//! Time of the model workbench on a real-sized hand-held recording (issue 25 item 3: the
+//! reference-free `imu-diagnose` under 1 s and `imu-diagnose ladder` under 2 s):
+//! `cargo bench -p imu-analysis --bench workbench_hand_held`.
+//!
+//! The recording is `config/scenarios/hand-held-raw-long.toml` (38 hand-held poses of an
+//! uncompensated unit, about 511 s at 100 Hz) made once through imud's offline path, seed 7
+//! (`IMUD_BENCH_SEED` for another). Timed, each `IMUD_BENCH_RUNS` times (default 5), median
+//! printed: opening the reference-free workbench (segmentation, noise floors, the moves), the
+//! diagnosis of the base model on both triads (what `imu-diagnose --reference-free` computes),
+//! and the ladder from the base model (what `imu-diagnose ladder --reference-free` computes
+//! after the workbench is open). Also printed: the claims and a digest of every number of the
+//! diagnosis's JSON, so that two builds can be shown to give the same results.
+
+use std::time::{Duration, Instant};
+
+use imu_analysis::input::{Source, read_mcap};
+use imu_analysis::workbench::{DiagnoseOptions, Workbench};
+use imu_model::{Calibration, Triad, TriadModel};
+
+const SCENARIO: &str = include_str!("../../../config/scenarios/hand-held-raw-long.toml");
+const TRUTH: &str = include_str!("../../../config/models/raw-uncompensated.toml");
+
+fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+fn median(mut v: Vec<Duration>) -> Duration {
+    v.sort();
+    v[v.len() / 2]
+}
+
+/// FNV-1a over the bytes of `text`: a short fingerprint of the whole JSON.
+fn digest(text: &str) -> u64 {
+    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+fn main() {
+    let seed: u64 = env_or("IMUD_BENCH_SEED", 7);
+    let runs: usize = env_or("IMUD_BENCH_RUNS", 5).max(1);
+    let dir = tempfile::tempdir().expect("temporary directory");
+    // The truth model is passed as text: the scenario's relative `truth` path is dropped.
+    let scenario: String = SCENARIO
+        .lines()
+        .filter(|l| !l.starts_with("truth"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let t = Instant::now();
+    let session =
+        imud::offline::record_session_text(dir.path(), "hh", &scenario, Some(TRUTH), seed, None)
+            .expect("recording the scenario");
+    let series = read_mcap(&session.recording, Source::Raw, None).expect("reading it back");
+    println!(
+        "recording: {} samples, {:.1} s (made in {:.1} s)",
+        series.len(),
+        series.t_s.last().copied().unwrap_or(0.0) - series.t_s.first().copied().unwrap_or(0.0),
+        t.elapsed().as_secs_f64()
+    );
+
+    let mut base = Calibration::identity();
+    base.accel = TriadModel::with_effects(&TriadModel::PAPER_BASE);
+    base.gyro = TriadModel::with_effects(&TriadModel::PAPER_BASE);
+    let open = || {
+        Workbench::reference_free(&series, None, Some(40.0), DiagnoseOptions::default())
+            .expect("workbench")
+    };
+    let (mut t_open, mut t_diag, mut t_ladder) = (Vec::new(), Vec::new(), Vec::new());
+    let mut fingerprint = None;
+    for _ in 0..runs {
+        let t = Instant::now();
+        let wb = open();
+        t_open.push(t.elapsed());
+        let t = Instant::now();
+        let accel = wb.diagnose(Triad::Accel, &base.accel).expect("accel");
+        let gyro = wb.diagnose(Triad::Gyro, &base.gyro).expect("gyro");
+        t_diag.push(t.elapsed());
+        let t = Instant::now();
+        let ladder = wb.ladder(&base).expect("ladder");
+        t_ladder.push(t.elapsed());
+        let json = serde_json::to_string(&(&accel, &gyro, &ladder)).expect("json");
+        let claims: Vec<String> = [&accel, &gyro]
+            .iter()
+            .flat_map(|d| d.candidates.iter().filter(|c| c.claimed))
+            .map(|c| format!("{} {}", c.triad, c.effect))
+            .collect();
+        let f = (
+            digest(&json),
+            format!("{:?} / {:?}", accel.state, gyro.state),
+            claims,
+            ladder.steps.len(),
+        );
+        assert!(
+            fingerprint.as_ref().is_none_or(|g| *g == f),
+            "the runs differ: {fingerprint:?} vs {f:?}"
+        );
+        fingerprint = Some(f);
+    }
+    let (open_s, diag_s, ladder_s) = (
+        median(t_open).as_secs_f64(),
+        median(t_diag).as_secs_f64(),
+        median(t_ladder).as_secs_f64(),
+    );
+    println!("median of {runs} runs:");
+    println!("  open the workbench                 {open_s:.3} s");
+    println!("  diagnose accel + gyro              {diag_s:.3} s");
+    println!("  ladder                             {ladder_s:.3} s");
+    println!(
+        "  imu-diagnose (open + diagnose)     {:.3} s (target 1 s)",
+        open_s + diag_s
+    );
+    println!(
+        "  imu-diagnose ladder (open + ladder) {:.3} s (target 2 s)",
+        open_s + ladder_s
+    );
+    if let Some((d, states, claims, steps)) = fingerprint {
+        println!(
+            "results: states {states}, claims {claims:?}, ladder steps {steps}, JSON digest {d:016x}"
+        );
+    }
+}
