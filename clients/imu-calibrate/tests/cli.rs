@@ -265,7 +265,7 @@ fn calibrates_real_hardware_style_with_a_plan_or_a_reference_log() {
 
     // The same recording against a reference log on a clock 12.5 s ahead (written from the
     // truth in deg/s and g, as a rate table's or a motion capture's log could be).
-    let truth = imu_bus::truth::read_truth(&truth_path).unwrap();
+    let truth = imu_rec::truth::read_truth(&truth_path).unwrap();
     let mut csv = String::from("t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_g,fy_g,fz_g\n");
     let first_t_s = truth
         .samples

@@ -14,8 +14,8 @@ use imu_analysis::calibrate::{
 use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
-use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, Measured, Triad, TriadModel, Vec3};
+use imu_rec::truth::read_truth;
 
 /// Paper 3.1.2 shortened: 2 x 6 positions, 60-degree steps, 20 s each.
 const INDEX_TABLE: &str = r#"
