@@ -10,7 +10,7 @@ the iceoryx2 crate imud is built with, see requirements-dev.txt). It opens the s
     imud/<name>/event       wakes subscribers when the daemon has published
 
 The ctypes Structures below mirror the `#[repr(C)]` layouts documented in
-crates/imu-bus/src/sample.rs field for field; iceoryx2 refuses to connect when the type name,
+crates/imu-rec/src/sample.rs field for field; iceoryx2 refuses to connect when the type name,
 size or alignment differ, so a layout change on the Rust side shows up as an error here.
 
 Usage:

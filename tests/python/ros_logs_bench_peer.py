@@ -1,4 +1,4 @@
-"""The Python side of `crates/imu-bus/benches/ros_logs.rs`: writes a large ROS 1 bag or rosbag2
+"""The Python side of `crates/imu-rec/benches/ros_logs.rs`: writes a large ROS 1 bag or rosbag2
 sqlite3 bag of `sensor_msgs/Imu` with `rosbags` (at run time, into the bench's temporary
 directory), and reads one back the way a `rosbags` user does (AnyReader, every message
 deserialized, stamps and vectors collected), timing the read.

@@ -449,7 +449,7 @@ fn read_reference(path: &Path) -> Result<dynamic::Reference> {
             .with_context(|| format!("reading the reference angle CSV {}", path.display())),
         _ => {
             let p = Progress::start("reading truth", path);
-            let truth = imu_bus::truth::read_truth(path).with_context(|| {
+            let truth = imu_rec::truth::read_truth(path).with_context(|| {
                 format!(
                     "reading the reference truth file {} (a CSV must end in .csv)",
                     path.display()

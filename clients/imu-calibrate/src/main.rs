@@ -18,10 +18,10 @@ use imu_analysis::calibrate::{
 };
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
-use imu_bus::mcap_read::has_mcap_magic;
 use imu_cli::finite_f64;
 use imu_cli::progress::read_input;
 use imu_model::{Calibration, InputFile, Triad, TriadModel};
+use imu_rec::mcap_read::has_mcap_magic;
 use serde::Serialize;
 
 mod print;

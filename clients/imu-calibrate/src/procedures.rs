@@ -24,7 +24,7 @@ pub(super) fn run_reference_free(cli: &Cli, recording: &Recording, hashing: Hash
         .flat_map(|f| {
             f.unobservable
                 .iter()
-                .filter(|u| !u.reason.starts_with("gauge"))
+                .filter(|u| u.reason != imu_analysis::calibrate::NotFitted::Gauge)
                 .map(|u| format!("{} {}", f.triad, u.name))
         })
         .collect();

@@ -66,6 +66,29 @@ fn calibrates_a_simulated_recording_within_its_standard_errors() {
     }
     // accel 3+3+6+6 (minus <= 2 cubic), gyro 3+3+6+9.
     assert!(fitted >= 16 + 21, "{fitted} of {}", rows.len());
+    // Results as data: one entry per parameter with its typed id beside the parallel columns,
+    // a stable code beside every held parameter's and every warning's sentence.
+    for triad in ["accel", "gyro"] {
+        let f = &j["fit"][triad];
+        let params = f["parameters"].as_array().unwrap();
+        assert_eq!(params.len(), f["names"].as_array().unwrap().len());
+        for (i, p) in params.iter().enumerate() {
+            assert_eq!(p["name"], f["names"][i], "{triad}");
+            assert_eq!(p["value"], f["params"][i], "{triad}");
+            assert!(
+                p["id"]["effect"].is_string() && p["id"]["role"].is_string(),
+                "{p}"
+            );
+        }
+        for u in f["unobservable"].as_array().unwrap() {
+            assert!(u["code"].is_string() && u["reason"].is_string(), "{u}");
+        }
+        assert_eq!(
+            f["warning_codes"].as_array().unwrap().len(),
+            f["warnings"].as_array().unwrap().len(),
+            "{triad}"
+        );
+    }
     assert!(
         j["fit"]["recordings"][0]["segmentation"]["segments"]
             .as_array()
@@ -265,7 +288,7 @@ fn calibrates_real_hardware_style_with_a_plan_or_a_reference_log() {
 
     // The same recording against a reference log on a clock 12.5 s ahead (written from the
     // truth in deg/s and g, as a rate table's or a motion capture's log could be).
-    let truth = imu_bus::truth::read_truth(&truth_path).unwrap();
+    let truth = imu_rec::truth::read_truth(&truth_path).unwrap();
     let mut csv = String::from("t_s,wx_deg_s,wy_deg_s,wz_deg_s,fx_g,fy_g,fz_g\n");
     let first_t_s = truth
         .samples

@@ -169,7 +169,7 @@ fn calibration_file_from_imu_calibrate_corrects_a_new_session_in_imud() {
 
     // 2. A new session (seed 202) with imud applying that file.
     let (recording, truth) = record(dir.path(), "check", 202, Some(&cal_path));
-    let rec = imu_bus::recording::read_recording(&recording).unwrap();
+    let rec = imu_rec::recording::read_recording(&recording).unwrap();
     assert_eq!(
         rec.calibrations.len(),
         1,
@@ -179,14 +179,14 @@ fn calibration_file_from_imu_calibrate_corrects_a_new_session_in_imud() {
     assert!(
         rec.raw
             .iter()
-            .all(|s| s.flags & imu_bus::sample::raw_flags::SATURATED == 0)
+            .all(|s| s.flags & imu_rec::sample::raw_flags::SATURATED == 0)
     );
     drop(rec);
 
     let raw: ImuSeries = read_mcap(&recording, Source::Raw, None).unwrap();
     let corrected: ImuSeries = read_mcap(&recording, Source::Corrected, None).unwrap();
     assert_eq!(raw.len(), corrected.len());
-    let reference = Reference::Truth(imu_bus::truth::read_truth(&truth).unwrap());
+    let reference = Reference::Truth(imu_rec::truth::read_truth(&truth).unwrap());
     let segmentation = detect(&raw, &SegmentOptions::default()).unwrap();
     let segment_truth = reference
         .segment_truth(&raw, &segmentation.segments)

@@ -9,9 +9,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use imu_bus::truth::{TruthSample, TruthSegment, read_truth};
 use imu_model::nalgebra::{Matrix3, Vector3};
 use imu_model::{Calibration, Measured};
+use imu_rec::truth::{TruthSample, TruthSegment, read_truth};
 
 /// The truth: the paper's base model on both triads, with the 3DM-GX1-like noise.
 const TRUTH: &str = r#"

@@ -14,8 +14,8 @@ use imu_analysis::calibrate::{
 use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
-use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, Measured, Triad, TriadModel, Vec3};
+use imu_rec::truth::read_truth;
 
 /// Paper 3.1.2 shortened: 2 x 6 positions, 60-degree steps, 20 s each.
 const INDEX_TABLE: &str = r#"
@@ -378,12 +378,22 @@ fn one_position_cannot_separate_g_sensitivity() {
     // Two positions, both z up: only the bias is fitted, g-sensitivity is reported.
     assert_eq!(fit.gyro.free.len(), 3, "{:?}", fit.gyro.warnings);
     assert_eq!(fit.gyro.unobservable.len(), 9);
-    assert!(
-        fit.gyro
-            .warnings
-            .iter()
-            .any(|w| w.contains("g-sensitivity"))
-    );
+    // Each held parameter is a typed warning naming a g-sensitivity parameter, by its id.
+    let held: Vec<&str> = fit
+        .gyro
+        .warnings
+        .iter()
+        .filter_map(|w| match &w.kind {
+            imu_analysis::calibrate::FitWarningKind::NotFitted(u) => Some(u.name.as_str()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(held.len(), 9, "{:?}", fit.gyro.warnings);
+    for name in held {
+        let p = fit.gyro.parameters.iter().find(|p| p.name == name).unwrap();
+        assert_eq!(p.id.effect, EffectKind::GSensitivity, "{name}");
+        assert_eq!(p.std_error, None, "{name}");
+    }
     let e = calibrate(&run.series, &run.truth, &CalibrateOptions::default())
         .unwrap_err()
         .to_string();

@@ -12,8 +12,8 @@ use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
 use imu_analysis::workbench::{DiagnoseOptions, Ladder, TriadDiagnosis, Workbench};
-use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, Triad, TriadModel};
+use imu_rec::truth::read_truth;
 
 /// The truth every test starts from: bias, scale and misalignment on both triads (the base
 /// model's effects), with the example 3DM-GX1's coloured noise.

@@ -51,7 +51,7 @@ fn offset_drift_and_calibration() {
     // The daemon corrects with the truth model itself: a perfect calibration.
     c.calibration.path = Some(model_path());
     let out = imud::offline::record(sim, &c).unwrap();
-    let truth = imu_bus::truth::read_truth(&truth_path).unwrap();
+    let truth = imu_rec::truth::read_truth(&truth_path).unwrap();
     let reference = Reference::from_truth(&truth, "truth");
     let raw = read_mcap(&out.files[0], Source::Raw, None).unwrap();
     let corrected = read_mcap(&out.files[0], Source::Corrected, None).unwrap();

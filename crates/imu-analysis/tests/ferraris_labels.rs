@@ -9,7 +9,7 @@ use imu_analysis::ImuSeries;
 use imu_analysis::input::{Labels, Source, read_mcap};
 use imu_analysis::reference::ferraris::Ferraris;
 use imu_analysis::segment::{SegmentKind, SegmentOptions, Segmentation};
-use imu_bus::truth::{TruthSegment, read_truth};
+use imu_rec::truth::{TruthSegment, read_truth};
 
 const PLAN: &str = "format = \"imud-plan/1\"\nprocedure = \"ferraris\"\nlatitude-deg = 40.0\n";
 

@@ -14,8 +14,8 @@ use imu_analysis::ImuSeries;
 use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
 use imu_analysis::workbench::{DiagnoseOptions, FoldScheme, VerdictState, Workbench};
-use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, Triad, TriadModel};
+use imu_rec::truth::read_truth;
 
 /// Bias, scale and misalignment on both triads with the example 3DM-GX1's coloured noise.
 const BASE_TRUTH: &str = include_str!("data/diagnose-base-truth.toml");

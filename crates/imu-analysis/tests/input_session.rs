@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use imu_analysis::input::{InputError, InputOptions, read_input};
-use imu_bus::CorrectedSample;
-use imu_bus::recording::{LogRecord, Recorder, RecordingConfig, list_recordings};
+use imu_rec::CorrectedSample;
+use imu_rec::recording::{LogRecord, Recorder, RecordingConfig, list_recordings};
 
 const T0_NS: u64 = 1_700_000_000_000_000_000;
 const DT_NS: u64 = 10_000_000;

@@ -17,9 +17,9 @@ use imu_analysis::reference::Reference;
 use imu_analysis::reference::log::ReferenceLog;
 use imu_analysis::reference::plan::Plan;
 use imu_analysis::segment::SegmentKind;
-use imu_bus::truth::{Truth, read_truth};
 use imu_model::units::EARTH_RATE_RAD_S;
 use imu_model::{Calibration, EffectKind, TriadModel, Vec3};
+use imu_rec::truth::{Truth, read_truth};
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")

@@ -15,8 +15,8 @@ use imu_analysis::calibrate::reference_free::{
 use imu_analysis::calibrate::{CalibrateOptions, bias_drift_from_noise, calibrate};
 use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
-use imu_bus::truth::read_truth;
 use imu_model::{Calibration, EffectKind, TriadModel};
+use imu_rec::truth::read_truth;
 
 /// A hand-held session: 36 random still poses of 22 s, 2 s moves about random axes.
 const MULTI_POSE: &str = r#"

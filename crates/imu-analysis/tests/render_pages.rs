@@ -15,8 +15,8 @@ use imu_analysis::render::html::{
 };
 use imu_analysis::render::svg::{Figure, Style, all_points, axis_ranges};
 use imu_analysis::workbench::{DiagnoseOptions, VerdictState, Workbench};
-use imu_bus::truth::read_truth;
 use imu_model::{Calibration, Triad, TriadModel};
+use imu_rec::truth::read_truth;
 
 const WIDTH: f64 = 800.0;
 const HEIGHT: f64 = 560.0;

@@ -1,29 +1,18 @@
-//! The contract between imud processes and their files: MCAP topics, message schemas, and the
-//! writers and readers for them.
+//! The shared-memory contract between imud processes: the iceoryx2 services ([`shm`]) that carry
+//! the fixed-layout sample types of `imu-rec`.
 //!
-//! Everything that crosses a process boundary (a shared-memory payload, an MCAP channel, a truth
-//! file written by the simulator) is defined here and nowhere else, so that a producer and its
-//! consumers cannot drift apart.
-//!
-//! - [`truth`]: the simulator's ground-truth recording (`/truth/sample`, `/truth/segment`,
-//!   metadata with the scenario and the truth error model), keyed by the device's timer ticks.
-//! - [`mcap_read`]: a tolerant streaming MCAP reader that reads a truncated file (a process killed
-//!   mid-write) up to its last good record and says where it stopped ([`mcap_read::Unfinished`]).
+//! - [`shm`]: the services, their options and the checks of who owns and publishes them.
 //! - [`readers`]: imud's streams on a Unix socket for processes in its readers' group (the
 //!   records' C-layout bytes behind a small header), and the client that checks the server.
-//! - [`recover`]: repairs such a file (summary, indexes, footer) so every reader opens it.
-//! - [`ros1`]: ROS 1 serialization and bag files (2.0), read in the same tolerant way;
-//!   [`ros2`]: CDR, the message types, rosbag2 directories and their sqlite3 storage.
+//!
+//! The file formats (MCAP recording, truth files, repair, CDR, rosbag2, ROS 1 bags) live in
+//! `imu-rec`, which has no shared-memory code, so the offline tools link none; this crate
+//! re-exports them so the daemon and the shared-memory clients keep one dependency.
 
-pub mod mcap_read;
 pub mod readers;
-pub mod recording;
-pub mod recover;
-pub mod ros1;
-pub mod ros2;
-pub mod sample;
 pub mod shm;
-pub mod truth;
 
-pub use mcap_read::{McapReadError, ReadReport, Unfinished};
-pub use sample::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
+pub use imu_rec::{
+    CalibrationHealth, CorrectedSample, DaemonStatus, McapReadError, RawSample, ReadReport,
+    Unfinished, mcap_read, recording, recover, ros1, ros2, sample, truth,
+};

@@ -108,7 +108,7 @@ mod csv_args {
         if p.is_dir() {
             return false;
         }
-        match imu_bus::mcap_read::has_mcap_magic(p) {
+        match imu_rec::mcap_read::has_mcap_magic(p) {
             Ok(mcap) => !mcap,
             Err(_) => p.extension().and_then(|e| e.to_str()) != Some("mcap"),
         }

@@ -13,7 +13,7 @@ use std::ffi::OsString;
 use std::process::ExitCode;
 
 use clap::{ArgMatches, CommandFactory, FromArgMatches};
-use imu_bus::McapReadError;
+use imu_rec::McapReadError;
 
 /// `EX_USAGE`: the command line is wrong.
 pub const EXIT_USAGE: u8 = 64;

@@ -4,11 +4,11 @@
 use std::path::Path;
 use std::time::{Duration, UNIX_EPOCH};
 
-use imu_bus::Unfinished;
+use imu_rec::Unfinished;
 
 /// `YYYYMMDDTHHMMSS.mmmZ` of a Unix-epoch time in ns.
 pub fn utc_ms(t_ns: u64) -> String {
-    let stamp = imu_bus::recording::utc_stamp(UNIX_EPOCH + Duration::from_nanos(t_ns));
+    let stamp = imu_rec::recording::utc_stamp(UNIX_EPOCH + Duration::from_nanos(t_ns));
     let ms = t_ns / 1_000_000 % 1000;
     format!("{}.{ms:03}Z", stamp.trim_end_matches('Z'))
 }

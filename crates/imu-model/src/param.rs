@@ -59,6 +59,12 @@ pub struct ParamId {
 }
 
 impl ParamId {
+    /// True for the warm-up time constant (the one parameter that is a time, not an amount of
+    /// an effect on an axis).
+    pub fn is_time_constant(&self) -> bool {
+        self.effect == EffectKind::Warmup && self.role == ParamRole::Scalar
+    }
+
     /// What drives this parameter, in physical words (what pattern in the residuals of
     /// `triad` it explains).
     pub fn driver(&self, triad: Triad) -> String {
@@ -105,6 +111,40 @@ impl ParamId {
     }
 }
 
+impl ParamRole {
+    /// The stable code of the role: `axis`, `coupling`, `power`, `scalar`.
+    pub fn code(self) -> &'static str {
+        match self {
+            ParamRole::Axis(_) => "axis",
+            ParamRole::Coupling { .. } => "coupling",
+            ParamRole::Power { .. } => "power",
+            ParamRole::Scalar => "scalar",
+        }
+    }
+}
+
+/// Serialized as `{"name", "effect", "role", "axis", "input_axis", "power"}`: the effect's id
+/// (`bias`, `warmup`, ...), the role's [`ParamRole::code`], the sensor axis (0..3, null for a
+/// scalar), the input axis of a coupling and the power of a polynomial term (null otherwise).
+impl serde::Serialize for ParamId {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let (input_axis, power) = match self.role {
+            ParamRole::Coupling { col, .. } => (Some(col), None),
+            ParamRole::Power { power, .. } => (None, Some(power)),
+            ParamRole::Axis(_) | ParamRole::Scalar => (None, None),
+        };
+        let mut s = serializer.serialize_struct("ParamId", 6)?;
+        s.serialize_field("name", &self.name)?;
+        s.serialize_field("effect", self.effect.id())?;
+        s.serialize_field("role", self.role.code())?;
+        s.serialize_field("axis", &self.role.axis())?;
+        s.serialize_field("input_axis", &input_axis)?;
+        s.serialize_field("power", &power)?;
+        s.end()
+    }
+}
+
 impl fmt::Display for ParamId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.name)
@@ -115,6 +155,38 @@ impl fmt::Display for ParamId {
 mod tests {
     use super::*;
     use crate::TriadModel;
+
+    #[test]
+    fn the_warmup_time_constant_is_the_only_time_constant() {
+        let mut m = TriadModel::default();
+        for k in EffectKind::ALL {
+            m.add(k);
+        }
+        let tau: Vec<String> = m
+            .param_ids()
+            .into_iter()
+            .filter(ParamId::is_time_constant)
+            .map(|id| id.name)
+            .collect();
+        assert_eq!(tau, ["warmup.tau_s"]);
+    }
+
+    #[test]
+    fn a_parameter_id_serializes_its_effect_role_and_axes() {
+        let mut m = TriadModel::default();
+        m.add(EffectKind::Misalignment);
+        let ids = m.param_ids();
+        let json = serde_json::to_value(&ids[1]).unwrap();
+        assert_eq!(json["name"], ids[1].name.as_str());
+        assert_eq!(json["effect"], "misalignment");
+        assert_eq!(json["role"], "coupling");
+        let ParamRole::Coupling { row, col } = ids[1].role else {
+            panic!("{:?}", ids[1])
+        };
+        assert_eq!(json["axis"], row);
+        assert_eq!(json["input_axis"], col);
+        assert!(json["power"].is_null());
+    }
 
     #[test]
     fn every_parameter_has_a_role_and_physical_words() {

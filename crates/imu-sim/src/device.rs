@@ -19,13 +19,13 @@
 
 use std::collections::BTreeMap;
 
-use imu_bus::truth::TruthSample;
 use imu_model::nalgebra::{UnitQuaternion, Vector3};
 use imu_model::{Calibration, Conditions, NoiseGenerator, TrueMotion};
 use imu_proto::command::Command;
 use imu_proto::device::{ACCEL_GAIN_SCALE_ADDR, GYRO_GAIN_SCALE_ADDR, MAG_GAIN_SCALE_ADDR};
 use imu_proto::reply::{Filter, Reply};
 use imu_proto::scale;
+use imu_rec::truth::TruthSample;
 
 use crate::motion::{MotionState, Timeline};
 use crate::scenario::{Scenario, enu_from_ned};

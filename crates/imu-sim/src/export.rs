@@ -294,7 +294,7 @@ mod tests {
             gyro.lines().all(|l| l.ends_with(" 32768 32768 32768")),
             "{gyro}"
         );
-        let truth = imu_bus::truth::read_truth(&dir.path().join("truth.mcap")).unwrap();
+        let truth = imu_rec::truth::read_truth(&dir.path().join("truth.mcap")).unwrap();
         assert_eq!(truth.samples.len(), 21);
 
         let si = export_text(&opts, &dir.path().join("si"), ExportUnits::Si).unwrap();

@@ -28,8 +28,8 @@ use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use imu_bus::truth::{TruthSegment, TruthWriter};
 use imu_model::Calibration;
+use imu_rec::truth::{TruthSegment, TruthWriter};
 
 pub use device::DeviceCore;
 pub use link::{LinkReport, Pacing};
@@ -50,7 +50,7 @@ pub enum SimError {
     Link(#[from] link::LinkError),
     /// The truth file could not be written.
     #[error(transparent)]
-    Truth(#[from] imu_bus::truth::TruthWriteError),
+    Truth(#[from] imu_rec::truth::TruthWriteError),
     /// I/O on the pty failed while running.
     #[error("virtual device I/O failed")]
     Io(#[from] std::io::Error),
@@ -336,7 +336,7 @@ fn open_truth(
 /// is flushed at least twice a second so a killed run leaves a readable file.
 fn truth_thread(
     mut w: TruthWriter,
-    rx: mpsc::Receiver<imu_bus::truth::TruthSample>,
+    rx: mpsc::Receiver<imu_rec::truth::TruthSample>,
 ) -> JoinHandle<Result<(), SimError>> {
     std::thread::spawn(move || -> Result<(), SimError> {
         let mut last_flush = Instant::now();

@@ -27,7 +27,6 @@
 
 use std::collections::VecDeque;
 
-use imu_bus::truth::TruthSample;
 use imu_proto::mip::command::cmd_3dm;
 use imu_proto::mip::data::{INTERNAL_TICK_HZ, field};
 use imu_proto::mip::descriptor_set::IMU_DATA;
@@ -36,6 +35,7 @@ use imu_proto::mip::{
     MipError, MipEvent, MipReply, Packet, Response, Setting, TemperatureStats,
 };
 use imu_proto::scale;
+use imu_rec::truth::TruthSample;
 
 use crate::device::{DeviceCore, Measurement};
 use crate::scenario::MIP_IMU_BASE_RATE_HZ;

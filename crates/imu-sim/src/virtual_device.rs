@@ -2,10 +2,10 @@
 //! command decoder) and the MIP unit ([`MipDevice`]), so the pty loop in [`crate::link`] knows
 //! no protocol. A third protocol is a third variant here and a device file beside these.
 
-use imu_bus::truth::TruthSample;
 use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
 use imu_proto::decoder::{CommandDecoder, CommandEvent};
+use imu_rec::truth::TruthSample;
 
 use crate::device::DeviceCore;
 use crate::mip_device::{MipDevice, MipRequest};

@@ -77,7 +77,7 @@ fn export_is_the_truths_measurement_in_raw_counts() {
         )),
         "{stdout}"
     );
-    let truth = imu_bus::truth::read_truth(&truth_out).unwrap().samples;
+    let truth = imu_rec::truth::read_truth(&truth_out).unwrap().samples;
     let (acc, gyro) = (
         rows(&dir.path().join("txt/acc.txt")),
         rows(&dir.path().join("txt/gyro.txt")),

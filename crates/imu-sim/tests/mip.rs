@@ -7,12 +7,12 @@ use std::path::PathBuf;
 use std::process::{Child, Command as Process, Stdio};
 use std::time::Duration;
 
-use imu_bus::truth::read_truth;
 use imu_proto::mip::data::{INTERNAL_TICK_HZ, field};
 use imu_proto::mip::{
     AckCode, DescriptorRate, ImuData, MessageFormat, MipCommand, MipDecoder, MipEvent, MipReply,
     Packet, Response, Setting,
 };
+use imu_rec::truth::read_truth;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio_serial::{SerialPortBuilderExt, SerialStream};
 

@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Stdio};
 use std::time::Duration;
 
-use imu_bus::truth::{TruthSample, read_truth};
 use imu_proto::command::Command;
 use imu_proto::decoder::{DecodeEvent, ReplyDecoder};
 use imu_proto::reply::Reply;
 use imu_proto::scale;
+use imu_rec::truth::{TruthSample, read_truth};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio_serial::{SerialPortBuilderExt, SerialStream};
 

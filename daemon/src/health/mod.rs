@@ -182,13 +182,134 @@ fn gyro_offset(obs: &VecDeque<GyroObs>) -> Vec3 {
     })
 }
 
-/// A health report and the log line its state changes call for.
+/// A health report and the changes it brought.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HealthEvent {
     /// The report (also published and recorded).
     pub report: CalibrationHealth,
-    /// One line per state change or bias-tracking step, for the daemon's log.
-    pub changes: Vec<String>,
+    /// The state changes and bias-tracking steps of this window, in order (the daemon logs
+    /// each one's `Display`).
+    pub changes: Vec<HealthChange>,
+}
+
+/// The triad a [`HealthChange`] concerns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HealthTriad {
+    /// The accelerometers.
+    Accel,
+    /// The gyroscopes.
+    Gyro,
+}
+
+impl HealthTriad {
+    /// `accel` or `gyro`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HealthTriad::Accel => "accel",
+            HealthTriad::Gyro => "gyro",
+        }
+    }
+}
+
+/// One change the health monitor made: programs match on the variant (or its
+/// [`code`](Self::code)); the log line is its `Display`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HealthChange {
+    /// A triad's state changed.
+    State {
+        /// Which triad.
+        triad: HealthTriad,
+        /// The state before.
+        from: HealthState,
+        /// The state now.
+        to: HealthState,
+        /// The p-value of the window that decided it.
+        p: f64,
+        /// The report at the change (residuals, offsets, temperature, still-window count).
+        report: CalibrationHealth,
+        /// The calibration's temperature range, when the report's temperature lies outside it.
+        outside_range_c: Option<[f64; 2]>,
+    },
+    /// Bias tracking applied a step to a stale triad's correction.
+    BiasTracking {
+        /// Which triad.
+        triad: HealthTriad,
+        /// The step applied now (m/s^2 or rad/s).
+        step: Vec3,
+        /// The total applied offset after it, bounded by `bound`.
+        total: Vec3,
+        /// The bound of the total's norm.
+        bound: f64,
+    },
+}
+
+impl HealthChange {
+    /// The stable code: `state_change` or `bias_tracking`.
+    pub fn code(&self) -> &'static str {
+        match self {
+            HealthChange::State { .. } => "state_change",
+            HealthChange::BiasTracking { .. } => "bias_tracking",
+        }
+    }
+
+    /// True for a return to `ok` (logged as information; every other change is a warning).
+    pub fn is_recovery(&self) -> bool {
+        matches!(
+            self,
+            HealthChange::State {
+                to: HealthState::Ok,
+                ..
+            }
+        )
+    }
+}
+
+impl std::fmt::Display for HealthChange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HealthChange::State {
+                triad,
+                from,
+                to,
+                p,
+                report,
+                outside_range_c,
+            } => {
+                f.write_str(&change_line(*triad, *from, *to, *p, report))?;
+                if let Some([lo, hi]) = outside_range_c {
+                    write!(
+                        f,
+                        "; the temperature {:.1} C is outside the calibration's range \
+                         {lo:.1} to {hi:.1} C (a thermal effect it never saw?)",
+                        report.temp_c
+                    )?;
+                }
+                Ok(())
+            }
+            HealthChange::BiasTracking {
+                triad: HealthTriad::Accel,
+                step,
+                total,
+                bound,
+            } => write!(
+                f,
+                "health: accel bias tracking applies {} m/s^2 (total {}, bound {bound:.3})",
+                fmt_vec(*step),
+                fmt_vec(*total)
+            ),
+            HealthChange::BiasTracking {
+                triad: HealthTriad::Gyro,
+                step,
+                total,
+                bound,
+            } => write!(
+                f,
+                "health: gyro bias tracking applies {} rad/s (total {}, bound {bound:.4})",
+                fmt_vec(*step),
+                fmt_vec(*total)
+            ),
+        }
+    }
 }
 
 /// The live health monitor of one calibration.
@@ -400,8 +521,13 @@ impl HealthMonitor {
             };
     }
 
-    /// The sequential tests, the offsets and the state-change lines.
-    fn test(&mut self, report: &mut CalibrationHealth, r: &WindowResiduals, log: &mut Vec<String>) {
+    /// The sequential tests, the offsets and the state changes.
+    fn test(
+        &mut self,
+        report: &mut CalibrationHealth,
+        r: &WindowResiduals,
+        log: &mut Vec<HealthChange>,
+    ) {
         let alpha = self.config.false_alarm_p;
         let p_accel = self.accel.p_value(
             [r.accel_residual_m_s2, 0.0, 0.0],
@@ -425,8 +551,13 @@ impl HealthMonitor {
             report.checks |= health_checks::ACCEL_BIAS_3D;
         }
         if self.accel.state != before {
-            let line = change_line("accel", before, self.accel.state, p_accel, report);
-            log.push(self.with_temperature(line, report));
+            log.push(self.state_change(
+                HealthTriad::Accel,
+                before,
+                self.accel.state,
+                p_accel,
+                report,
+            ));
         }
         let before = self
             .gyro
@@ -434,37 +565,47 @@ impl HealthMonitor {
         report.gyro_p = p_gyro;
         report.gyro_offset_rad_s = gyro_offset(&self.gyro.obs).into();
         if self.gyro.state != before {
-            let line = change_line("gyro", before, self.gyro.state, p_gyro, report);
-            log.push(self.with_temperature(line, report));
+            log.push(self.state_change(HealthTriad::Gyro, before, self.gyro.state, p_gyro, report));
         }
     }
 
-    /// A state-change line, with the temperature when it lies outside the calibration's range.
-    fn with_temperature(&self, line: String, report: &CalibrationHealth) -> String {
-        match self.temperature_range_c {
-            Some([lo, hi]) if report.checks & health_checks::TEMP_OUT_OF_RANGE != 0 => format!(
-                "{line}; the temperature {:.1} C is outside the calibration's range \
-                 {lo:.1} to {hi:.1} C (a thermal effect it never saw?)",
-                report.temp_c
-            ),
-            _ => line,
+    /// A state change, with the calibration's temperature range when the report's temperature
+    /// lies outside it.
+    fn state_change(
+        &self,
+        triad: HealthTriad,
+        from: HealthState,
+        to: HealthState,
+        p: f64,
+        report: &CalibrationHealth,
+    ) -> HealthChange {
+        HealthChange::State {
+            triad,
+            from,
+            to,
+            p,
+            report: *report,
+            outside_range_c: self
+                .temperature_range_c
+                .filter(|_| report.checks & health_checks::TEMP_OUT_OF_RANGE != 0),
         }
     }
 
     /// Bias tracking: a stale triad's estimated offset is added to the applied correction
     /// (bounded), and the triad is tested afresh against the corrected stream.
-    fn track(&mut self, report: &CalibrationHealth, log: &mut Vec<String>) {
+    fn track(&mut self, report: &CalibrationHealth, log: &mut Vec<HealthChange>) {
         let max_a = self.config.track_bias_max_m_s2;
         let max_g = self.config.track_bias_max_rad_s;
         if self.accel.state == HealthState::Stale {
             let step = Vec3::from(report.accel_offset_m_s2);
             if step.iter().all(|v| v.is_finite()) {
                 let applied = clamp_norm(self.applied_accel_m_s2 + step, max_a);
-                log.push(format!(
-                    "health: accel bias tracking applies {} m/s^2 (total {}, bound {max_a:.3})",
-                    fmt_vec(step),
-                    fmt_vec(applied)
-                ));
+                log.push(HealthChange::BiasTracking {
+                    triad: HealthTriad::Accel,
+                    step,
+                    total: applied,
+                    bound: max_a,
+                });
                 self.applied_accel_m_s2 = applied;
                 self.accel = Track::starting(HealthState::Ok);
             }
@@ -473,11 +614,12 @@ impl HealthMonitor {
             let step = Vec3::from(report.gyro_offset_rad_s);
             if step.iter().all(|v| v.is_finite()) {
                 let applied = clamp_norm(self.applied_gyro_rad_s + step, max_g);
-                log.push(format!(
-                    "health: gyro bias tracking applies {} rad/s (total {}, bound {max_g:.4})",
-                    fmt_vec(step),
-                    fmt_vec(applied)
-                ));
+                log.push(HealthChange::BiasTracking {
+                    triad: HealthTriad::Gyro,
+                    step,
+                    total: applied,
+                    bound: max_g,
+                });
                 self.applied_gyro_rad_s = applied;
                 self.gyro = Track::starting(HealthState::Ok);
             }
@@ -506,14 +648,14 @@ fn dominant_axis(v: Vec3) -> String {
 
 /// The log line of a state change, with the offset that would explain it.
 fn change_line(
-    triad: &str,
+    triad: HealthTriad,
     before: HealthState,
     after: HealthState,
     p: f64,
     r: &CalibrationHealth,
 ) -> String {
     let what = match triad {
-        "accel" => {
+        HealthTriad::Accel => {
             let o = Vec3::from(r.accel_offset_m_s2);
             format!(
                 "|f| - g = {:+.4} m/s^2 (expected scatter {:.4}); accel bias shift ~ {:.4} m/s^2 along {} {}",
@@ -524,7 +666,7 @@ fn change_line(
                 fmt_vec(o)
             )
         }
-        _ => {
+        HealthTriad::Gyro => {
             let o = Vec3::from(r.gyro_offset_rad_s);
             format!(
                 "|w| - |Omega| = {:+.2e} rad/s (expected scatter {:.2e} per axis); gyro bias shift ~ {:.2e} rad/s ({:.3} deg/s) along {} {}",
@@ -538,9 +680,92 @@ fn change_line(
         }
     };
     format!(
-        "health: {triad} {} -> {} (p {p:.1e} over still window {}): {what}",
+        "health: {} {} -> {} (p {p:.1e} over still window {}): {what}",
+        triad.name(),
         before.name(),
         after.name(),
         r.still_windows
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> CalibrationHealth {
+        CalibrationHealth {
+            still_windows: 12,
+            accel_residual_m_s2: 0.02,
+            accel_expected_std_m_s2: 0.001,
+            accel_offset_m_s2: [0.0, 0.0, 0.02],
+            temp_c: 61.5,
+            ..CalibrationHealth::default()
+        }
+    }
+
+    /// The log level follows the typed target state, never the words of the line.
+    #[test]
+    fn only_a_return_to_ok_is_a_recovery() {
+        let change = |from, to| HealthChange::State {
+            triad: HealthTriad::Accel,
+            from,
+            to,
+            p: 1e-6,
+            report: report(),
+            outside_range_c: None,
+        };
+        assert!(change(HealthState::Degraded, HealthState::Ok).is_recovery());
+        assert!(change(HealthState::Stale, HealthState::Ok).is_recovery());
+        assert!(!change(HealthState::Ok, HealthState::Degraded).is_recovery());
+        assert!(!change(HealthState::Degraded, HealthState::Stale).is_recovery());
+        let tracking = HealthChange::BiasTracking {
+            triad: HealthTriad::Gyro,
+            step: Vec3::new(1e-4, 0.0, 0.0),
+            total: Vec3::new(1e-4, 0.0, 0.0),
+            bound: 0.01,
+        };
+        assert!(!tracking.is_recovery());
+        assert_eq!(tracking.code(), "bias_tracking");
+        assert_eq!(
+            change(HealthState::Ok, HealthState::Degraded).code(),
+            "state_change"
+        );
+    }
+
+    /// The log line is the Display of the typed change: the states, the still window, the
+    /// offset's axis and, out of the calibrated range, the temperature.
+    #[test]
+    fn a_state_change_renders_its_log_line() {
+        let c = HealthChange::State {
+            triad: HealthTriad::Accel,
+            from: HealthState::Ok,
+            to: HealthState::Degraded,
+            p: 1e-6,
+            report: report(),
+            outside_range_c: Some([15.0, 35.0]),
+        };
+        let line = c.to_string();
+        assert!(
+            line.starts_with("health: accel ok -> degraded (p 1.0e-6 over still window 12): "),
+            "{line}"
+        );
+        assert!(
+            line.ends_with(
+                "; the temperature 61.5 C is outside the calibration's range 15.0 to 35.0 C \
+                 (a thermal effect it never saw?)"
+            ),
+            "{line}"
+        );
+        let tracking = HealthChange::BiasTracking {
+            triad: HealthTriad::Accel,
+            step: Vec3::new(0.0, 0.0, 0.02),
+            total: Vec3::new(0.0, 0.0, 0.02),
+            bound: 0.5,
+        };
+        assert_eq!(
+            tracking.to_string(),
+            "health: accel bias tracking applies [+0.000e0, +0.000e0, +2.000e-2] m/s^2 (total \
+             [+0.000e0, +0.000e0, +2.000e-2], bound 0.500)"
+        );
+    }
 }

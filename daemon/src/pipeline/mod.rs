@@ -488,11 +488,11 @@ impl Pipeline {
         };
         // The frame goes into the log before the report that its sample closed.
         self.flush_frame(host_ns.0, host_ns.1, sinks);
-        for line in &event.changes {
-            if line.contains("-> ok") {
-                info!("{line}");
+        for change in &event.changes {
+            if change.is_recovery() {
+                info!("{change}");
             } else {
-                warn!("{line}");
+                warn!("{change}");
             }
         }
         if let Some(p) = &mut sinks.publishers {

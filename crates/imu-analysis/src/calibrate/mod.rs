@@ -21,10 +21,12 @@ mod covariance;
 mod observations;
 pub mod reference_free;
 mod triad_fit;
+mod warning;
 
 pub use covariance::*;
 pub use observations::*;
 pub use triad_fit::*;
+pub use warning::{Evidence, FitWarning, FitWarningKind, WarningScope, Warnings};
 
 /// What [`calibrate`] fits and how.
 #[derive(Clone, Debug)]

@@ -46,10 +46,36 @@ fn a_cubic_that_would_make_the_model_non_invertible_is_held() {
     }
     assert!(r.model.validate(Triad::Accel).is_ok());
     assert!(
-        r.unobservable[0].reason.contains("invalid"),
+        matches!(r.unobservable[0].reason, NotFitted::InvalidModel { .. }),
         "{:?}",
         r.unobservable
     );
+    // The JSON: the held parameter's code beside its sentence, one entry per parameter (the
+    // same as the parallel columns) with its typed id, and a code beside each warning.
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(json["unobservable"][0]["code"], "invalid_model");
+    assert_eq!(
+        json["unobservable"][0]["reason"],
+        r.unobservable[0].reason.to_string()
+    );
+    let params = json["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), r.names.len());
+    for (i, p) in params.iter().enumerate() {
+        assert_eq!(p["name"], r.names[i].as_str());
+        assert_eq!(p["value"], r.params[i]);
+        assert_eq!(p["unit"], r.units[i].as_str());
+        assert_eq!(p["id"]["effect"], r.parameters[i].id.effect.id());
+    }
+    let held = r
+        .parameters
+        .iter()
+        .find(|p| p.name == r.unobservable[0].name)
+        .unwrap();
+    assert_eq!(held.id.effect, EffectKind::ScaleNonlinearity);
+    assert_eq!(held.std_error, None);
+    let codes = json["warning_codes"].as_array().unwrap();
+    assert_eq!(codes.len(), json["warnings"].as_array().unwrap().len());
+    assert!(codes.iter().any(|c| c == "not_fitted"), "{json}");
 }
 
 /// Points `k` seconds apart, 20 s long, with distinct white errors.

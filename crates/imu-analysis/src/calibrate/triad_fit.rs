@@ -113,7 +113,47 @@ impl Default for FitOptions {
     }
 }
 
-pub use imu_stats::lsq::Unobservable;
+pub use imu_stats::lsq::{NotFitted, Unobservable};
+
+/// One fitted parameter: its typed identity, value, standard error and unit (one entry of a
+/// [`FitResult`]'s `parameters`, or of a workbench candidate).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FittedParam {
+    /// `<effect>.<param>` (the same as `id.name`, kept for the JSON's readers).
+    pub name: String,
+    /// Fitted value.
+    pub value: f64,
+    /// Standard error; `None` for a parameter held fixed or unobservable.
+    pub std_error: Option<f64>,
+    /// Unit.
+    pub unit: String,
+    /// Which effect and what it acts on (what programs match on, never the name).
+    pub id: imu_model::ParamId,
+}
+
+impl FittedParam {
+    /// One entry per parameter of `model`, from values, standard errors and units in the
+    /// layout of [`TriadModel::params`].
+    pub fn list(
+        model: &TriadModel,
+        values: &[f64],
+        std_errors: &[Option<f64>],
+        units: &[String],
+    ) -> Vec<FittedParam> {
+        model
+            .param_ids()
+            .into_iter()
+            .zip(values.iter().zip(std_errors).zip(units))
+            .map(|(id, ((&value, &std_error), unit))| FittedParam {
+                name: id.name.clone(),
+                value,
+                std_error,
+                unit: unit.clone(),
+                id,
+            })
+            .collect()
+    }
+}
 
 /// Result of [`fit_triad`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -124,6 +164,10 @@ pub struct FitResult {
     /// parameter carries no standard errors).
     #[serde(skip)]
     pub model: TriadModel,
+    /// Every parameter, one struct each (identity, value, standard error, unit), layout of
+    /// [`TriadModel::params`]; `names`, `units`, `params` and `std_errors` are the same
+    /// columns, kept for the JSON's readers and the numeric code.
+    pub parameters: Vec<FittedParam>,
     /// Parameter names, layout of [`TriadModel::params`].
     pub names: Vec<String>,
     /// Parameter units.
@@ -161,8 +205,10 @@ pub struct FitResult {
     pub iterations: usize,
     /// True if the cost settled within the budget.
     pub converged: bool,
-    /// Human-readable notes (poor conditioning, high correlations, held parameters).
-    pub warnings: Vec<String>,
+    /// Poor conditioning, high correlations, held parameters (JSON: `warnings`, the
+    /// sentences, and `warning_codes`).
+    #[serde(flatten)]
+    pub warnings: Warnings,
 }
 
 /// Failures of [`fit_triad`].
@@ -425,10 +471,12 @@ pub fn fit_triad_sessions(
     }
     let correlation = correlations(&cov, &free, &names, &mut warnings);
     for u in &unobservable {
-        warnings.push(format!("{} not fitted: {}", u.name, u.reason));
+        warnings.push(FitWarning::of_fit(FitWarningKind::NotFitted(u.clone())));
     }
     if !converged {
-        warnings.push(format!("not converged after {iterations} iterations"));
+        warnings.push(FitWarning::of_fit(FitWarningKind::NotConverged {
+            iterations,
+        }));
     }
 
     let (residuals_u, residual_rms) = unit_residuals(&m, points);
@@ -441,6 +489,7 @@ pub fn fit_triad_sessions(
 
     Ok(FitResult {
         triad,
+        parameters: FittedParam::list(&m, &p, &std_errors, &units),
         model: m,
         names,
         units,
@@ -459,7 +508,7 @@ pub fn fit_triad_sessions(
         drift_random_walk: q.map(|s| s.random_walk_q.sqrt()),
         iterations,
         converged,
-        warnings,
+        warnings: warnings.into(),
     })
 }
 
@@ -599,12 +648,12 @@ fn parameter_covariance(
     ids: &[imu_model::ParamId],
     free: &[usize],
     opts: &FitOptions,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<FitWarning>,
 ) -> DMatrix<f64> {
     let mut cov = match covariance(j, reduced_chi2) {
         Some(cov) => cov,
         None => {
-            warnings.push("normal matrix not invertible: no standard errors".into());
+            warnings.push(FitWarning::of_fit(FitWarningKind::NoStandardErrors));
             DMatrix::from_element(free.len(), free.len(), f64::NAN)
         }
     };
@@ -630,7 +679,7 @@ fn correlations(
     cov: &DMatrix<f64>,
     free: &[usize],
     names: &[String],
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<FitWarning>,
 ) -> Vec<Vec<f64>> {
     let nf = free.len();
     let mut correlation = vec![vec![0.0; nf]; nf];
@@ -638,10 +687,12 @@ fn correlations(
         for b in 0..nf {
             correlation[a_][b] = cov[(a_, b)] / (cov[(a_, a_)] * cov[(b, b)]).sqrt();
             if a_ < b && correlation[a_][b].abs() > 0.99 {
-                warnings.push(format!(
-                    "{} and {} are correlated {:.3}: poorly separated by these data",
-                    names[free[a_]], names[free[b]], correlation[a_][b]
-                ));
+                warnings.push(FitWarning::of_fit(FitWarningKind::Correlated {
+                    a: names[free[a_]].clone(),
+                    b: names[free[b]].clone(),
+                    correlation: correlation[a_][b],
+                    evidence: Evidence::Data,
+                }));
             }
         }
     }
@@ -732,17 +783,17 @@ pub(crate) fn fit_loadable(
                     message: e.message,
                 });
             };
-            let se = r.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
-            let reason = format!(
-                "fitted to {:.3e}{se}, it makes the model invalid ({}); held at 0 (no such term)",
-                r.params[i], e.message
-            );
+            let reason = NotFitted::InvalidModel {
+                value: r.params[i],
+                std_error: r.std_errors[i],
+                message: e.message,
+            };
             Ok(Some((i, Unobservable { name, reason })))
         },
     )?;
     for (_, u) in held {
         r.warnings
-            .push(format!("{} not fitted: {}", u.name, u.reason));
+            .push(FitWarning::of_fit(FitWarningKind::NotFitted(u.clone())));
         r.unobservable.push(u);
     }
     Ok(r)

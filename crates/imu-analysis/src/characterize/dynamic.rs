@@ -58,7 +58,7 @@ impl Reference {
     /// The table angle and rate recorded in a simulator truth file. The simulator restarts the
     /// table angle at 0 in every segment; the segments are joined here so the angle is
     /// continuous (the table does not jump at a segment boundary).
-    pub fn from_truth(truth: &imu_bus::truth::Truth, origin: &str) -> Self {
+    pub fn from_truth(truth: &imu_rec::truth::Truth, origin: &str) -> Self {
         let mut angle_rad = Vec::with_capacity(truth.samples.len());
         let mut offset = 0.0;
         for (i, s) in truth.samples.iter().enumerate() {

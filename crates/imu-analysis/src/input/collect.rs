@@ -11,10 +11,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use imu_bus::Unfinished;
-use imu_bus::ros2::{Imu, RawSampleMsg};
-use imu_bus::sample::raw_flags;
 use imu_proto::scale;
+use imu_rec::Unfinished;
+use imu_rec::ros2::{Imu, RawSampleMsg};
+use imu_rec::sample::raw_flags;
 
 use super::{G0, IMU_SCHEMA, ImuSeries, ImudFile, InputError, InputInfo, Source};
 
@@ -51,7 +51,7 @@ enum RawUnits {
     ScaledCounts,
 }
 
-fn vec3(v: &imu_bus::ros2::Vector3) -> [f64; 3] {
+fn vec3(v: &imu_rec::ros2::Vector3) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
@@ -212,7 +212,7 @@ impl Collector {
         path: &Path,
         dev: Option<&BTreeMap<String, String>>,
     ) -> Result<(), InputError> {
-        self.chosen = Some(imu_bus::recording::RAW_TOPIC.to_string());
+        self.chosen = Some(imu_rec::recording::RAW_TOPIC.to_string());
         if self.raw_units.iter().all(|u| *u == RawUnits::Si) {
             return Ok(());
         }

@@ -1,11 +1,11 @@
 //! rosbag2's sqlite3 storage (`.db3`, told by SQLite's magic bytes; a `.db3.zstd` compressed
-//! whole is decompressed first): its CDR messages read through `imu_bus::ros2::sqlite` in
+//! whole is decompressed first): its CDR messages read through `imu_rec::ros2::sqlite` in
 //! insertion order and decoded exactly as an MCAP's (`mcap::cdr_message`), into the shared
 //! `collect.rs`.
 
 use std::path::Path;
 
-use imu_bus::ros2::sqlite;
+use imu_rec::ros2::sqlite;
 
 use super::collect::{Collector, ReadEnd};
 use super::mcap::cdr_message;

@@ -6,8 +6,8 @@
 
 use std::path::Path;
 
-use imu_bus::mcap_read::{self, ReadReport};
-use imu_bus::ros2::{Imu, RawSampleMsg, RosMessage, Temperature};
+use imu_rec::mcap_read::{self, ReadReport};
+use imu_rec::ros2::{Imu, RawSampleMsg, RosMessage, Temperature};
 
 use super::collect::{Collector, ReadEnd};
 use super::{ImuSeries, InputError, Source};
@@ -82,7 +82,7 @@ pub(super) fn cdr_message(
 fn imud_file(report: &ReadReport) -> Option<super::ImudFile> {
     let rec = report
         .metadata
-        .get(imu_bus::recording::RECORDING_METADATA)?;
+        .get(imu_rec::recording::RECORDING_METADATA)?;
     Some(super::ImudFile {
         prefix: rec.get("prefix")?.clone(),
         file_index: rec.get("file-index")?.parse().ok()?,

@@ -17,10 +17,10 @@
 
 use std::path::{Path, PathBuf};
 
-use imu_bus::McapReadError;
-use imu_bus::ros1::bag::Ros1BagError;
-use imu_bus::ros2::bag::BagError;
-use imu_bus::ros2::sqlite::Db3Error;
+use imu_rec::McapReadError;
+use imu_rec::ros1::bag::Ros1BagError;
+use imu_rec::ros2::bag::BagError;
+use imu_rec::ros2::sqlite::Db3Error;
 
 mod collect;
 mod db3;
@@ -214,7 +214,7 @@ pub struct ImuSeries {
     /// `Some(reason)` if the input ended early (truncated recording).
     pub stopped_early: Option<String>,
     /// The same as data for an MCAP input: footer missing, messages and last log time read.
-    pub unfinished: Option<imu_bus::Unfinished>,
+    pub unfinished: Option<imu_rec::Unfinished>,
     /// The label of each sample when the input has a `part`/`label` column.
     pub labels: Option<Labels>,
     /// Files, topic and gaps.

@@ -1,15 +1,15 @@
 //! ROS 1 bags (format 2.0, told by their `#ROSBAG V2.0` line): `sensor_msgs/Imu` and
 //! `sensor_msgs/Temperature` connections, each checked once against the layout decoded here
-//! (its MD5 sum, else its message definition), read through `imu_bus::ros1` into the shared
+//! (its MD5 sum, else its message definition), read through `imu_rec::ros1` into the shared
 //! `collect.rs`. A bag never indexed or cut short is read up to its last complete record and
 //! reported as an unfinished MCAP is.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use imu_bus::ros1::bag::{self, Connection};
-use imu_bus::ros1::{Ros1Message, check_definition};
-use imu_bus::ros2::{Imu, Temperature};
+use imu_rec::ros1::bag::{self, Connection};
+use imu_rec::ros1::{Ros1Message, check_definition};
+use imu_rec::ros2::{Imu, Temperature};
 
 use super::collect::{Collector, ReadEnd};
 use super::{ImuSeries, InputError, Source};

@@ -7,11 +7,11 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use imu_bus::McapReadError;
-use imu_bus::mcap_read::has_mcap_magic;
-use imu_bus::ros1::bag::has_rosbag_magic;
-use imu_bus::ros2::bag;
-use imu_bus::ros2::sqlite::{ZSTD_MAGIC, has_sqlite_magic, starts_with};
+use imu_rec::McapReadError;
+use imu_rec::mcap_read::has_mcap_magic;
+use imu_rec::ros1::bag::has_rosbag_magic;
+use imu_rec::ros2::bag;
+use imu_rec::ros2::sqlite::{ZSTD_MAGIC, has_sqlite_magic, starts_with};
 
 use super::{
     Columns, CsvOptions, ImuSeries, InputError, InputInfo, Labels, Source, read_db3_with_progress,

@@ -26,7 +26,7 @@ pub use truth::*;
 #[derive(Clone, Debug)]
 pub enum Reference {
     /// The simulator's truth MCAP of this very recording (one truth sample per data sample).
-    Truth(imu_bus::truth::Truth),
+    Truth(imu_rec::truth::Truth),
     /// A test plan: the procedure's nominal inputs, matched in order to the segments.
     Plan(Plan),
     /// A time-stamped reference log (CSV), aligned in time with the recording.
@@ -70,7 +70,7 @@ pub enum OpenError {
 
 /// True if the file starts with the MCAP magic bytes (the one check, in imu-bus).
 fn is_mcap(path: &std::path::Path) -> std::io::Result<bool> {
-    imu_bus::mcap_read::has_mcap_magic(path)
+    imu_rec::mcap_read::has_mcap_magic(path)
 }
 
 impl Reference {
@@ -223,7 +223,7 @@ pub enum ReferenceError {
     Log(#[from] ReferenceLogError),
     /// The truth file could not be read.
     #[error(transparent)]
-    Read(#[from] imu_bus::McapReadError),
+    Read(#[from] imu_rec::McapReadError),
     /// A truth sample could not be decoded.
     #[error("{path}: truth sample: {message}")]
     Parse {

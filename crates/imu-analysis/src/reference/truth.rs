@@ -4,18 +4,18 @@
 use super::*;
 
 /// Mean truth over each segment's samples. In an offline recording the k-th data sample is the
-/// k-th truth data record (`imu_bus::truth::is_data_command`: any protocol's data, not a
+/// k-th truth data record (`imu_rec::truth::is_data_command`: any protocol's data, not a
 /// temperature; same order, no gaps), so the truth is averaged over exactly the samples of the
 /// segment.
 pub fn truth_for_segments(
     series: &ImuSeries,
     segments: &[Segment],
-    truth: &imu_bus::truth::Truth,
+    truth: &imu_rec::truth::Truth,
 ) -> Result<Vec<SegmentTruth>, ReferenceError> {
-    let data: Vec<&imu_bus::truth::TruthSample> = truth
+    let data: Vec<&imu_rec::truth::TruthSample> = truth
         .samples
         .iter()
-        .filter(|s| imu_bus::truth::is_data_command(s.command))
+        .filter(|s| imu_rec::truth::is_data_command(s.command))
         .collect();
     if data.len() < series.len() {
         return Err(ReferenceError::TooShort {
@@ -89,7 +89,7 @@ impl<'a> SegmentAccumulator<'a> {
     /// One truth message (JSON); data samples count, temperatures are skipped.
     pub(super) fn add(&mut self, json: &[u8]) -> Result<(), String> {
         let s: TruthInput = serde_json::from_slice(json).map_err(|e| e.to_string())?;
-        if !imu_bus::truth::is_data_command(s.command) {
+        if !imu_rec::truth::is_data_command(s.command) {
             return Ok(());
         }
         let k = self.k;
@@ -136,8 +136,8 @@ pub fn truth_file_for_segments(
             Ok::<_, String>((acc.k, acc.out))
         });
         let mut batch = Vec::with_capacity(BATCH_MESSAGES);
-        let read = imu_bus::mcap_read::for_each_message(path, |channel, _header, data| {
-            if channel.topic == imu_bus::truth::SAMPLE_TOPIC {
+        let read = imu_rec::mcap_read::for_each_message(path, |channel, _header, data| {
+            if channel.topic == imu_rec::truth::SAMPLE_TOPIC {
                 batch.push(data.to_vec());
                 if batch.len() == BATCH_MESSAGES {
                     let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH_MESSAGES));
@@ -170,10 +170,10 @@ mod tests {
     #[test]
     fn the_truth_files_temperature_code_is_the_codecs() {
         assert_eq!(
-            imu_bus::truth::TEMPERATURE_COMMAND,
+            imu_rec::truth::TEMPERATURE_COMMAND,
             imu_proto::Command::Temperature.code()
         );
-        assert!(imu_bus::truth::is_data_command(0x80));
-        assert!(imu_bus::truth::is_data_command(0x01));
+        assert!(imu_rec::truth::is_data_command(0x80));
+        assert!(imu_rec::truth::is_data_command(0x01));
     }
 }

@@ -82,9 +82,9 @@ pub(super) const MAX_LEVER_ARM_M: f64 = 1.0;
 /// exceeds any physically possible value (a lever arm seen only through Earth's rate, a
 /// time constant longer than the recording): what to say instead of their fitted values.
 pub(super) fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<String> {
-    let prefix = format!("{}.", k.id());
+    let ids = r.model.param_ids();
     (0..r.names.len())
-        .filter(|&i| r.names[i].starts_with(&prefix))
+        .filter(|&i| ids.get(i).is_some_and(|id| id.effect == k))
         .filter_map(|i| {
             let se = r.std_errors[i]?;
             let name = &r.names[i];
@@ -94,7 +94,7 @@ pub(super) fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<S
                      package ({MAX_LEVER_ARM_M} m): the recording barely excites it (rotate \
                      about each axis at several rates)"
                 )),
-                EffectKind::Warmup if name.ends_with("tau_s") && se > span_s => Some(format!(
+                EffectKind::Warmup if ids[i].is_time_constant() && se > span_s => Some(format!(
                     "{name}: standard error {se:.0} s, longer than the recording ({span_s:.0} s): \
                      no decay is resolved (record from power-on)"
                 )),

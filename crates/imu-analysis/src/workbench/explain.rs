@@ -10,7 +10,7 @@ pub(super) const AXES: [&str; 3] = ["x", "y", "z"];
 pub(super) fn most_significant(params: &[ParamValue]) -> Option<&ParamValue> {
     params
         .iter()
-        .filter(|p| !p.name.ends_with("tau_s"))
+        .filter(|p| !p.id.is_time_constant())
         .max_by(|a, b| {
             let t = |p: &ParamValue| p.std_error.map_or(0.0, |s| (p.value / s).abs());
             t(a).total_cmp(&t(b))
@@ -39,7 +39,7 @@ pub(super) fn explain(
             p.unit
         );
     }
-    if let Some(tau) = params.iter().find(|p| p.name.ends_with("tau_s")) {
+    if let Some(tau) = params.iter().find(|p| p.id.is_time_constant()) {
         let _ = write!(s, ", time constant {:.0} s", tau.value);
     }
     let _ = write!(

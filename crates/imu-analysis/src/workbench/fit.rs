@@ -299,7 +299,7 @@ impl<'a> Workbench<'a> {
                 if r.fit
                     .unobservable
                     .iter()
-                    .any(|u| u.reason.contains("zero Jacobian"))
+                    .any(|u| u.reason == NotFitted::ZeroJacobian)
                     && let Ok(r2) = self.fit(triad, &r.fit.model, Some(family))
                 {
                     consider(r2);
@@ -309,13 +309,13 @@ impl<'a> Workbench<'a> {
         } else {
             for tau in starts {
                 let mut m = model.clone();
-                let names = m.param_names(triad);
+                let ids = m.param_ids();
                 let mut p = m.params();
                 // Give the time constant its start and a small amplitude so it is excited.
-                for (i, n) in names.iter().enumerate() {
-                    if n.ends_with("tau_s") {
+                for (i, id) in ids.iter().enumerate() {
+                    if id.is_time_constant() {
                         p[i] = tau;
-                    } else if n.starts_with(added.id()) {
+                    } else if id.effect == added {
                         p[i] = 1e-9;
                     }
                 }
@@ -454,15 +454,14 @@ impl<'m> MagnitudeProblem<'m> {
             .iter()
             .map(|&i| Unobservable {
                 name: self.names[i].clone(),
-                reason: "gauge: the gravity magnitude cannot see a rotation of the whole \
-                         frame; held at 0 so that the accelerometer axes define the frame"
-                    .into(),
+                reason: NotFitted::Gauge,
             })
             .collect();
         unobservable.extend(sol.unobservable.iter().cloned());
         let chi2_axis = self.mag.split(sol.chi2, e.as_slice(), &self.cov(rho));
         FitResult {
             triad,
+            parameters: FittedParam::list(&m, &sol.params, &sol.std_errors, &self.units),
             model: m,
             names: self.names.clone(),
             units: self.units.clone(),
@@ -486,8 +485,9 @@ impl<'m> MagnitudeProblem<'m> {
                 sol,
                 &self.names,
                 crate::calibrate::reference_free::ReferenceFreeOptions::default().weak_eigenvalue,
-                "poses",
-            ),
+                crate::calibrate::Evidence::Poses,
+            )
+            .into(),
         }
     }
 }

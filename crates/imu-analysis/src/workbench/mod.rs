@@ -40,8 +40,8 @@ use serde::Serialize;
 
 use crate::ImuSeries;
 use crate::calibrate::{
-    CalibrateError, FitError, FitOptions, FitPoint, FitResult, Observations, Reference,
-    SharedNoise, Unobservable, fit_triad, segment_covariance,
+    CalibrateError, FitError, FitOptions, FitPoint, FitResult, FittedParam, NotFitted,
+    Observations, Reference, SharedNoise, Unobservable, fit_triad, segment_covariance,
 };
 use crate::segment::{SegmentKind, SegmentOptions};
 use imu_stats::allan::{self, Kind, TauSet};
@@ -207,20 +207,7 @@ pub struct SpectralLine {
 }
 
 /// One parameter of a candidate effect.
-#[derive(Clone, Debug, Serialize)]
-pub struct ParamValue {
-    /// `<effect>.<param>`.
-    pub name: String,
-    /// Fitted value.
-    pub value: f64,
-    /// Standard error.
-    pub std_error: Option<f64>,
-    /// Unit.
-    pub unit: String,
-    /// Which effect and what it acts on.
-    #[serde(skip)]
-    pub id: imu_model::ParamId,
-}
+pub type ParamValue = crate::calibrate::FittedParam;
 
 /// A library effect tried on top of the model.
 #[derive(Clone, Debug, Serialize)]

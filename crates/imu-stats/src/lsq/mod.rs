@@ -84,13 +84,116 @@ impl Default for LsqOptions {
     }
 }
 
-/// Why a parameter was not fitted.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// A parameter that was not fitted (held at its start value), and why.
+///
+/// Serialized as `{"name", "code", "reason"}`: `code` is [`NotFitted::code`] (stable, for
+/// programs), `reason` its English sentence (for people).
+#[derive(Clone, Debug, PartialEq)]
 pub struct Unobservable {
     /// Parameter name.
     pub name: String,
-    /// Why (zero column, collinear with which parameters, or rejected by the caller).
-    pub reason: String,
+    /// Why.
+    pub reason: NotFitted,
+}
+
+impl Serialize for Unobservable {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut s = serializer.serialize_struct("Unobservable", 3)?;
+        s.serialize_field("name", &self.name)?;
+        s.serialize_field("code", self.reason.code())?;
+        s.serialize_field("reason", &self.reason.to_string())?;
+        s.end()
+    }
+}
+
+/// Why a parameter was not fitted. Programs match on the variant (or its [`code`](Self::code));
+/// the English is its `Display`, for reports only.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NotFitted {
+    /// The data do not excite it: its Jacobian column is zero.
+    ZeroJacobian,
+    /// The data cannot separate it from other parameters.
+    Collinear {
+        /// The parameters it is collinear with (empty: not named).
+        with: Vec<String>,
+        /// Smallest eigenvalue of the normalised normal matrix.
+        eigenvalue: f64,
+        /// What would separate it, in the caller's terms ([`LsqOptions::collinear_advice`]).
+        advice: String,
+    },
+    /// A gauge freedom of the gravity-magnitude fit: a rotation of the whole frame is
+    /// invisible to it, so the parameter is held at 0 and the accelerometer axes define the
+    /// frame.
+    Gauge,
+    /// Held at its start value because the caller asked.
+    Requested,
+    /// Its fitted value makes the model invalid (the caller's check): held at 0, no such term.
+    InvalidModel {
+        /// The rejected fitted value.
+        value: f64,
+        /// Its standard error, if it had one.
+        std_error: Option<f64>,
+        /// What the caller's check said.
+        message: String,
+    },
+}
+
+impl NotFitted {
+    /// The stable code: `zero_jacobian`, `collinear`, `gauge`, `requested`, `invalid_model`.
+    pub fn code(&self) -> &'static str {
+        match self {
+            NotFitted::ZeroJacobian => "zero_jacobian",
+            NotFitted::Collinear { .. } => "collinear",
+            NotFitted::Gauge => "gauge",
+            NotFitted::Requested => "requested",
+            NotFitted::InvalidModel { .. } => "invalid_model",
+        }
+    }
+}
+
+impl std::fmt::Display for NotFitted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NotFitted::ZeroJacobian => {
+                write!(f, "the data do not excite it (zero Jacobian column)")
+            }
+            NotFitted::Collinear {
+                with,
+                eigenvalue,
+                advice,
+            } => {
+                let with = if with.is_empty() {
+                    "other parameters".to_string()
+                } else {
+                    with.join(", ")
+                };
+                write!(
+                    f,
+                    "collinear with {with} in these data (eigenvalue {eigenvalue:.1e} of the \
+                     normalised normal matrix){advice}"
+                )
+            }
+            NotFitted::Gauge => write!(
+                f,
+                "gauge: the gravity magnitude cannot see a rotation of the whole frame; held at 0 \
+                 so that the accelerometer axes define the body frame"
+            ),
+            NotFitted::Requested => write!(f, "held at its start value (requested)"),
+            NotFitted::InvalidModel {
+                value,
+                std_error,
+                message,
+            } => {
+                let se = std_error.map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
+                write!(
+                    f,
+                    "fitted to {value:.3e}{se}, it makes the model invalid ({message}); held at 0 \
+                     (no such term)"
+                )
+            }
+        }
+    }
 }
 
 /// Where [`minimize`] stopped.

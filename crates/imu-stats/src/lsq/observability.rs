@@ -3,7 +3,7 @@
 
 use nalgebra::{DMatrix, Dyn, SymmetricEigen};
 
-use super::{LsqOptions, Residuals, Unobservable};
+use super::{LsqOptions, NotFitted, Residuals, Unobservable};
 
 /// Numeric Jacobian of the whitened residuals of `f` at `p` with respect to the parameters
 /// `free`: central differences of the raw residuals (step `1e-6 max(|p_i|, 1e-3)`), whitened.
@@ -86,7 +86,7 @@ pub fn find_unobservable_keeping<R: Residuals + ?Sized>(
         {
             out.push(Unobservable {
                 name: names[free[c]].clone(),
-                reason: "the data do not excite it (zero Jacobian column)".into(),
+                reason: NotFitted::ZeroJacobian,
             });
             free.remove(c);
             columns.remove(c);
@@ -99,23 +99,18 @@ pub fn find_unobservable_keeping<R: Residuals + ?Sized>(
         let v = eig.eigenvectors.column(k);
         let involved: Vec<usize> = (0..free.len()).filter(|&c| v[c].abs() > 0.1).collect();
         let drop = *involved.last().unwrap_or(&(free.len() - 1));
-        let others: Vec<&str> = involved
+        let with: Vec<String> = involved
             .iter()
             .filter(|&&c| c != drop)
-            .map(|&c| names[free[c]].as_str())
+            .map(|&c| names[free[c]].clone())
             .collect();
-        let with = if others.is_empty() {
-            "other parameters".to_string()
-        } else {
-            others.join(", ")
-        };
         out.push(Unobservable {
             name: names[free[drop]].clone(),
-            reason: format!(
-                "collinear with {with} in these data (eigenvalue {lam:.1e} of the normalised \
-                 normal matrix){}",
-                opts.collinear_advice
-            ),
+            reason: NotFitted::Collinear {
+                with,
+                eigenvalue: lam,
+                advice: opts.collinear_advice.clone(),
+            },
         });
         free.remove(drop);
         columns.remove(drop);

@@ -28,7 +28,10 @@ fn fits_a_line_and_names_a_duplicate_parameter() {
     assert_eq!(s.free, vec![0, 1]);
     assert_eq!(s.unobservable.len(), 1);
     assert_eq!(s.unobservable[0].name, "a2");
-    assert!(s.unobservable[0].reason.contains("collinear with a"));
+    let NotFitted::Collinear { with, .. } = &s.unobservable[0].reason else {
+        panic!("{:?}", s.unobservable)
+    };
+    assert_eq!(with, &["a"]);
     assert!((s.params[1] - 0.5).abs() < 0.01, "{:?}", s.params);
     assert!((s.params[0] - 2.0).abs() < 0.3, "{:?}", s.params);
     assert_eq!(s.std_errors[2], None);
@@ -102,12 +105,71 @@ fn collinear_advice_is_appended() {
     let f = |p: &[f64]| DVector::from_iterator(5, (0..5).map(|i| p[0] + p[1] - i as f64));
     let s = least_squares(f, &[0.0, 0.0], &[], &names, &opts).unwrap();
     assert_eq!(s.unobservable[0].name, "b");
-    assert!(
-        s.unobservable[0]
-            .reason
-            .ends_with("matrix); vary the input"),
-        "{:?}",
-        s.unobservable
+    let NotFitted::Collinear { advice, .. } = &s.unobservable[0].reason else {
+        panic!("{:?}", s.unobservable)
+    };
+    assert_eq!(advice, "; vary the input");
+    // The sentence for people ends with the advice; the JSON carries the code beside it.
+    let text = s.unobservable[0].reason.to_string();
+    assert!(text.ends_with("matrix); vary the input"), "{text}");
+    let json = serde_json::to_value(&s.unobservable[0]).unwrap();
+    assert_eq!(json["code"], "collinear");
+    assert_eq!(json["name"], "b");
+    assert_eq!(json["reason"], text);
+}
+
+/// A parameter the residuals do not depend on is held with the typed reason (not a sentence a
+/// caller has to search), and its JSON carries the stable code beside the sentence.
+#[test]
+fn a_parameter_the_data_ignore_is_held_as_zero_jacobian() {
+    let names: Vec<String> = ["a", "unused"].iter().map(|s| s.to_string()).collect();
+    let f = |p: &[f64]| DVector::from_iterator(4, (0..4).map(|i| p[0] - i as f64));
+    let s = least_squares(f, &[0.0, 7.0], &[], &names, &LsqOptions::default()).unwrap();
+    assert_eq!(s.free, vec![0]);
+    assert_eq!(s.unobservable.len(), 1);
+    assert_eq!(s.unobservable[0].name, "unused");
+    assert_eq!(s.unobservable[0].reason, NotFitted::ZeroJacobian);
+    assert_eq!(s.params[1], 7.0);
+    let json = serde_json::to_value(&s.unobservable[0]).unwrap();
+    assert_eq!(json["code"], "zero_jacobian");
+    assert_eq!(
+        json["reason"],
+        "the data do not excite it (zero Jacobian column)"
+    );
+}
+
+/// Every reason has its own code, and the codes are the documented strings.
+#[test]
+fn not_fitted_codes_are_stable() {
+    let all = [
+        (NotFitted::ZeroJacobian, "zero_jacobian"),
+        (
+            NotFitted::Collinear {
+                with: vec![],
+                eigenvalue: 1e-12,
+                advice: String::new(),
+            },
+            "collinear",
+        ),
+        (NotFitted::Gauge, "gauge"),
+        (NotFitted::Requested, "requested"),
+        (
+            NotFitted::InvalidModel {
+                value: 1.0,
+                std_error: Some(0.5),
+                message: "not invertible".into(),
+            },
+            "invalid_model",
+        ),
+    ];
+    for (reason, code) in &all {
+        assert_eq!(reason.code(), *code);
+    }
+    let text = all[4].0.to_string();
+    assert_eq!(
+        text,
+        "fitted to 1.000e0 +/- 5.00e-1, it makes the model invalid (not invertible); held at 0 \
+         (no such term)"
     );
 }
 

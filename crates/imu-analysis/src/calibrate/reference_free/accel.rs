@@ -117,7 +117,7 @@ pub(super) fn fit_accel(
             min_eigenvalue: sol.min_eigenvalue,
             iterations: sol.iterations,
             converged: sol.converged,
-            warnings,
+            warnings: warnings.into(),
         },
         up,
         magnitude_error_m_s2,
@@ -150,13 +150,22 @@ fn accel_warnings(
     n_poses: usize,
     n_free: usize,
     up: &[Vec3],
-) -> Vec<String> {
-    let mut warnings =
-        conditioning_warnings(Triad::Accel, sol, names, opts.weak_eigenvalue, "poses");
+) -> Vec<FitWarning> {
+    let mut warnings = conditioning_warnings(
+        Triad::Accel,
+        sol,
+        names,
+        opts.weak_eigenvalue,
+        Evidence::Poses,
+    );
     if n_poses < 2 * n_free {
-        warnings.push(format!(
-            "accel: only {n_poses} poses for {n_free} parameters: standard errors are rough; {POSE_ADVICE}"
-        ));
+        warnings.push(FitWarning {
+            scope: WarningScope::Triad(Triad::Accel),
+            kind: FitWarningKind::FewPoses {
+                poses: n_poses,
+                parameters: n_free,
+            },
+        });
     }
     push_axis_coverage_warnings(up, &mut warnings);
     warnings
@@ -203,7 +212,7 @@ fn check_primary_observable(
                 .map(|u| u.name.as_str())
                 .collect::<Vec<_>>()
                 .join(", "),
-            reason: primary[0].reason.clone(),
+            reason: primary[0].reason.to_string(),
         });
     }
     Ok(())
@@ -272,25 +281,20 @@ impl PoseMagnitudes {
 }
 
 /// Warns of each accel axis that never pointed within 45 degrees of up or of down.
-fn push_axis_coverage_warnings(up: &[Vec3], warnings: &mut Vec<String>) {
-    let axis = ["x", "y", "z"];
+fn push_axis_coverage_warnings(up: &[Vec3], warnings: &mut Vec<FitWarning>) {
     for a in 0..3 {
         let hi = up.iter().map(|u| u[a]).fold(f64::NEG_INFINITY, f64::max);
         let lo = up.iter().map(|u| u[a]).fold(f64::INFINITY, f64::min);
         // 0.7 ~ cos 45 degrees.
         if hi < 0.7 || lo > -0.7 {
-            warnings.push(format!(
-                "accel {}: the axis never pointed within 45 degrees of {} (its gravity component \
-                 spans {lo:.2}..{hi:.2} g): {POSE_ADVICE}",
-                axis[a],
-                if hi < 0.7 && lo > -0.7 {
-                    "up or down"
-                } else if hi < 0.7 {
-                    "up"
-                } else {
-                    "down"
-                },
-            ));
+            // The sentence names its axis itself ("accel x: ..."): no scope prefix.
+            warnings.push(FitWarning::of_fit(FitWarningKind::AxisNeverPointed {
+                axis: a,
+                up: hi < 0.7,
+                down: lo > -0.7,
+                lo_g: lo,
+                hi_g: hi,
+            }));
         }
     }
 }
@@ -328,9 +332,7 @@ fn accel_unobservable(
         .iter()
         .map(|&i| Unobservable {
             name: names[i].clone(),
-            reason: "gauge: the gravity magnitude cannot see a rotation of the whole frame; held \
-                     at 0 so that the accelerometer axes define the body frame"
-                .into(),
+            reason: NotFitted::Gauge,
         })
         .collect();
     unobservable.extend(held_entries(names, requested));

@@ -103,7 +103,7 @@ pub(super) fn merge_gyro(
         min_eigenvalue: gains.map_or(f64::NAN, |s| s.min_eigenvalue),
         iterations: gains.map_or(0, |s| s.iterations),
         converged: gains.is_none_or(|s| s.converged),
-        warnings,
+        warnings: warnings.into(),
     }
 }
 
@@ -112,7 +112,7 @@ struct Merged {
     params: Vec<f64>,
     std_errors: Vec<Option<f64>>,
     unobservable: Vec<Unobservable>,
-    warnings: Vec<String>,
+    warnings: Vec<FitWarning>,
     /// (index in the merged layout, correlation block id, index in that block's free list)
     free_src: Vec<(usize, usize, usize)>,
 }
@@ -144,7 +144,7 @@ impl Merged {
         self.warnings.extend(
             o.warnings
                 .iter()
-                .map(|w| format!("gyro (still poses): {w}")),
+                .map(|w| w.clone().in_scope(WarningScope::GyroStillPoses)),
         );
     }
 
@@ -173,8 +173,13 @@ impl Merged {
             self.std_errors[j] = s.std_errors[i];
         }
         self.unobservable.extend(s.unobservable.iter().cloned());
-        self.warnings
-            .extend(conditioning_warnings(triad, s, &gain_names, weak, "moves"));
+        self.warnings.extend(conditioning_warnings(
+            triad,
+            s,
+            &gain_names,
+            weak,
+            Evidence::Moves,
+        ));
     }
 
     /// The correlation of the free parameters: each fit's own block, zero between the fits.

@@ -38,7 +38,10 @@ use imu_model::units::{EARTH_RATE_RAD_S, STANDARD_GRAVITY_M_S2};
 use imu_model::{Calibration, Conditions, EffectKind, Triad, TriadModel, Vec3};
 
 use crate::ImuSeries;
-use crate::calibrate::{FitError, FitOptions, FitPoint, FitResult, Unobservable, fit_triad};
+use crate::calibrate::{
+    Evidence, FitError, FitOptions, FitPoint, FitResult, FitWarning, FitWarningKind, NotFitted,
+    Unobservable, WarningScope, Warnings, fit_triad,
+};
 use crate::segment::{Segment, SegmentError, SegmentKind, SegmentOptions, Segmentation};
 use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution, least_squares, refit_holding};
 
@@ -192,8 +195,10 @@ pub struct TriadFit {
     pub iterations: usize,
     /// True if the cost settled within the budget.
     pub converged: bool,
-    /// Poor conditioning, held parameters, clustered poses.
-    pub warnings: Vec<String>,
+    /// Poor conditioning, held parameters, clustered poses (JSON: `warnings`, the sentences,
+    /// and `warning_codes`).
+    #[serde(flatten)]
+    pub warnings: Warnings,
 }
 
 /// One still pose.
@@ -387,12 +392,11 @@ pub fn calibrate_reference_free(
                     message,
                 });
             };
-            let se = f.std_errors[i].map_or_else(String::new, |s| format!(" +/- {s:.2e}"));
-            let reason = format!(
-                "fitted to {:.3e}{se}, it makes the model invalid ({message}); held at 0 (no such \
-                 term)",
-                f.params[i]
-            );
+            let reason = NotFitted::InvalidModel {
+                value: f.params[i],
+                std_error: f.std_errors[i],
+                message,
+            };
             Ok(Some((triad, i, key, Unobservable { name, reason })))
         },
     )?;

@@ -19,7 +19,7 @@ pub(super) fn held_entries(names: &[String], mask: &[bool]) -> Vec<Unobservable>
         .filter(|(_, h)| **h)
         .map(|(n, _)| Unobservable {
             name: n.clone(),
-            reason: "held at its start value (requested)".into(),
+            reason: NotFitted::Requested,
         })
         .collect()
 }
@@ -67,35 +67,40 @@ pub(crate) fn conditioning_warnings(
     sol: &LsqSolution,
     names: &[String],
     weak: f64,
-    what: &str,
-) -> Vec<String> {
+    evidence: Evidence,
+) -> Vec<FitWarning> {
     let mut w = Vec::new();
     if sol.min_eigenvalue < weak {
-        w.push(format!(
-            "{triad}: the {what} barely separate {} (smallest eigenvalue {:.1e} of the normalised \
-             normal matrix): {POSE_ADVICE}",
-            sol.weakest.join(", "),
-            sol.min_eigenvalue
-        ));
+        w.push(FitWarningKind::WeaklySeparated {
+            parameters: sol.weakest.clone(),
+            eigenvalue: sol.min_eigenvalue,
+            evidence,
+        });
     }
     for (a, row) in sol.correlation.iter().enumerate() {
         for (b, c) in row.iter().enumerate() {
             if a < b && c.abs() > 0.99 {
-                w.push(format!(
-                    "{triad}: {} and {} are correlated {c:.3}: poorly separated by these {what}",
-                    names[sol.free[a]], names[sol.free[b]]
-                ));
+                w.push(FitWarningKind::Correlated {
+                    a: names[sol.free[a]].clone(),
+                    b: names[sol.free[b]].clone(),
+                    correlation: *c,
+                    evidence,
+                });
             }
         }
     }
     for u in &sol.unobservable {
-        w.push(format!("{triad}: {} not fitted: {}", u.name, u.reason));
+        w.push(FitWarningKind::NotFitted(u.clone()));
     }
     if !sol.converged {
-        w.push(format!(
-            "{triad}: not converged after {} iterations",
-            sol.iterations
-        ));
+        w.push(FitWarningKind::NotConverged {
+            iterations: sol.iterations,
+        });
     }
-    w
+    w.into_iter()
+        .map(|kind| FitWarning {
+            scope: WarningScope::Triad(triad),
+            kind,
+        })
+        .collect()
 }

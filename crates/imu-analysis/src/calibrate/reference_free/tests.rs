@@ -195,6 +195,14 @@ fn recovers_a_synthetic_sensor_in_its_accel_frame() {
         }
     }
     assert_eq!(fit.accel.unobservable.len(), 3, "the gauge");
+    assert!(
+        fit.accel
+            .unobservable
+            .iter()
+            .all(|u| u.reason == NotFitted::Gauge),
+        "{:?}",
+        fit.accel.unobservable
+    );
     assert!(fit.notes.iter().any(|n| n.contains("gauge")));
     assert!(fit.accel.warnings.is_empty(), "{:?}", fit.accel.warnings);
     // The calibration file carries its procedure and loads back.
@@ -231,12 +239,41 @@ fn too_few_or_clustered_poses_say_what_to_record() {
     // Within 60 degrees: a fit, with warnings naming what the poses lack.
     let (series, _) = synthetic(20, Some(1.05), 5);
     let fit = calibrate_reference_free(&series, &ReferenceFreeOptions::default()).unwrap();
-    let w = fit.accel.warnings.join("\n");
-    assert!(w.contains("barely separate"), "{w}");
-    assert!(w.contains("accel x: the axis never pointed"), "{w}");
+    let w = &fit.accel.warnings;
     assert!(
-        w.contains("accel z: the axis never pointed within 45 degrees of down"),
-        "{w}"
+        w.iter()
+            .any(|w| w.scope == WarningScope::Triad(Triad::Accel)
+                && matches!(
+                    w.kind,
+                    FitWarningKind::WeaklySeparated {
+                        evidence: Evidence::Poses,
+                        ..
+                    }
+                )),
+        "{w:?}"
+    );
+    let never_pointed: Vec<(usize, bool, bool)> = w
+        .iter()
+        .filter_map(|w| match w.kind {
+            FitWarningKind::AxisNeverPointed { axis, up, down, .. } => Some((axis, up, down)),
+            _ => None,
+        })
+        .collect();
+    assert!(never_pointed.iter().any(|&(a, _, _)| a == 0), "{w:?}");
+    assert!(never_pointed.contains(&(2, false, true)), "{w:?}");
+    // The JSON carries the sentences as before and a code beside each.
+    let json = serde_json::to_value(&fit.accel).unwrap();
+    let codes = json["warning_codes"].as_array().unwrap();
+    assert_eq!(codes.len(), json["warnings"].as_array().unwrap().len());
+    assert!(codes.iter().any(|c| c == "axis_never_pointed"), "{json}");
+    let z = w
+        .iter()
+        .find(|w| matches!(w.kind, FitWarningKind::AxisNeverPointed { axis: 2, .. }))
+        .unwrap()
+        .to_string();
+    assert!(
+        z.starts_with("accel z: the axis never pointed within 45 degrees of down"),
+        "{z}"
     );
 }
 

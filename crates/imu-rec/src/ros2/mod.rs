@@ -5,7 +5,7 @@
 //! The standard types (`sensor_msgs/msg/Imu`, `Temperature`, `MagneticField` and their
 //! `std_msgs`, `builtin_interfaces` and `geometry_msgs` parts) match the upstream `.msg` files
 //! field for field, so the recordings open in Foxglove, PlotJuggler, `ros2 bag`, Python
-//! `mcap-ros2-support` and `rosbags`. The `imud_msgs` types mirror imu-bus's own sample types.
+//! `mcap-ros2-support` and `rosbags`. The `imud_msgs` types mirror imu-rec's own sample types.
 //!
 //! Wire format: a 4-byte encapsulation header `00 01 00 00` (CDR, little-endian), then the fields
 //! in declaration order, each primitive aligned to its own size (8 for `float64`/`uint64`)

@@ -30,7 +30,7 @@ pub const SCENARIO_METADATA: &str = "imu-sim.scenario";
 pub const TRUTH_MODEL_METADATA: &str = "imu-sim.truth-model";
 
 /// The 3DM-GX1's temperature reply code (`imu_proto::Command::Temperature`): the one truth
-/// record that is not a data sample (imu-bus does not depend on the codec; a test in
+/// record that is not a data sample (imu-rec does not depend on the codec; a test in
 /// imu-analysis holds the two equal).
 pub const TEMPERATURE_COMMAND: u8 = 0x07;
 
@@ -181,7 +181,7 @@ impl<W: Write + Seek> TruthWriter<W> {
         };
         let options = mcap::WriteOptions::new()
             .profile("")
-            .library(concat!("imu-bus ", env!("CARGO_PKG_VERSION")))
+            .library(concat!("imu-rec ", env!("CARGO_PKG_VERSION")))
             .compression(Some(mcap::Compression::Zstd))
             .chunk_size(Some(256 * 1024));
         let mut writer = options.create(sink).map_err(mcap_err)?;

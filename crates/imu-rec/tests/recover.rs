@@ -1,4 +1,4 @@
-//! Repairing unfinished recordings (`imu_bus::recover`): what a kill leaves (every flushed
+//! Repairing unfinished recordings (`imu_rec::recover`): what a kill leaves (every flushed
 //! byte, or a cut in the middle of a chunk) is rewritten with summary, indexes and footer,
 //! keeping every complete record; Python `mcap`'s default `make_reader(f).iter_messages()` and
 //! `rosbags` then read it; the original is never lost on the way.
@@ -7,9 +7,9 @@ mod recording_common;
 
 use std::path::{Path, PathBuf};
 
-use imu_bus::mcap_read::for_each_message;
-use imu_bus::recording::{Recorder, read_recording};
-use imu_bus::recover::{self, RecoverError};
+use imu_rec::mcap_read::for_each_message;
+use imu_rec::recording::{Recorder, read_recording};
+use imu_rec::recover::{self, RecoverError};
 use recording_common::*;
 
 /// A live recording of 200 samples in four flushed chunks, copied as a SIGKILL would leave it

@@ -9,7 +9,7 @@ mod recording_common;
 
 use std::path::{Path, PathBuf};
 
-use imu_bus::recording::{LogRecord, Recorder, list_recordings, read_recording};
+use imu_rec::recording::{LogRecord, Recorder, list_recordings, read_recording};
 use recording_common::*;
 use serde_json::Value;
 

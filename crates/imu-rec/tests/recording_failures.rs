@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
-use imu_bus::recording::{
+use imu_rec::recording::{
     LogRecord, Recorder, RecorderStats, RecordingSink, SinkOpener, list_recordings, read_recording,
 };
 use recording_common::*;

@@ -10,11 +10,11 @@ use std::io;
 use std::path::Path;
 use std::time::Duration;
 
-use imu_bus::recording::{
+use imu_rec::recording::{
     CALIBRATION_METADATA, CALIBRATION_TOPIC, IMU_TOPIC, LogRecord, RECORDING_METADATA,
     RecordedMessage, Recorder, for_each_record, list_recordings, read_recording,
 };
-use imu_bus::ros2::RosMessage;
+use imu_rec::ros2::RosMessage;
 use recording_common::*;
 
 /// Messages a list of records becomes (a corrected sample is two, a sample three and its
@@ -189,7 +189,7 @@ fn size_rotation_gives_complete_files_whose_union_is_every_record_once() {
     let files = list_recordings(dir.path(), "test").unwrap();
     assert!(files.len() >= 3, "{} files", files.len());
     assert_eq!(stats.files_started, files.len() as u64);
-    let mut all = imu_bus::recording::Recording::default();
+    let mut all = imu_rec::recording::Recording::default();
     let mut total_bytes = 0;
     for (i, file) in files.iter().enumerate() {
         assert_file_name(file);
@@ -229,7 +229,7 @@ fn time_rotation_starts_a_new_file_for_records_after_the_interval() {
 
     let files = list_recordings(dir.path(), "test").unwrap();
     assert!(files.len() >= 2, "{} files", files.len());
-    let mut all = imu_bus::recording::Recording::default();
+    let mut all = imu_rec::recording::Recording::default();
     let mut second_starts_a_file = false;
     for file in &files {
         let got = read_recording(file).unwrap();
@@ -287,7 +287,7 @@ fn cdr_of_a_recorded_message_is_what_the_ros2_module_encodes() {
     rec.finish().unwrap();
     let file = &list_recordings(dir.path(), "test").unwrap()[0];
     let mut found = None;
-    imu_bus::mcap_read::for_each_message(file, |ch, header, data| {
+    imu_rec::mcap_read::for_each_message(file, |ch, header, data| {
         if ch.topic == IMU_TOPIC {
             found = Some((header.log_time, data.to_vec()));
         }
@@ -296,6 +296,6 @@ fn cdr_of_a_recorded_message_is_what_the_ros2_module_encodes() {
     .unwrap();
     let (log_time, data) = found.unwrap();
     assert_eq!(log_time, corrected(3).t_wall_ns);
-    let want = imu_bus::recording::imu_message(&corrected(3), "imu_link", None).to_cdr();
+    let want = imu_rec::recording::imu_message(&corrected(3), "imu_link", None).to_cdr();
     assert_eq!(data, want);
 }

@@ -9,11 +9,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use imu_bus::recording::{
+use imu_rec::recording::{
     ImuNoiseVariances, LogRecord, RecordedCalibration, RecordedFrame, Recorder, Recording,
     RecordingConfig, SampleFrame, imu_message, magnetic_field_message,
 };
-use imu_bus::sample::{CorrectedSample, DaemonStatus, RawSample, raw_flags};
+use imu_rec::sample::{CorrectedSample, DaemonStatus, RawSample, raw_flags};
 use serde_json::Value;
 
 /// Wall clock of sample 0, ns.
@@ -152,7 +152,7 @@ pub fn status(i: u64) -> LogRecord {
 
 /// A calibration health report with distinct values in every field.
 pub fn health(i: u64) -> LogRecord {
-    LogRecord::Health(imu_bus::CalibrationHealth {
+    LogRecord::Health(imu_rec::CalibrationHealth {
         t_sample_ns: 9_000_000_000 + i * DT_NS,
         t_wall_ns: T0_WALL_NS + i * DT_NS + 700,
         window_start_ns: 8_000_000_000 + i * DT_NS,

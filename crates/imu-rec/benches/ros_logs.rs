@@ -1,21 +1,21 @@
 //! Reading other robots' logs: a ROS 1 bag and a rosbag2 sqlite3 file of about 1 GB each
 //! (`sensor_msgs/Imu` at 200 Hz), written at run time by Python `rosbags` into a temporary
-//! directory, read by imu-bus's readers (every message decoded, stamps and vectors collected as
+//! directory, read by imu-rec's readers (every message decoded, stamps and vectors collected as
 //! the offline tools' series does) and by Python `rosbags` (AnyReader, every message
 //! deserialized, the same collected), on the same files.
 //!
 //! Also measured: the peak resident memory of a read that keeps nothing (streaming), against
 //! the chunk size, to show memory is bounded by one chunk (or one row), not by the file.
 //!
-//! Run: `cargo bench -p imu-bus --bench ros_logs` (`IMUD_BENCH_ROS_LOG_BYTES` sets the size,
+//! Run: `cargo bench -p imu-rec --bench ros_logs` (`IMUD_BENCH_ROS_LOG_BYTES` sets the size,
 //! default 1e9). Needs python3 with requirements-dev.txt; results in BENCHMARKS.md.
 
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
-use imu_bus::ros1::Ros1Message;
-use imu_bus::ros2::{Imu, RosMessage};
+use imu_rec::ros1::Ros1Message;
+use imu_rec::ros2::{Imu, RosMessage};
 
 /// Bytes per message of each format as the peer writes them (record or row overhead included),
 /// measured on 100 000 messages: what sizes the message count for a target file size.
@@ -54,7 +54,7 @@ fn keep(m: &Imu) -> Sample {
     (m.header.stamp.to_ns(), [a.x, a.y, a.z], [w.x, w.y, w.z])
 }
 
-/// Reads the file with imu-bus: `collect` keeps every sample, else only a sum (streaming).
+/// Reads the file with imu-rec: `collect` keeps every sample, else only a sum (streaming).
 fn read_rust(kind: &str, path: &Path, collect: bool) -> (usize, f64, Vec<Sample>) {
     let mut out = Vec::new();
     let (mut n, mut sum) = (0usize, 0.0);
@@ -66,7 +66,7 @@ fn read_rust(kind: &str, path: &Path, collect: bool) -> (usize, f64, Vec<Sample>
         }
     };
     if kind == "ros1" {
-        imu_bus::ros1::bag::for_each_message(path, |c, _, data| {
+        imu_rec::ros1::bag::for_each_message(path, |c, _, data| {
             if c.msg_type == Imu::TYPE {
                 take(Imu::from_ros1(data).map_err(|e| e.to_string())?);
             }
@@ -74,7 +74,7 @@ fn read_rust(kind: &str, path: &Path, collect: bool) -> (usize, f64, Vec<Sample>
         })
         .unwrap();
     } else {
-        imu_bus::ros2::sqlite::for_each_message_with_progress(
+        imu_rec::ros2::sqlite::for_each_message_with_progress(
             path,
             path,
             &mut |_, _| {},
@@ -167,7 +167,7 @@ fn main() {
         );
         let py_s = py["seconds"].as_f64().unwrap();
         println!(
-            "{kind}: imu-bus streaming {stream_s:.2} s ({:.0} MB/s, peak RSS {} MiB, +{} MiB over \
+            "{kind}: imu-rec streaming {stream_s:.2} s ({:.0} MB/s, peak RSS {} MiB, +{} MiB over \
              the {} MiB before), collecting {} samples {collect_s:.2} s (peak RSS {} MiB); Python \
              rosbags {py_s:.1} s (peak RSS {} MiB): {:.0}x faster",
             size as f64 / 1e6 / stream_s,

@@ -491,7 +491,7 @@ impl WriterThread {
         };
         let options = mcap::WriteOptions::new()
             .profile("ros2")
-            .library(concat!("imu-bus ", env!("CARGO_PKG_VERSION")))
+            .library(concat!("imu-rec ", env!("CARGO_PKG_VERSION")))
             .compression(Some(mcap::Compression::Zstd))
             .compression_level(self.config.compression_level)
             // One core is plenty for a few hundred messages a second; leave the rest to the
@@ -538,7 +538,7 @@ impl WriterThread {
             ("frame-id".to_string(), self.config.frame_id.clone()),
             (
                 "library".to_string(),
-                concat!("imu-bus ", env!("CARGO_PKG_VERSION")).to_string(),
+                concat!("imu-rec ", env!("CARGO_PKG_VERSION")).to_string(),
             ),
         ]);
         file.write_metadata(RECORDING_METADATA, &recording)?;
