@@ -94,9 +94,10 @@ impl Ros2InputDriver {
         );
         self.events
             .push_back(Held::Event(DriverEvent::Session(session())));
-        self.events.push_back(Held::Event(DriverEvent::Identified(Box::new(
-            self.identity(),
-        ))));
+        self.events
+            .push_back(Held::Event(DriverEvent::Identified(Box::new(
+                self.identity(),
+            ))));
         self.events.push_back(Held::Event(DriverEvent::Ready));
     }
 
@@ -192,14 +193,15 @@ impl Driver for Ros2InputDriver {
     fn handle_timeout(&mut self, now: Instant) {
         if self.waiting.is_some_and(|t| now >= t) {
             self.waiting = None;
-            self.events.push_back(Held::Event(DriverEvent::Failed(anyhow::anyhow!(
-                "no usable sensor_msgs/msg/Imu message on {} (DDS topic {}, domain {}) within \
+            self.events
+                .push_back(Held::Event(DriverEvent::Failed(anyhow::anyhow!(
+                    "no usable sensor_msgs/msg/Imu message on {} (DDS topic {}, domain {}) within \
                  {:.1} s: is the publisher running on this domain (ROS_DOMAIN_ID)?",
-                self.topic,
-                self.dds_topic,
-                self.domain_id,
-                self.silence.as_secs_f64()
-            ))));
+                    self.topic,
+                    self.dds_topic,
+                    self.domain_id,
+                    self.silence.as_secs_f64()
+                ))));
         }
     }
 
