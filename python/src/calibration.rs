@@ -10,6 +10,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUnty
 use pyo3::prelude::*;
 
 use crate::error::{IntoPy, to_py};
+use crate::series::contiguous;
 
 /// An imud calibration (the model crate's `Calibration`).
 #[pyclass(module = "imud._imud")]
@@ -195,21 +196,12 @@ impl Calibration {
 
 /// An (N, 3) array's rows, in place.
 fn slice2<'a>(a: &'a PyReadonlyArray2<'_, f64>, name: &str) -> PyResult<&'a [[f64; 3]]> {
-    let s = a.as_slice().map_err(|_| {
-        to_py(anyhow::anyhow!(
-            "{name} is not C-contiguous float64: pass numpy.ascontiguousarray({name}, dtype=float)"
-        ))
-    })?;
-    Ok(s.as_chunks::<3>().0)
+    Ok(contiguous(a, name)?.as_chunks::<3>().0)
 }
 
 /// An (N,) array, in place.
 fn slice1<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str, n: usize) -> PyResult<&'a [f64]> {
-    let s = a.as_slice().map_err(|_| {
-        to_py(anyhow::anyhow!(
-            "{name} is not C-contiguous float64: pass numpy.ascontiguousarray({name}, dtype=float)"
-        ))
-    })?;
+    let s = contiguous(a, name)?;
     if s.len() != n {
         return Err(to_py(anyhow::anyhow!(
             "{name} has {} values for {n} samples",

@@ -157,7 +157,7 @@ impl Series {
         temperature_c: Option<PyReadonlyArray1<'_, f64>>,
         origin: Option<String>,
     ) -> PyResult<Series> {
-        let t = contiguous(time_s.as_slice(), "time_s")?;
+        let t = contiguous(&time_s, "time_s")?;
         let n = t.len();
         let triad = |a: &PyReadonlyArray2<'_, f64>, name: &str| -> PyResult<Vec<[f64; 3]>> {
             if a.shape() != [n, 3] {
@@ -166,14 +166,14 @@ impl Series {
                     a.shape()
                 )));
             }
-            let (rows, _) = contiguous(a.as_slice(), name)?.as_chunks::<3>();
+            let (rows, _) = contiguous(a, name)?.as_chunks::<3>();
             Ok(rows.to_vec())
         };
         let accel = triad(&accel_m_s2, "accel_m_s2")?;
         let gyro = triad(&gyro_rad_s, "gyro_rad_s")?;
         let temp = match &temperature_c {
             Some(c) => {
-                let c = contiguous(c.as_slice(), "temperature_c")?;
+                let c = contiguous(c, "temperature_c")?;
                 if c.len() != n {
                     return Err(to_py(anyhow::anyhow!(
                         "temperature_c has {} values for {n} samples",
@@ -262,9 +262,18 @@ impl Series {
     }
 }
 
-/// A contiguous array's data, or an error naming the argument.
-fn contiguous<'a, E>(s: Result<&'a [f64], E>, name: &str) -> PyResult<&'a [f64]> {
-    s.map_err(|_| {
+/// A C-contiguous array's data in place, or an error naming the argument. (numpy's
+/// `as_slice` also takes Fortran order, whose rows would be read as columns.)
+pub fn contiguous<'a, D: numpy::ndarray::Dimension>(
+    a: &'a numpy::PyReadonlyArray<'_, f64, D>,
+    name: &str,
+) -> PyResult<&'a [f64]> {
+    let s = if a.is_c_contiguous() {
+        a.as_slice().ok()
+    } else {
+        None
+    };
+    s.ok_or_else(|| {
         to_py(anyhow::anyhow!(
             "{name} is not C-contiguous float64: pass numpy.ascontiguousarray({name}, dtype=float)"
         ))

@@ -85,14 +85,14 @@ def multi_pose(bins, tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def static_run(bins, tmp_path_factory):
-    """The shipped static scenario (static-6h), shortened to 30 min so the suite stays quick:
+    """The shipped static scenario (static-6h), shortened to 15 min so the suite stays quick:
     the same sensor, orientation and noise model. (recording, truth)."""
     tmp = tmp_path_factory.mktemp("static")
     text = (SCENARIOS / "static-6h.toml").read_text()
     assert "duration-s = 21600.0" in text
-    text = text.replace("duration-s = 21600.0", "duration-s = 1800.0").replace(
+    text = text.replace("duration-s = 21600.0", "duration-s = 900.0").replace(
         '"../models/', f'"{SCENARIOS.parent / "models"}/'
     )
-    scenario = tmp / "static-30min.toml"
+    scenario = tmp / "static-15min.toml"
     scenario.write_text(text)
     return record(bins, tmp, scenario, 7, name="static")
