@@ -59,3 +59,12 @@ def test_the_ladder_equals_the_cli_and_adds_the_hidden_effect(workbench_demo, cl
     for t in ("accel", "gyro"):
         assert_close(mine[t], theirs[t])
     assert np.isfinite(res.steps[-1].gyro["p_value"])
+
+
+def test_reference_free_diagnose_equals_the_cli(multi_pose, cli):
+    rec, _ = multi_pose
+    res = imud.diagnose(rec, reference_free=True, latitude_deg=40.0)
+    doc = cli("imu-diagnose", rec, "--reference-free", "--latitude-deg", "40")
+    for k in ("notes", "added", "verdict", "diagnoses"):
+        assert_close(res.to_dict()[k], doc[k])
+    assert res.notes, "reference-free conventions are noted"
