@@ -6,8 +6,8 @@
 use std::process::Command;
 
 /// The offline packages: the file formats, the analysis library, the shared CLI code, the
-/// simulator and the offline clients.
-const OFFLINE: [&str; 8] = [
+/// simulator, the offline clients and the Python package.
+const OFFLINE: [&str; 9] = [
     "imu-rec",
     "imu-analysis",
     "imu-cli",
@@ -16,6 +16,7 @@ const OFFLINE: [&str; 8] = [
     "imu-calibrate",
     "imu-diagnose",
     "imu-noise",
+    "imud-python",
 ];
 
 /// The one iceoryx2 crate an offline package may link: the marker trait the sample types derive.

@@ -1,0 +1,251 @@
+"""Result types: thin dataclasses over the JSON the Rust result structs serialize to (the same
+documents the command-line clients print with ``--json``).
+
+Each class names the fields most code reads; every other field of the document is kept in
+``extra``, and :meth:`to_dict` gives the whole document back, so fields the libraries add later
+reach Python without a change here.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field, fields
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+
+def _build(cls, d: dict, **over):
+    """``cls`` from document ``d``: named fields taken, the rest in ``extra``."""
+    names = {f.name for f in fields(cls) if f.init and not f.name.startswith("_")} - {"extra"}
+    kw = {k: d.get(k) for k in names if k in d}
+    kw.update(over)
+    extra = {k: v for k, v in d.items() if k not in names}
+    obj = cls(**kw, extra=extra)
+    obj._doc = d
+    return obj
+
+
+class _Doc:
+    _doc: dict
+
+    def to_dict(self) -> dict:
+        """The whole result as the JSON document it came from (a deep copy)."""
+        return copy.deepcopy(self._doc)
+
+
+def _se(std_errors: List[Optional[float]]) -> np.ndarray:
+    return np.array([np.nan if s is None else s for s in std_errors], dtype=float)
+
+
+@dataclass(repr=False)
+class NoiseAxis(_Doc):
+    """``imu-noise --json``'s report of one sensor axis: the fitted noise terms (``fit``: N, B,
+    K with uncertainties), the OADEV curve they were fitted to, every deviation kind asked for."""
+
+    sensor: str = ""
+    axis: str = ""
+    unit: str = ""
+    sample_rate_hz: float = float("nan")
+    fit: Dict[str, Any] = field(default_factory=dict)
+    curve: Dict[str, Any] = field(default_factory=dict)
+    deviations: List[Dict[str, Any]] = field(default_factory=list)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"NoiseAxis({self.sensor} {self.axis}, {len(self.curve.get('points', []))} taus)"
+
+    def deviation(self, kind: str) -> Dict[str, Any]:
+        """The curve of one ``kind`` (``oadev``, ``mdev``, ...) as computed."""
+        for d in self.deviations:
+            if d["kind"] == kind:
+                return d
+        raise KeyError(f"{kind} was not computed; pass kind=[..., {kind!r}]")
+
+    def taus_s(self, kind: str = "oadev") -> np.ndarray:
+        """Averaging times of ``kind``'s points, s."""
+        return np.array([p["tau_s"] for p in self.deviation(kind)["points"]], dtype=float)
+
+    def dev(self, kind: str = "oadev") -> np.ndarray:
+        """Deviation values of ``kind``'s points, in ``unit``."""
+        return np.array([p["dev"] for p in self.deviation(kind)["points"]], dtype=float)
+
+
+@dataclass(repr=False)
+class NoiseResult(_Doc):
+    """The noise analysis of a recording: one :class:`NoiseAxis` per sensor axis (accel x, y, z,
+    then gyro x, y, z), as ``imu-noise --json``'s array."""
+
+    axes: List[NoiseAxis] = field(default_factory=list)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"NoiseResult({len(self.axes)} axes)"
+
+    def axis(self, sensor: str, axis: str) -> NoiseAxis:
+        for a in self.axes:
+            if a.sensor == sensor and a.axis == axis:
+                return a
+        raise KeyError(f"no {sensor} {axis}")
+
+    def to_list(self) -> List[dict]:
+        """The array ``imu-noise --json`` prints."""
+        return [a.to_dict() for a in self.axes]
+
+
+@dataclass(repr=False)
+class TriadFit(_Doc):
+    """One triad's fitted parameters: ``names``, ``units``, ``params`` and ``std_errors``
+    (NaN where the parameter was held), the parameters that were not observable and why."""
+
+    triad: str = ""
+    names: List[str] = field(default_factory=list)
+    units: List[str] = field(default_factory=list)
+    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    std_errors: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    unobservable: List[Dict[str, Any]] = field(default_factory=list)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"TriadFit({self.triad}, {len(self.names)} parameters)"
+
+    @classmethod
+    def _from(cls, d: dict) -> "TriadFit":
+        return _build(
+            cls,
+            d,
+            params=np.array(d.get("params", []), dtype=float),
+            std_errors=_se(d.get("std_errors", [])),
+        )
+
+    def value(self, name: str) -> "tuple[float, float]":
+        """(value, standard error) of parameter ``name`` (e.g. ``bias.x``)."""
+        i = self.names.index(name)
+        return float(self.params[i]), float(self.std_errors[i])
+
+
+@dataclass(repr=False)
+class CalibrationResult(_Doc):
+    """A calibration fit (``imu-calibrate --json``'s ``fit``): the accel and gyro parameter fits,
+    notes, and the fitted :class:`imud.Calibration` (``calibration.save(path)`` writes the file
+    imud loads)."""
+
+    procedure: str = ""
+    accel: Optional[TriadFit] = None
+    gyro: Optional[TriadFit] = None
+    notes: List[str] = field(default_factory=list)
+    calibration: Any = None
+    fit: Dict[str, Any] = field(default_factory=dict)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"CalibrationResult({self.procedure})"
+
+
+@dataclass(repr=False)
+class TriadDiagnosis(_Doc):
+    """The workbench's verdict on one triad's model: chi-square against the noise floor, its
+    p-value, whether the residual is consistent, and the ranked candidate effects."""
+
+    triad: str = ""
+    effects: List[str] = field(default_factory=list)
+    chi2: float = float("nan")
+    dof: int = 0
+    p_value: Optional[float] = None
+    consistent: bool = False
+    verdict: str = ""
+    candidates: List[Dict[str, Any]] = field(default_factory=list)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"TriadDiagnosis({self.triad}, consistent={self.consistent})"
+
+    @property
+    def claimed(self) -> List[Dict[str, Any]]:
+        """The candidates the workbench claims (significant, confirmed, not ambiguous)."""
+        return [c for c in self.candidates if c.get("claimed")]
+
+
+@dataclass(repr=False)
+class Diagnosis(_Doc):
+    """``imu-diagnose``'s result: the notes, the effects added, and one
+    :class:`TriadDiagnosis` for accel and one for gyro."""
+
+    notes: List[str] = field(default_factory=list)
+    added: List[Any] = field(default_factory=list)
+    verdict: Dict[str, str] = field(default_factory=dict)
+    accel: Optional[TriadDiagnosis] = None
+    gyro: Optional[TriadDiagnosis] = None
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"Diagnosis(accel consistent={self.accel.consistent}, gyro consistent={self.gyro.consistent})"
+
+
+@dataclass(repr=False)
+class LadderStep(_Doc):
+    """One rung of the ladder: the effect added (None for the base model) and each triad's
+    summary (effects, residual RMS, noise floor, chi-square, p-value, consistent)."""
+
+    added: Optional[List[str]] = None
+    accel: Dict[str, Any] = field(default_factory=dict)
+    gyro: Dict[str, Any] = field(default_factory=dict)
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"LadderStep(added={self.added})"
+
+
+@dataclass(repr=False)
+class LadderResult(_Doc):
+    """``imu-diagnose ladder``'s result: the steps, the final diagnoses and the final
+    :class:`imud.Calibration`."""
+
+    notes: List[str] = field(default_factory=list)
+    added: List[Any] = field(default_factory=list)
+    steps: List[LadderStep] = field(default_factory=list)
+    verdict: Dict[str, str] = field(default_factory=dict)
+    accel: Optional[TriadDiagnosis] = None
+    gyro: Optional[TriadDiagnosis] = None
+    calibration: Any = None
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"LadderResult({len(self.steps)} steps, added {self.added})"
+
+
+def noise_result(doc: list) -> NoiseResult:
+    r = NoiseResult(axes=[_build(NoiseAxis, a) for a in doc])
+    r._doc = {"axes": doc}
+    return r
+
+
+def calibration_result(doc: dict, calibration: Any) -> CalibrationResult:
+    fit = doc["fit"]
+    return _build(
+        CalibrationResult,
+        doc,
+        accel=TriadFit._from(fit["accel"]),
+        gyro=TriadFit._from(fit["gyro"]),
+        notes=list(fit.get("notes", [])),
+        calibration=calibration,
+    )
+
+
+def _diagnoses(ds: list) -> dict:
+    accel, gyro = (_build(TriadDiagnosis, d) for d in ds)
+    return {"accel": accel, "gyro": gyro}
+
+
+def diagnosis(doc: dict) -> Diagnosis:
+    return _build(Diagnosis, doc, **_diagnoses(doc["diagnoses"]))
+
+
+def ladder_result(doc: dict, calibration: Any) -> LadderResult:
+    return _build(
+        LadderResult,
+        doc,
+        steps=[_build(LadderStep, s) for s in doc["steps"]],
+        calibration=calibration,
+        **_diagnoses(doc["final_diagnoses"]),
+    )

@@ -1,0 +1,35 @@
+//! `imud._imud`, the compiled half of the Python package `imud`: a thin binding over the
+//! libraries. Each analysis calls the same library functions as its command-line client and
+//! hands back the library's result structs as the JSON their serde serialization writes (the
+//! same documents `--json` prints); `python/imud/*.py` turns those into dataclasses. Arrays
+//! cross as numpy arrays, errors as `imud.ImudError` with the CLI's message, and the GIL is
+//! released while the libraries work.
+//!
+//! Modules: `error` (the exception and the message chain), `series` (recordings: read through
+//! imu-analysis's input module over imu-rec, and numpy views), `noise`, `calibrate`,
+//! `workbench` (diagnose and the ladder), `calibration` (the calibration file and its
+//! vectorised correction).
+
+mod calibrate;
+mod calibration;
+mod error;
+mod noise;
+mod series;
+mod workbench;
+
+use pyo3::prelude::*;
+
+/// The compiled module: registered under `imud._imud`.
+#[pymodule]
+fn _imud(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("ImudError", m.py().get_type::<error::ImudError>())?;
+    m.add_class::<series::Series>()?;
+    m.add_class::<calibration::Calibration>()?;
+    m.add_function(wrap_pyfunction!(series::read_series, m)?)?;
+    m.add_function(wrap_pyfunction!(noise::noise_json, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate::calibrate_json, m)?)?;
+    m.add_function(wrap_pyfunction!(workbench::diagnose_json, m)?)?;
+    m.add_function(wrap_pyfunction!(workbench::ladder_json, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
