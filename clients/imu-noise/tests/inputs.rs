@@ -107,7 +107,7 @@ fn a_rosbag2_directory_needs_a_topic_when_it_has_two() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(65), "{stderr}");
     assert!(
-        stderr.contains("several sensor_msgs/msg/Imu topics: /imu/a (1500 messages), /imu/b (1500 messages); choose one with --topic"),
+        stderr.contains("several IMU topics (sensor_msgs Imu): /imu/a (1500 messages), /imu/b (1500 messages); choose one with --topic"),
         "{stderr}"
     );
     let out = run(&[

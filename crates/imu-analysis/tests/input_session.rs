@@ -176,7 +176,7 @@ fn a_rosbag2_directory_with_two_imu_topics() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("no sensor_msgs/msg/Imu topic `/imu/c`") && e.contains("/imu/b"),
+        e.contains("no IMU topic (sensor_msgs Imu) `/imu/c`") && e.contains("/imu/b"),
         "{e}"
     );
 }

@@ -84,9 +84,10 @@ pub enum InputError {
         /// What is wrong.
         message: String,
     },
-    /// Several IMU topics and none chosen.
+    /// Several IMU topics and none chosen. (The message names the type without its ROS 2
+    /// `msg/` part: the file may be a ROS 1 bag, where it is `sensor_msgs/Imu`.)
     #[error(
-        "{path}: several {IMU_SCHEMA} topics: {}; choose one with --topic",
+        "{path}: several IMU topics (sensor_msgs Imu): {}; choose one with --topic",
         topic_list(topics)
     )]
     AmbiguousTopic {
@@ -97,7 +98,7 @@ pub enum InputError {
     },
     /// The topic asked for carries no IMU data.
     #[error(
-        "{path}: no {IMU_SCHEMA} topic `{topic}`; its IMU topics: {}",
+        "{path}: no IMU topic (sensor_msgs Imu) `{topic}`; its IMU topics: {}",
         topic_list(topics)
     )]
     NoSuchTopic {
