@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use imu_analysis::ImuSeries;
 use imu_analysis::calibrate::reference_free::{ReferenceFreeOptions, calibrate_reference_free};
-use imu_analysis::calibrate::{CalibrateOptions, bias_drift_from_noise, calibrate_recordings};
+use imu_analysis::calibrate::{CalibrateOptions, calibrate_recordings};
 use imu_analysis::reference::Reference;
 use imu_model::{Calibration, Triad, TriadModel};
 use pyo3::prelude::*;
@@ -68,26 +68,14 @@ pub fn add_effects(
 /// Fit options from the model file and `add`, as `imu-calibrate`'s: the effects to fit, and
 /// from the file's noise tables the bias wander over `duration_s` and the noise models.
 fn options(model: Option<&Path>, add: &[String], duration_s: f64) -> Result<CalibrateOptions> {
-    let mut opts = CalibrateOptions::default();
-    if let Some(path) = model {
-        let m =
-            Calibration::load(path).with_context(|| format!("loading model {}", path.display()))?;
-        if !m.accel.kinds().is_empty() {
-            opts.accel = m.accel.effects_only();
-        }
-        if !m.gyro.kinds().is_empty() {
-            opts.gyro = m.gyro.effects_only();
-        }
-        let drift = |t: &TriadModel| {
-            t.noise
-                .as_ref()
-                .map(|n| bias_drift_from_noise(n, duration_s))
-        };
-        opts.accel_bias_drift_m_s2 = drift(&m.accel);
-        opts.gyro_bias_drift_rad_s = drift(&m.gyro);
-        opts.accel_noise = m.accel.noise.clone();
-        opts.gyro_noise = m.gyro.noise.clone();
-    }
+    let mut opts = match model {
+        Some(path) => CalibrateOptions::from_model(
+            &Calibration::load(path)
+                .with_context(|| format!("loading model {}", path.display()))?,
+            duration_s,
+        ),
+        None => CalibrateOptions::default(),
+    };
     add_effects(&mut opts.accel, &mut opts.gyro, add)?;
     Ok(opts)
 }

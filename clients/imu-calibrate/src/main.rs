@@ -13,9 +13,7 @@ use imu_analysis::Source;
 use imu_analysis::calibrate::reference_free::{
     ReferenceFreeFit, ReferenceFreeOptions, TriadFit, calibrate_reference_free, in_accel_frame,
 };
-use imu_analysis::calibrate::{
-    CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate_recordings,
-};
+use imu_analysis::calibrate::{CalibrateOptions, CalibrationFit, FitResult, calibrate_recordings};
 use imu_analysis::reference::Reference;
 use imu_analysis::segment::SegmentKind;
 use imu_cli::finite_f64;
@@ -403,27 +401,14 @@ fn input_file(path: &Path) -> Result<InputFile> {
 /// file's noise tables (a noise characterisation such as imu-noise's), the bias wander over a
 /// recording of `duration_s` that no residual can show and the covariance of the segment means.
 fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
-    let model = cli.model.as_deref();
-    let mut opts = CalibrateOptions::default();
-    if let Some(path) = model {
-        let m =
-            Calibration::load(path).with_context(|| format!("loading model {}", path.display()))?;
-        if !m.accel.kinds().is_empty() {
-            opts.accel = m.accel.effects_only();
-        }
-        if !m.gyro.kinds().is_empty() {
-            opts.gyro = m.gyro.effects_only();
-        }
-        let drift = |t: &TriadModel| {
-            t.noise
-                .as_ref()
-                .map(|n| bias_drift_from_noise(n, duration_s))
-        };
-        opts.accel_bias_drift_m_s2 = drift(&m.accel);
-        opts.gyro_bias_drift_rad_s = drift(&m.gyro);
-        opts.accel_noise = m.accel.noise.clone();
-        opts.gyro_noise = m.gyro.noise.clone();
-    }
+    let mut opts = match cli.model.as_deref() {
+        Some(path) => CalibrateOptions::from_model(
+            &Calibration::load(path)
+                .with_context(|| format!("loading model {}", path.display()))?,
+            duration_s,
+        ),
+        None => CalibrateOptions::default(),
+    };
     for spec in &cli.add {
         for (t, k) in imu_cli::parse_effect(spec, "--add").map_err(imu_cli::UsageError)? {
             let m = if t == Triad::Gyro {

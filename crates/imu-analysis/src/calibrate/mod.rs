@@ -55,6 +55,32 @@ pub struct CalibrateOptions {
     pub gyro_turn_on_bias_rad_s: Option<[f64; 3]>,
 }
 
+impl CalibrateOptions {
+    /// The defaults, with what a model file gives (`imu-calibrate --model`, `imud.calibrate`):
+    /// the effects of each triad that lists any, and, from the file's noise tables (a noise
+    /// characterisation such as imu-noise's), the bias wander over a recording of `duration_s`
+    /// that no residual can show and the noise that weighs the segment means.
+    pub fn from_model(model: &imu_model::Calibration, duration_s: f64) -> Self {
+        let mut opts = CalibrateOptions::default();
+        if !model.accel.kinds().is_empty() {
+            opts.accel = model.accel.effects_only();
+        }
+        if !model.gyro.kinds().is_empty() {
+            opts.gyro = model.gyro.effects_only();
+        }
+        let drift = |t: &TriadModel| {
+            t.noise
+                .as_ref()
+                .map(|n| bias_drift_from_noise(n, duration_s))
+        };
+        opts.accel_bias_drift_m_s2 = drift(&model.accel);
+        opts.gyro_bias_drift_rad_s = drift(&model.gyro);
+        opts.accel_noise = model.accel.noise.clone();
+        opts.gyro_noise = model.gyro.noise.clone();
+        opts
+    }
+}
+
 impl Default for CalibrateOptions {
     /// Accel and gyro: bias + scale + misalignment.
     fn default() -> Self {
