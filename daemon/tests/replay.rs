@@ -63,13 +63,12 @@ fn live(dir: &Path, protocol: &str) -> PathBuf {
         .unwrap();
     let child = Killed(child);
     let text = || std::fs::read_to_string(&log).unwrap_or_default();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !text().contains("firmware") {
-        assert!(Instant::now() < deadline, "no start-up: {}", text());
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    // Two seconds of stream: enough for the clock fit, the rate and a temperature.
-    std::thread::sleep(Duration::from_secs(2));
+    // Stream until the status shows what the replay must reproduce: the clock fit, a
+    // temperature and a few hundred samples.
+    let mut status = Subscription::<DaemonStatus>::open(&name, Duration::from_secs(10)).unwrap();
+    wait_for_status(&mut status, &log, "stream", |s| {
+        s.samples >= 300 && s.clock_offset_s.is_finite() && s.temp_c.is_finite()
+    });
     let ok = Command::new("kill")
         .args(["-TERM", &child.0.id().to_string()])
         .status()
