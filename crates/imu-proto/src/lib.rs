@@ -60,6 +60,7 @@ pub mod command;
 pub mod decoder;
 pub mod device;
 pub mod error;
+pub mod gnss_time;
 pub mod mip;
 pub mod protocol;
 pub mod reply;

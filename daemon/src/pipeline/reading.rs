@@ -22,6 +22,12 @@ pub struct DeviceReading {
     pub saturated: bool,
     /// The device's code for the kind of data (a reply code, a descriptor set).
     pub command: u8,
+    /// The unit's own compensated reading (its factory calibration and its bias estimates
+    /// applied), when it sends one beside the uncompensated `measured` that imud's calibration
+    /// corrects (Xsens, VectorNav); recorded beside the raw, never corrected again.
+    pub compensated: Option<Measured>,
+    /// The GNSS time the unit attached to this sample, if it sends one (valid or not).
+    pub gnss: Option<imu_proto::gnss_time::GnssTime>,
 }
 
 /// The counts of one data frame, widened to i32.

@@ -85,5 +85,7 @@ pub fn reading(reply: &Reply, counts: Counts, ticks_unwrapped: u64, gains: Gains
         measured: to_units(&counts, gains),
         saturated: saturated(&counts),
         command: reply.code(),
+        compensated: None,
+        gnss: None,
     }
 }

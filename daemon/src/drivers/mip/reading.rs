@@ -4,6 +4,7 @@
 
 use imu_model::Measured;
 use imu_model::nalgebra::Vector3;
+use imu_proto::gnss_time::{GnssTime, gps_week_tow_to_unix_ns};
 use imu_proto::mip::data::INTERNAL_TICK_HZ;
 use imu_proto::mip::descriptor_set::IMU_DATA;
 use imu_proto::mip::{ImuData, Packet};
@@ -185,6 +186,15 @@ impl Readings {
                 },
                 saturated: false,
                 command: IMU_DATA,
+                compensated: None,
+                gnss: data.gps_time.and_then(|g| {
+                    // Valid when the unit says both its time of week and its week are.
+                    const TOW_AND_WEEK_VALID: u16 = 8 | 16;
+                    gps_week_tow_to_unix_ns(u32::from(g.week), g.tow_s).map(|utc_ns| GnssTime {
+                        utc_ns,
+                        valid: g.valid_flags & TOW_AND_WEEK_VALID == TOW_AND_WEEK_VALID,
+                    })
+                }),
             }),
             temperature,
             unusable: false,

@@ -83,5 +83,7 @@ pub fn reading_of(cdr: &[u8]) -> Result<DeviceReading, String> {
         },
         saturated: false,
         command: 0,
+        compensated: None,
+        gnss: None,
     })
 }
