@@ -110,22 +110,27 @@ pub enum DriverEvent {
 
 /// An event a driver holds back until it is polled, with its frame if it is one (handed over
 /// in the caller's slot then). Only start-up and a passive unit's first packet hold frames
-/// back; a frame on the per-frame path goes straight into the slot.
+/// back; a frame on the per-frame path goes straight into the slot. So the held frame is boxed:
+/// the allocation is paid only off that path, and the queue's entries stay small.
 #[derive(Debug)]
 pub(crate) enum Held {
     /// A good frame and what it carried.
-    Frame(SampleFrame, FrameContent),
+    Frame(Box<(SampleFrame, FrameContent)>),
     /// Any other event.
     Event(DriverEvent),
 }
 
 impl Held {
+    /// A held frame and its content.
+    pub(crate) fn frame(frame: SampleFrame, content: FrameContent) -> Held {
+        Held::Frame(Box::new((frame, content)))
+    }
+
     /// The event, its frame (if any) put into `slot`.
     pub(crate) fn hand_over(self, slot: &mut FrameSlot) -> DriverEvent {
         match self {
-            Held::Frame(frame, content) => {
-                slot.frame = frame;
-                slot.content = content;
+            Held::Frame(held) => {
+                (slot.frame, slot.content) = *held;
                 DriverEvent::Frame
             }
             Held::Event(e) => e,
@@ -237,7 +242,7 @@ impl Device {
         while let Some(ev) = driver.poll_event(&mut slot) {
             logged.push_back(match ev {
                 DriverEvent::Frame => {
-                    Held::Frame(std::mem::take(&mut slot.frame), FrameContent::default())
+                    Held::frame(std::mem::take(&mut slot.frame), FrameContent::default())
                 }
                 other => Held::Event(other),
             });

@@ -287,7 +287,7 @@ impl Driver for MipDriver {
                         bytes: FrameData::from_slice(packet.as_bytes()),
                     };
                     self.events
-                        .push_back(Held::Frame(frame, std::mem::take(&mut slot.content)));
+                        .push_back(Held::frame(frame, std::mem::take(&mut slot.content)));
                     return self.events.pop_front().map(|held| held.hand_over(slot));
                 }
                 slot.set_frame(packet.as_bytes(), offset);

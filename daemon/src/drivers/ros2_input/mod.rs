@@ -162,7 +162,7 @@ impl Driver for Ros2InputDriver {
                         stream_offset: offset,
                         bytes: FrameData::from_vec(bytes),
                     };
-                    self.events.push_back(Held::Frame(frame, content));
+                    self.events.push_back(Held::frame(frame, content));
                     return self.events.pop_front().map(|held| held.hand_over(slot));
                 }
                 slot.content = content;

@@ -15,7 +15,7 @@ use crate::pipeline::{Pipeline, Sinks};
 /// An event the test keeps: a frame taken out of the driver's slot with its content.
 #[derive(Debug)]
 enum Ev {
-    Frame(FrameSlot),
+    Frame(Box<FrameSlot>),
     Other(DriverEvent),
 }
 
@@ -23,7 +23,7 @@ enum Ev {
 fn poll(d: &mut Ros2InputDriver) -> Option<Ev> {
     let mut slot = FrameSlot::default();
     d.poll_event(&mut slot).map(|ev| match ev {
-        DriverEvent::Frame => Ev::Frame(slot),
+        DriverEvent::Frame => Ev::Frame(Box::new(slot)),
         other => Ev::Other(other),
     })
 }
