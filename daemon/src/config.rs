@@ -159,6 +159,54 @@ pub struct DeviceConfig {
     pub reconnect_max_s: f64,
     /// No data for this long while streaming means the device is lost, s.
     pub silence_timeout_s: f64,
+    /// Where sample stamps come from.
+    pub time_source: TimeSource,
+}
+
+/// `device.time-source`: where sample stamps come from (`pipeline`, `clock/`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TimeSource {
+    /// Each frame's host receive time as is, monotonic and wall (what naive drivers do: the
+    /// link's latency and the host's wake-ups are in the stamps).
+    Host,
+    /// The device's clock mapped onto the host clock by the clock fit.
+    #[default]
+    Device,
+    /// Wall stamps follow the unit's valid GNSS time (UTC), fitted against the device clock
+    /// and held over on it while GNSS time is invalid or absent; monotonic stamps as `device`.
+    Gnss,
+}
+
+impl TimeSource {
+    /// The name in the configuration.
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeSource::Host => "host",
+            TimeSource::Device => "device",
+            TimeSource::Gnss => "gnss",
+        }
+    }
+
+    /// The [`imu_bus::sample::time_source`] code of the status.
+    pub fn code(self) -> u8 {
+        use imu_bus::sample::time_source;
+        match self {
+            TimeSource::Host => time_source::HOST,
+            TimeSource::Device => time_source::DEVICE,
+            TimeSource::Gnss => time_source::GNSS,
+        }
+    }
+}
+
+impl std::str::FromStr for TimeSource {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        [TimeSource::Host, TimeSource::Device, TimeSource::Gnss]
+            .into_iter()
+            .find(|t| t.name() == s)
+            .ok_or_else(|| format!("unknown time source `{s}` (host, device or gnss)"))
+    }
 }
 
 impl Default for DeviceConfig {
@@ -184,6 +232,7 @@ impl Default for DeviceConfig {
             reconnect_min_s: 0.5,
             reconnect_max_s: 10.0,
             silence_timeout_s: 2.0,
+            time_source: TimeSource::Device,
         }
     }
 }
@@ -765,6 +814,21 @@ mod tests {
             e.contains("`input.ros2-topic`") && e.contains("doubled"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn time_source_parses_and_a_bad_one_names_file_and_line() {
+        let c = Config::from_toml_str("[device]\ntime-source = \"gnss\"\n", "t.toml").unwrap();
+        assert_eq!(c.device.time_source, TimeSource::Gnss);
+        assert_eq!(Config::from_toml_str(&c.to_toml(), "printed").unwrap(), c);
+        assert_eq!(Config::default().device.time_source, TimeSource::Device);
+        let e = Config::from_toml_str("[device]\nbaud = 38400\ntime-source = \"gps\"\n", "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("t.toml:3:"), "{e}");
+        assert!(e.contains("gps"), "{e}");
+        assert_eq!("host".parse::<TimeSource>(), Ok(TimeSource::Host));
+        assert!("utc".parse::<TimeSource>().is_err());
     }
 
     #[test]

@@ -52,6 +52,11 @@ struct Args {
     /// with another host, or a one-way tap); the same as `device.configure = false`.
     #[arg(long)]
     passive: bool,
+    /// Where sample stamps come from: `host` (receive time as is), `device` (the device clock
+    /// fitted to the host's) or `gnss` (wall stamps follow the unit's GNSS time); overrides
+    /// device.time-source.
+    #[arg(long, value_name = "host|device|gnss")]
+    time_source: Option<imud::config::TimeSource>,
     /// Calibration file (overrides calibration.path).
     #[arg(long, value_name = "FILE")]
     calibration: Option<PathBuf>,
@@ -253,6 +258,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     }
     if args.passive {
         config.device.configure = false;
+    }
+    if let Some(t) = args.time_source {
+        config.device.time_source = t;
     }
     if let Some(c) = &args.calibration {
         config.calibration.path = Some(c.clone());
@@ -467,6 +475,7 @@ fn build_daemon(
     let device = Device::new(&config);
     let mut pipeline = Pipeline::new(device.initial_session(), None);
     pipeline.set_health(Some(config.health.clone()));
+    pipeline.set_time_source(config.device.time_source);
     // The metadata's `path`: the device's, or the ROS 2 input's topic.
     let device_path = match &config.input.ros2_topic {
         Some(topic) => PathBuf::from(topic),

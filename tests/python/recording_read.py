@@ -87,9 +87,11 @@ def convert(topic, m):
                   "reconnects", "calibration_id", "device_connected", "logging", "gains_fallback",
                   "health_accel", "health_gyro", "protocol", "configuration_unverified", "reserved",
                   "gain_scale_accel", "gain_scale_gyro", "gain_scale_mag",
-                  "packets_unusable", "fields_skipped"]:
+                  "packets_unusable", "fields_skipped", "time_source", "time_sync",
+                  "gnss_valid_transitions", "gnss_lost_transitions"]:
             out[f] = getattr(m, f)
-        for f in ["tick_period_est_s", "clock_drift_ppm", "temp_c", "clock_offset_s", "clock_residual_s"]:
+        for f in ["tick_period_est_s", "clock_drift_ppm", "temp_c", "clock_offset_s", "clock_residual_s",
+                  "gnss_minus_wall_s", "gnss_drift_ppm"]:
             out[f] = num(getattr(m, f))
         return out
     if topic == "/imud/health":

@@ -3,7 +3,7 @@
 use std::io::{self, Write};
 use std::marker::PhantomData;
 
-use imu_bus::sample::{device_protocol, health_state};
+use imu_bus::sample::{device_protocol, health_state, time_source, time_sync};
 use imu_bus::shm::ShmPayload;
 use imu_bus::{CalibrationHealth, CorrectedSample, DaemonStatus, RawSample};
 
@@ -157,6 +157,12 @@ impl Echo for DaemonStatus {
         col("configuration_unverified", "unverified", 10),
         col("packets_unusable", "unusable", 8),
         col("fields_skipped", "skipped", 8),
+        col("time_source", "time_src", 8),
+        col("time_sync", "time_sync", 13),
+        col("gnss_minus_wall_s", "gnss-wall[s]", 12),
+        col("gnss_drift_ppm", "gnss_drift[ppm]", 15),
+        col("gnss_valid_transitions", "gnss_valid", 10),
+        col("gnss_lost_transitions", "gnss_lost", 9),
     ];
 
     fn cells(&self, out: &mut Vec<Cell>) {
@@ -192,6 +198,12 @@ impl Echo for DaemonStatus {
         out.push(Cell::U(self.configuration_unverified.into()));
         out.push(Cell::U(self.packets_unusable));
         out.push(Cell::U(self.fields_skipped));
+        out.push(Cell::Text(time_source::name(self.time_source)));
+        out.push(Cell::Text(time_sync::name(self.time_sync)));
+        floats(out, &[self.gnss_minus_wall_s], 6);
+        floats(out, &[self.gnss_drift_ppm], 3);
+        out.push(Cell::U(self.gnss_valid_transitions));
+        out.push(Cell::U(self.gnss_lost_transitions));
     }
 }
 

@@ -105,6 +105,13 @@ fn daemon_status(n: u64) -> DaemonStatus {
         reserved_end: [0; 2],
         packets_unusable: u64::MAX,
         fields_skipped: 13,
+        time_source: 2,
+        time_sync: 4,
+        reserved_sync: [0; 6],
+        gnss_minus_wall_s: -0.25,
+        gnss_drift_ppm: f64::NAN,
+        gnss_valid_transitions: 3,
+        gnss_lost_transitions: u64::MAX - 1,
     }
 }
 
@@ -185,8 +192,15 @@ fn status_bits(s: &DaemonStatus) -> Vec<u64> {
         s.reserved.into(),
         s.packets_unusable,
         s.fields_skipped,
+        s.time_source.into(),
+        s.time_sync.into(),
+        s.gnss_minus_wall_s.to_bits(),
+        s.gnss_drift_ppm.to_bits(),
+        s.gnss_valid_transitions,
+        s.gnss_lost_transitions,
     ];
     v.extend(s.reserved_end.iter().map(|&b| u64::from(b)));
+    v.extend(s.reserved_sync.iter().map(|&b| u64::from(b)));
     v
 }
 

@@ -15,7 +15,7 @@
 //! |---------------------|-----------------------------|------|-------|
 //! | [`RawSample`]       | `imud::RawSample.v2`        | 176  | 8     |
 //! | [`CorrectedSample`] | `imud::CorrectedSample.v1`  | 128  | 8     |
-//! | [`DaemonStatus`]    | `imud::DaemonStatus.v3`     | 168  | 8     |
+//! | [`DaemonStatus`]    | `imud::DaemonStatus.v4`     | 208  | 8     |
 //! | [`CalibrationHealth`] | `imud::CalibrationHealth.v1` | 176 | 8    |
 //!
 //! The user header is iceoryx2's default `()` (type name `()`, size 0, alignment 1). All
@@ -63,8 +63,13 @@
 //! 136 double   clock_residual_s;   144 uint16_t gain_scale_accel;
 //! 146 uint16_t gain_scale_gyro;    148 uint16_t gain_scale_mag;
 //! 150 uint8_t  reserved_end[2];    152 uint64_t packets_unusable;
-//! 160 uint64_t fields_skipped;     168 = sizeof
+//! 160 uint64_t fields_skipped;     168 uint8_t  time_source;
+//! 169 uint8_t  time_sync;          170 uint8_t  reserved_sync[6];
+//! 176 double   gnss_minus_wall_s;  184 double   gnss_drift_ppm;
+//! 192 uint64_t gnss_valid_transitions; 200 uint64_t gnss_lost_transitions;
+//! 208 = sizeof
 //! ```
+//! (v3, 168 bytes, ended at `fields_skipped`: v4 appends the time-sync state.)
 //! C layout of `CalibrationHealth`:
 //! ```text
 //!   0 uint64_t t_sample_ns;          8 uint64_t t_wall_ns;
@@ -97,7 +102,7 @@ pub const RAW_SAMPLE_TYPE_NAME: &str = "imud::RawSample.v2";
 /// iceoryx2 type name of [`CorrectedSample`] (see the module docs for the C layout).
 pub const CORRECTED_SAMPLE_TYPE_NAME: &str = "imud::CorrectedSample.v1";
 /// iceoryx2 type name of [`DaemonStatus`] (see the module docs for the C layout).
-pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v3";
+pub const DAEMON_STATUS_TYPE_NAME: &str = "imud::DaemonStatus.v4";
 /// iceoryx2 type name of [`CalibrationHealth`] (see the module docs for the C layout).
 pub const CALIBRATION_HEALTH_TYPE_NAME: &str = "imud::CalibrationHealth.v1";
 
@@ -105,7 +110,7 @@ pub const CALIBRATION_HEALTH_TYPE_NAME: &str = "imud::CalibrationHealth.v1";
 // examples/python/imu_subscriber.py). Offsets are checked in the tests below.
 const _: () = assert!(size_of::<RawSample>() == 176 && align_of::<RawSample>() == 8);
 const _: () = assert!(size_of::<CorrectedSample>() == 128 && align_of::<CorrectedSample>() == 8);
-const _: () = assert!(size_of::<DaemonStatus>() == 168 && align_of::<DaemonStatus>() == 8);
+const _: () = assert!(size_of::<DaemonStatus>() == 208 && align_of::<DaemonStatus>() == 8);
 const _: () =
     assert!(size_of::<CalibrationHealth>() == 176 && align_of::<CalibrationHealth>() == 8);
 
@@ -215,7 +220,7 @@ pub struct CorrectedSample {
 /// Health counters of a running daemon (published about once a second and on change).
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, serde::Serialize)]
 #[repr(C)]
-#[type_name("imud::DaemonStatus.v2")]
+#[type_name("imud::DaemonStatus.v4")]
 pub struct DaemonStatus {
     /// Host monotonic time of this status, ns.
     pub t_host_monotonic_ns: u64,
@@ -293,6 +298,69 @@ pub struct DaemonStatus {
     pub packets_unusable: u64,
     /// MIP data fields skipped: unknown descriptors, or known ones of an unexpected size.
     pub fields_skipped: u64,
+    /// Where the sample stamps come from ([`time_source`], `device.time-source`).
+    pub time_source: u8,
+    /// How the stamps stand against their source ([`time_sync`]).
+    pub time_sync: u8,
+    /// Reserved, zero.
+    pub reserved_sync: [u8; 6],
+    /// The unit's GNSS time minus the host wall clock, s, from the GNSS fit (NaN until the unit
+    /// reported valid GNSS time with `time-source = "gnss"`; held through an outage).
+    pub gnss_minus_wall_s: f64,
+    /// The device clock's rate error against GNSS time, ppm; positive: the device runs fast
+    /// (NaN until fitted).
+    pub gnss_drift_ppm: f64,
+    /// Times the unit's GNSS time became valid.
+    pub gnss_valid_transitions: u64,
+    /// Times it was lost (went invalid or absent, or the device session that had it ended).
+    pub gnss_lost_transitions: u64,
+}
+
+/// [`DaemonStatus::time_source`] codes (`device.time-source`).
+pub mod time_source {
+    /// The device clock mapped onto the host clock by the clock fit (and every status before
+    /// this field).
+    pub const DEVICE: u8 = 0;
+    /// The host's receive time of each frame, as is.
+    pub const HOST: u8 = 1;
+    /// The unit's GNSS time (UTC) for the wall stamps, the device clock fit for the monotonic.
+    pub const GNSS: u8 = 2;
+
+    /// The source's name as configured (`invalid` for a byte that is no source).
+    pub fn name(code: u8) -> &'static str {
+        match code {
+            DEVICE => "device",
+            HOST => "host",
+            GNSS => "gnss",
+            _ => "invalid",
+        }
+    }
+}
+
+/// [`DaemonStatus::time_sync`] codes.
+pub mod time_sync {
+    /// Nothing to synchronise to yet (host stamps; the device fit or GNSS time not there yet).
+    pub const NONE: u8 = 0;
+    /// Stamps follow the fit of the device clock to the host clock.
+    pub const DEVICE_FIT: u8 = 1;
+    /// Wall stamps follow the unit's valid GNSS time.
+    pub const GNSS_LOCKED: u8 = 2;
+    /// GNSS time is invalid or absent: wall stamps hold over on the device clock.
+    pub const GNSS_HOLDOVER: u8 = 3;
+    /// Held over too long, or the device session that had GNSS time ended.
+    pub const GNSS_LOST: u8 = 4;
+
+    /// The state's name as imu-echo prints it (`invalid` for a byte that is no state).
+    pub fn name(code: u8) -> &'static str {
+        match code {
+            NONE => "none",
+            DEVICE_FIT => "device-fit",
+            GNSS_LOCKED => "gnss-locked",
+            GNSS_HOLDOVER => "gnss-holdover",
+            GNSS_LOST => "gnss-lost",
+            _ => "invalid",
+        }
+    }
 }
 
 /// [`DaemonStatus::protocol`] codes.
@@ -538,7 +606,14 @@ mod tests {
         assert_eq!(offset_of!(DaemonStatus, reserved_end), 150);
         assert_eq!(offset_of!(DaemonStatus, packets_unusable), 152);
         assert_eq!(offset_of!(DaemonStatus, fields_skipped), 160);
-        assert_eq!(size_of::<DaemonStatus>(), 168);
+        assert_eq!(offset_of!(DaemonStatus, time_source), 168);
+        assert_eq!(offset_of!(DaemonStatus, time_sync), 169);
+        assert_eq!(offset_of!(DaemonStatus, reserved_sync), 170);
+        assert_eq!(offset_of!(DaemonStatus, gnss_minus_wall_s), 176);
+        assert_eq!(offset_of!(DaemonStatus, gnss_drift_ppm), 184);
+        assert_eq!(offset_of!(DaemonStatus, gnss_valid_transitions), 192);
+        assert_eq!(offset_of!(DaemonStatus, gnss_lost_transitions), 200);
+        assert_eq!(size_of::<DaemonStatus>(), 208);
     }
 
     #[test]

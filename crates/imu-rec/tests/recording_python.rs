@@ -227,11 +227,17 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
             ("reserved", u64::from(w.reserved)),
             ("packets_unusable", w.packets_unusable),
             ("fields_skipped", w.fields_skipped),
+            ("time_source", u64::from(w.time_source)),
+            ("time_sync", u64::from(w.time_sync)),
+            ("gnss_valid_transitions", w.gnss_valid_transitions),
+            ("gnss_lost_transitions", w.gnss_lost_transitions),
         ] {
             assert_eq!(u(&g[field]), value, "/imud/status {field}");
         }
         close(&g["tick_period_est_s"], w.tick_period_est_s, "tick period");
         close(&g["clock_drift_ppm"], w.clock_drift_ppm, "drift");
+        close(&g["gnss_minus_wall_s"], w.gnss_minus_wall_s, "GNSS offset");
+        close(&g["gnss_drift_ppm"], w.gnss_drift_ppm, "GNSS drift");
         close(&g["temp_c"], w.temp_c, "status temp");
         close(&g["clock_offset_s"], w.clock_offset_s, "clock offset");
         close(&g["clock_residual_s"], w.clock_residual_s, "clock residual");

@@ -31,8 +31,8 @@ use imu_model::nalgebra::Vector3;
 use imu_proto::decoder::{DecoderStats, RejectReason};
 use tracing::{info, warn};
 
-use crate::clock::{ClockFit, WallStamps};
-use crate::config::HealthConfig;
+use crate::clock::{ClockFit, GnssClock, WallStamps};
+use crate::config::{HealthConfig, TimeSource};
 use crate::health::HealthMonitor;
 
 use loss::GapAccounting;
@@ -42,6 +42,9 @@ pub use reading::{
     TemperatureCadence, TickLength, Timebase,
 };
 pub use sinks::{ActiveCalibration, Sinks};
+
+/// Smallest spacing of two host stamps, ns (frames read together share their host times).
+const MIN_HOST_SPACING_NS: u64 = 1_000;
 
 /// Host time between two recorded temperatures of a stream that sends one with every sample, ns.
 const TEMPERATURE_LOG_INTERVAL_NS: u64 = 1_000_000_000;
@@ -68,15 +71,20 @@ pub struct PipelineCounters {
     pub temperatures: u64,
 }
 
-/// Where a sample's time stamp comes from.
+/// Where a sample's time stamps come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SampleClock {
-    /// The device's ticks mapped onto the host clock by the clock fit (a real link).
+    /// The device's ticks mapped onto the host clock by the clock fit (a real link;
+    /// `device.time-source = "device"`).
     #[default]
     DeviceFit,
-    /// The host time the frame is handed over with, as is: the offline path, whose "host" time
-    /// is the simulated device's exact sample time.
+    /// The host times the frame is handed over with, as is (only kept strictly increasing):
+    /// `device.time-source = "host"`, and the offline path, whose "host" time is the simulated
+    /// device's exact sample time.
     Host,
+    /// Monotonic stamps from the clock fit, wall stamps from the unit's GNSS time
+    /// ([`GnssClock`]; `device.time-source = "gnss"`).
+    Gnss,
 }
 
 /// The per-frame state machine.
@@ -86,6 +94,9 @@ pub struct Pipeline {
     gaps: GapAccounting,
     clock: ClockFit,
     wall: WallStamps,
+    gnss: GnssClock,
+    /// The last (monotonic, wall) stamps of the run, for the host stamps' order.
+    last_host_stamps: Option<(u64, u64)>,
     calibration: Option<Arc<ActiveCalibration>>,
     temp_c: f64,
     /// When a temperature that comes with every sample was last recorded.
@@ -119,6 +130,8 @@ impl Pipeline {
             gaps: GapAccounting::new(session.acquisition, session.timebase.kind),
             clock: ClockFit::new(session.timebase.tick_period_s()),
             wall: WallStamps::default(),
+            gnss: GnssClock::new(),
+            last_host_stamps: None,
             calibration,
             temp_c: f64::NAN,
             temp_logged_ns: None,
@@ -163,6 +176,20 @@ impl Pipeline {
         self.sample_clock = clock;
     }
 
+    /// Stamps as `device.time-source` says.
+    pub fn set_time_source(&mut self, source: TimeSource) {
+        self.set_sample_clock(match source {
+            TimeSource::Host => SampleClock::Host,
+            TimeSource::Device => SampleClock::DeviceFit,
+            TimeSource::Gnss => SampleClock::Gnss,
+        });
+    }
+
+    /// The GNSS stamping state.
+    pub fn gnss_clock(&self) -> &GnssClock {
+        &self.gnss
+    }
+
     /// Starts a new device session (after a start-up or a reconnect): keeps the sequence
     /// numbering and the stamps' order, forgets the device's clock.
     pub fn new_session(&mut self, session: SessionSpec) {
@@ -173,6 +200,7 @@ impl Pipeline {
             self.clock = ClockFit::new(timebase.tick_period_s());
         }
         self.clock.reset();
+        self.gnss.reset();
         if let Some(h) = &mut self.health {
             h.interrupt();
         }
@@ -345,15 +373,33 @@ impl Pipeline {
             // half a tick, so the fit starts again from exact positions.
             self.clock.restart_fit();
         }
-        let t_sample_ns = match self.sample_clock {
-            SampleClock::DeviceFit => {
-                self.clock
-                    .update(step.position_ticks, step.spacing_ticks, t_mono_ns)
-            }
-            // Exact already: no fit to run (and none to report).
-            SampleClock::Host => t_mono_ns,
-        };
         let t_device_ns = self.session.timebase.device_ns(ticks_unwrapped);
+        let (t_sample_ns, t_sample_wall_ns) = match self.sample_clock {
+            SampleClock::DeviceFit => {
+                let t = self
+                    .clock
+                    .update(step.position_ticks, step.spacing_ticks, t_mono_ns);
+                (t, self.wall.stamp(t, t_mono_ns, t_wall_ns))
+            }
+            SampleClock::Gnss => {
+                let t = self
+                    .clock
+                    .update(step.position_ticks, step.spacing_ticks, t_mono_ns);
+                let wall = self.wall.stamp(t, t_mono_ns, t_wall_ns);
+                (t, self.gnss.stamp(t_device_ns, t, reading.gnss, wall))
+            }
+            // No fit to run (and none to report): frames read together share their host
+            // times, so only the order is kept.
+            SampleClock::Host => {
+                let next = |last: Option<u64>, t: u64| {
+                    last.map_or(t, |l| t.max(l.saturating_add(MIN_HOST_SPACING_NS)))
+                };
+                let (last_mono, last_wall) = self.last_host_stamps.unzip();
+                let stamps = (next(last_mono, t_mono_ns), next(last_wall, t_wall_ns));
+                self.last_host_stamps = Some(stamps);
+                stamps
+            }
+        };
         let mut flags = match reading.counts {
             Some(c) if c.scaled => raw_flags::SCALED_COUNTS,
             Some(_) => 0,
@@ -395,7 +441,7 @@ impl Pipeline {
             mag_device_gauss: m.mag_gauss.into(),
         };
         let mut corrected = self.correct(m, t_sample_ns, t_device_ns);
-        corrected.t_wall_ns = self.wall.stamp(t_sample_ns, t_mono_ns, t_wall_ns);
+        corrected.t_wall_ns = t_sample_wall_ns;
         self.watch_health(&mut corrected, (t_mono_ns, t_wall_ns), sinks);
         self.publish(raw, corrected, sinks);
     }
@@ -590,6 +636,38 @@ impl Pipeline {
             reserved_end: [0; 2],
             packets_unusable: self.counters.undecodable,
             fields_skipped: self.counters.fields_skipped,
+            time_source: self.time_source().code(),
+            time_sync: self.time_sync(),
+            reserved_sync: [0; 6],
+            gnss_minus_wall_s: self.gnss.minus_wall_s().unwrap_or(f64::NAN),
+            gnss_drift_ppm: self.gnss.drift_ppm().unwrap_or(f64::NAN),
+            gnss_valid_transitions: self.gnss.transitions().0,
+            gnss_lost_transitions: self.gnss.transitions().1,
+        }
+    }
+
+    /// The `device.time-source` the stamps follow.
+    pub fn time_source(&self) -> TimeSource {
+        match self.sample_clock {
+            SampleClock::DeviceFit => TimeSource::Device,
+            SampleClock::Host => TimeSource::Host,
+            SampleClock::Gnss => TimeSource::Gnss,
+        }
+    }
+
+    /// How the stamps stand against their source ([`imu_bus::sample::time_sync`] code).
+    pub fn time_sync(&self) -> u8 {
+        use imu_bus::sample::time_sync;
+        let fitted = self.clock.drift_ppm().is_some();
+        match self.sample_clock {
+            SampleClock::Host => time_sync::NONE,
+            SampleClock::DeviceFit if fitted => time_sync::DEVICE_FIT,
+            SampleClock::DeviceFit => time_sync::NONE,
+            SampleClock::Gnss => match self.gnss.state() {
+                // No GNSS time yet: the stamps are the device fit's.
+                crate::clock::GnssState::None if fitted => time_sync::DEVICE_FIT,
+                s => s.code(),
+            },
         }
     }
 }

@@ -5,6 +5,7 @@
 use imu_bus::recording::{header, imu_message};
 use imu_bus::ros2::{DiagnosticArray, DiagnosticLevel, DiagnosticStatus, Imu, KeyValue};
 use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
+use imu_bus::sample::time_sync;
 
 use super::Ros2Stats;
 
@@ -23,8 +24,8 @@ pub fn raw_imu_message(raw: &RawSample, corrected: &CorrectedSample, frame_id: &
 }
 
 /// The daemon's status as one `DiagnosticStatus` named `<node>: <instance>`: ERROR while the
-/// device is not connected, WARN with fallback GainScales, no calibration or lost DDS messages,
-/// else OK; every counter as a key/value. Then one `DiagnosticStatus` per triad for the live
+/// device is not connected, WARN with fallback GainScales, no calibration, lost DDS messages or
+/// GNSS time in holdover or lost (`device.time-source = "gnss"`), else OK; every counter as a key/value. Then one `DiagnosticStatus` per triad for the live
 /// calibration health (`<node>: <instance> calibration accel` / `gyro`): OK while the still
 /// windows agree with physics (or none was seen yet), WARN when `degraded` or uncalibrated,
 /// ERROR when `stale`.
@@ -45,6 +46,16 @@ pub fn diagnostics(
         (
             DiagnosticLevel::Warn,
             "streaming; DDS messages were dropped",
+        )
+    } else if status.time_sync == time_sync::GNSS_HOLDOVER {
+        (
+            DiagnosticLevel::Warn,
+            "streaming; GNSS time invalid: stamps held over on the device clock",
+        )
+    } else if status.time_sync == time_sync::GNSS_LOST {
+        (
+            DiagnosticLevel::Warn,
+            "streaming; GNSS time lost: stamps held over on the device clock",
         )
     } else {
         (DiagnosticLevel::Ok, "streaming")
@@ -149,6 +160,21 @@ fn key_values(s: &DaemonStatus, dds: Ros2Stats) -> Vec<KeyValue> {
         ),
         kv("packets_unusable", s.packets_unusable.to_string()),
         kv("fields_skipped", s.fields_skipped.to_string()),
+        kv(
+            "time_source",
+            imu_bus::sample::time_source::name(s.time_source).into(),
+        ),
+        kv(
+            "time_sync",
+            imu_bus::sample::time_sync::name(s.time_sync).into(),
+        ),
+        kv("gnss_minus_wall_s", s.gnss_minus_wall_s.to_string()),
+        kv("gnss_drift_ppm", s.gnss_drift_ppm.to_string()),
+        kv(
+            "gnss_valid_transitions",
+            s.gnss_valid_transitions.to_string(),
+        ),
+        kv("gnss_lost_transitions", s.gnss_lost_transitions.to_string()),
     ]
 }
 

@@ -17,9 +17,9 @@
 //! of its shared-memory type ([`crate::sample`], encoded by [`WireRecord`]); all numbers
 //! little-endian.
 //! ```text
-//!  0 u8[4] magic "IMRD"     4 u16 version (1)       6 u8 stream (1 raw, 2 corrected,
+//!  0 u8[4] magic "IMRD"     4 u16 version (2)       6 u8 stream (1 raw, 2 corrected,
 //!  7 u8    reserved (0)     8 u64 dropped                3 status, 4 health)
-//! 16 record: 176 (raw), 128 (corrected), 168 (status) or 176 (health) bytes
+//! 16 record: 176 (raw), 128 (corrected), 208 (status) or 176 (health) bytes
 //! ```
 //! `dropped` is how many packets the server could not queue for this connection so far (its
 //! socket buffer was full: the server never waits for a reader); a reader also sees lost samples
@@ -42,12 +42,13 @@ pub use records::WireRecord;
 
 /// The first four bytes of every packet.
 pub const MAGIC: [u8; 4] = *b"IMRD";
-/// The packet layout version this build reads and writes.
-pub const VERSION: u16 = 1;
+/// The packet layout version this build reads and writes (2: the status record gained the
+/// time sync, `imud::DaemonStatus.v4`).
+pub const VERSION: u16 = 2;
 /// Bytes of the packet header.
 pub const HEADER_LEN: usize = 16;
 /// The largest packet (a header and the largest record).
-pub const MAX_PACKET_LEN: usize = HEADER_LEN + 176;
+pub const MAX_PACKET_LEN: usize = HEADER_LEN + 208;
 /// The socket file's name under `/run/imud/<instance>/`.
 pub const SOCKET_FILE_NAME: &str = "readers.sock";
 

@@ -208,7 +208,7 @@ impl WireRecord for CorrectedSample {
 
 impl WireRecord for DaemonStatus {
     const CODE: u8 = 3;
-    const SIZE: usize = 168;
+    const SIZE: usize = 208;
     fn encode(&self, out: &mut [u8]) {
         let mut p = Put { out, at: 0 };
         for v in [
@@ -250,6 +250,13 @@ impl WireRecord for DaemonStatus {
         p.bytes(&self.reserved_end);
         p.u64(self.packets_unusable);
         p.u64(self.fields_skipped);
+        p.u8(self.time_source);
+        p.u8(self.time_sync);
+        p.bytes(&self.reserved_sync);
+        p.f64(self.gnss_minus_wall_s);
+        p.f64(self.gnss_drift_ppm);
+        p.u64(self.gnss_valid_transitions);
+        p.u64(self.gnss_lost_transitions);
         debug_assert_eq!(p.at, Self::SIZE);
     }
     fn decode(bytes: &[u8]) -> Self {
@@ -286,6 +293,13 @@ impl WireRecord for DaemonStatus {
             reserved_end: g.array(),
             packets_unusable: g.u64(),
             fields_skipped: g.u64(),
+            time_source: g.u8(),
+            time_sync: g.u8(),
+            reserved_sync: g.array(),
+            gnss_minus_wall_s: g.f64(),
+            gnss_drift_ppm: g.f64(),
+            gnss_valid_transitions: g.u64(),
+            gnss_lost_transitions: g.u64(),
         }
     }
     fn take(received: Received) -> Option<Self> {

@@ -90,6 +90,9 @@ fn fields_sit_at_the_documented_c_offsets() {
         clock_offset_s: -1.5,
         gain_scale_mag: 0x1234,
         fields_skipped: 77,
+        time_sync: 3,
+        gnss_drift_ppm: 150.0,
+        gnss_lost_transitions: 5,
         ..DaemonStatus::default()
     });
     assert_eq!(at::<8>(&status, 88), 9u64.to_le_bytes());
@@ -97,6 +100,9 @@ fn fields_sit_at_the_documented_c_offsets() {
     assert_eq!(at::<8>(&status, 128), (-1.5f64).to_le_bytes());
     assert_eq!(at::<2>(&status, 148), 0x1234u16.to_le_bytes());
     assert_eq!(at::<8>(&status, 160), 77u64.to_le_bytes());
+    assert_eq!(status[169], 3);
+    assert_eq!(at::<8>(&status, 184), 150f64.to_le_bytes());
+    assert_eq!(at::<8>(&status, 200), 5u64.to_le_bytes());
 
     let health = body(&CalibrationHealth {
         gravity_m_s2: 9.81,

@@ -228,6 +228,13 @@ uint16 gain_scale_mag
 uint8[2] reserved_end
 uint64 packets_unusable       # MIP data packets that were no sample (recordings before: absent)
 uint64 fields_skipped         # MIP data fields skipped (unknown descriptors or sizes)
+uint8 time_source             # 0 device, 1 host, 2 gnss (recordings before: absent)
+uint8 time_sync               # 0 none, 1 device-fit, 2 gnss-locked, 3 gnss-holdover, 4 gnss-lost
+uint8[6] reserved_sync
+float64 gnss_minus_wall_s     # unit's GNSS time minus host wall clock, s; NaN until known
+float64 gnss_drift_ppm        # device clock rate error against GNSS time, ppm; NaN until known
+uint64 gnss_valid_transitions # times GNSS time became valid
+uint64 gnss_lost_transitions  # times it was lost
 ",
     uses: &[&HEADER_DEF],
 };

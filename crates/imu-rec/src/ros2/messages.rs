@@ -437,8 +437,16 @@ impl RosMessage for DaemonStatusMsg {
         w.u8_array(&s.reserved_end);
         w.u64(s.packets_unusable);
         w.u64(s.fields_skipped);
+        w.u8(s.time_source);
+        w.u8(s.time_sync);
+        w.u8_array(&s.reserved_sync);
+        w.f64(s.gnss_minus_wall_s);
+        w.f64(s.gnss_drift_ppm);
+        w.u64(s.gnss_valid_transitions);
+        w.u64(s.gnss_lost_transitions);
     }
-    /// A record of the v2 schema (before the MIP counters) reads with 0 there.
+    /// A record of the v2 schema (before the MIP counters) reads with 0 there; one of the v3
+    /// schema (before the time sync) with source `device`, state `none`, NaN and 0.
     fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
         let mut msg = Self {
             header: Header::read_fields(r)?,
@@ -474,12 +482,26 @@ impl RosMessage for DaemonStatusMsg {
                 reserved_end: r.u8_array("reserved_end")?,
                 packets_unusable: 0,
                 fields_skipped: 0,
+                gnss_minus_wall_s: f64::NAN,
+                gnss_drift_ppm: f64::NAN,
+                ..DaemonStatus::default()
             },
         };
-        // A v2 message ends at `reserved_end` (8-aligned, so no writer pads after it).
+        // A v2 message ends at `reserved_end`, a v3 one at `fields_skipped` (both 8-aligned,
+        // so no writer pads after them).
         if r.remaining() > 0 {
             msg.status.packets_unusable = r.u64("packets_unusable")?;
             msg.status.fields_skipped = r.u64("fields_skipped")?;
+        }
+        if r.remaining() > 0 {
+            let s = &mut msg.status;
+            s.time_source = r.u8("time_source")?;
+            s.time_sync = r.u8("time_sync")?;
+            s.reserved_sync = r.u8_array("reserved_sync")?;
+            s.gnss_minus_wall_s = r.f64("gnss_minus_wall_s")?;
+            s.gnss_drift_ppm = r.f64("gnss_drift_ppm")?;
+            s.gnss_valid_transitions = r.u64("gnss_valid_transitions")?;
+            s.gnss_lost_transitions = r.u64("gnss_lost_transitions")?;
         }
         Ok(msg)
     }

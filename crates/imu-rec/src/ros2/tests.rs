@@ -70,18 +70,18 @@ fn empty_frame_id_pads_to_the_next_eight() {
 }
 
 fn round_trip<M: RosMessage + PartialEq + std::fmt::Debug>(m: &M) {
-    round_trip_with_legacy_prefix(m, None);
+    round_trip_with_legacy_prefix(m, &[]);
 }
 
 /// [`round_trip`], where a prefix of `legacy_len` bytes is an older schema's whole message.
 fn round_trip_with_legacy_prefix<M: RosMessage + PartialEq + std::fmt::Debug>(
     m: &M,
-    legacy_len: Option<usize>,
+    legacy_lens: &[usize],
 ) {
     let bytes = m.to_cdr();
     assert_eq!(&M::from_cdr(&bytes).unwrap(), m);
     // Every strict prefix is an error, never a panic (no message here ends in padding).
-    for n in (0..bytes.len()).filter(|&n| Some(n) != legacy_len) {
+    for n in (0..bytes.len()).filter(|n| !legacy_lens.contains(n)) {
         assert!(
             M::from_cdr(&bytes[..n]).is_err(),
             "{} decoded from {n} bytes",
@@ -134,7 +134,7 @@ fn every_type_round_trips_and_rejects_truncation() {
                 mag_device_gauss: [0.2, -0.4, 0.5],
             },
         },
-        Some(raw_v2_len - 72),
+        &[raw_v2_len - 72],
     );
     round_trip(&RawFrameMsg {
         header: header("imu_link"),
@@ -144,8 +144,9 @@ fn every_type_round_trips_and_rejects_truncation() {
         reject_reason: "bad-checksum".into(),
         data: vec![0x0C, 1, 2, 3, 0xFF],
     });
-    // A v2 status ended before the MIP counters (two u64).
-    let status_v3_len = DaemonStatusMsg {
+    // A v2 status ended before the MIP counters (two u64), a v3 one before the time sync (8
+    // bytes, two f64 and two u64).
+    let status_v4_len = DaemonStatusMsg {
         header: header(""),
         ..DaemonStatusMsg::default()
     }
@@ -186,9 +187,16 @@ fn every_type_round_trips_and_rejects_truncation() {
                 reserved_end: [6, 7],
                 packets_unusable: 11,
                 fields_skipped: 12,
+                time_source: 2,
+                time_sync: 3,
+                reserved_sync: [1, 2, 3, 4, 5, 6],
+                gnss_minus_wall_s: -0.125,
+                gnss_drift_ppm: 150.5,
+                gnss_valid_transitions: 13,
+                gnss_lost_transitions: 14,
             },
         },
-        Some(status_v3_len - 16),
+        &[status_v4_len - 40 - 16, status_v4_len - 40],
     );
     round_trip(&CalibrationMsg {
         header: header("imu_link"),
@@ -402,4 +410,30 @@ fn dds_type_names_follow_the_ros2_middleware_mangling() {
         TIME_DEF.dds_type_name(),
         "builtin_interfaces::msg::dds_::Time_"
     );
+}
+
+#[test]
+fn a_v3_status_without_the_time_sync_reads_as_device_time_unknown_there() {
+    let v4 = DaemonStatusMsg {
+        header: header(""),
+        status: DaemonStatus {
+            frames: 5,
+            fields_skipped: 9,
+            time_source: 2,
+            time_sync: 2,
+            gnss_minus_wall_s: 0.5,
+            gnss_drift_ppm: 1.0,
+            gnss_valid_transitions: 1,
+            ..DaemonStatus::default()
+        },
+    };
+    let bytes = v4.to_cdr();
+    // v3 ended at `fields_skipped`: 8 bytes, two f64 and two u64 go.
+    let back = DaemonStatusMsg::from_cdr(&bytes[..bytes.len() - 40]).unwrap();
+    assert_eq!(back.status.frames, 5);
+    assert_eq!(back.status.fields_skipped, 9);
+    assert_eq!(back.status.time_source, crate::sample::time_source::DEVICE);
+    assert_eq!(back.status.time_sync, crate::sample::time_sync::NONE);
+    assert!(back.status.gnss_minus_wall_s.is_nan() && back.status.gnss_drift_ppm.is_nan());
+    assert_eq!(back.status.gnss_valid_transitions, 0);
 }

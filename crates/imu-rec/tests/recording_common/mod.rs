@@ -146,6 +146,13 @@ pub fn status(i: u64) -> LogRecord {
             reserved_end: [0; 2],
             packets_unusable: 3,
             fields_skipped: 4,
+            time_source: 2,
+            time_sync: 3,
+            reserved_sync: [0; 6],
+            gnss_minus_wall_s: -0.375,
+            gnss_drift_ppm: 150.25,
+            gnss_valid_transitions: 5,
+            gnss_lost_transitions: 6,
         },
     }
 }

@@ -13,6 +13,10 @@
 //! (more while far off, e.g. after start-up). So stamps are strictly increasing, a stall cannot
 //! bend them, and a late or early host wake-up does not appear in them at all.
 
+pub mod gnss;
+
+pub use gnss::{GnssClock, GnssState};
+
 /// Device time per bucket of the lower envelope, s.
 pub const BUCKET_S: f64 = 1.0;
 /// Buckets kept for the fit (the fit's baseline, s, at one bucket per second).
