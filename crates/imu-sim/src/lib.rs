@@ -228,6 +228,21 @@ fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, Strin
             "power-up-streaming".into(),
             s.device.power_up_streaming.to_string(),
         ),
+        // A sample's true GNSS time is gnss-epoch-utc-s + its truth `t_s`.
+        ("gnss-time".into(), s.device.gnss_time.to_string()),
+        (
+            "gnss-epoch-utc-s".into(),
+            s.device.gnss_epoch_utc_s.to_string(),
+        ),
+        (
+            "gnss-outages-s".into(),
+            s.device
+                .gnss_outage
+                .iter()
+                .map(|o| format!("{}..{}", o.start_s, o.end_s))
+                .collect::<Vec<_>>()
+                .join(","),
+        ),
         (
             "gain-scale-accel".into(),
             s.device.gain_scale.accel.to_string(),

@@ -14,7 +14,11 @@
 //!   period (the device integrates nothing finer); raw fields are the GX1's nominal raw-bit
 //!   counts of the same values, as floats; the temperature field gives min, max and mean of the
 //!   true temperature over the samples sent so far; the GPS timestamp is device time since
-//!   power-on, its valid flags clear (no GNSS).
+//!   power-on, its valid flags clear (no GNSS), unless the scenario's `device.gnss-time` is
+//!   set: then it is the sample's true UTC time as GPS week and time of week, time-of-week and
+//!   week valid, and during a `device.gnss-outage` the flags drop and the time is the unit's
+//!   own propagation on its drifting clock from the last valid one. Such a unit powers up with
+//!   the GPS timestamp in its IMU message format.
 //! - Timestamps follow the device's own oscillator (the scenario's clock drift): the reference
 //!   time (0xD5) in ns since power-on, the internal timestamp (0x0E) in counts of
 //!   [`INTERNAL_TICK_HZ`]. The truth record's `ticks_unwrapped` is the internal timestamp
@@ -34,7 +38,7 @@ use imu_proto::mip::{
     AckCode, DescriptorRate, DeviceInfo, GpsTime, ImuData, MessageFormat, MipCommand, MipDecoder,
     MipError, MipEvent, MipReply, Packet, Response, Setting, TemperatureStats,
 };
-use imu_proto::scale;
+use imu_proto::{gnss_time, scale};
 use imu_rec::truth::TruthSample;
 
 use crate::device::{DeviceCore, Measurement};
@@ -58,6 +62,9 @@ const SUPPORTED_FIELDS: [u8; 12] = [
 
 /// Seconds in a GPS week.
 const GPS_WEEK_S: f64 = 604_800.0;
+/// The GPS timestamp's valid flags for time of week (bit 3) and week number (bit 4)
+/// (mip_sdk `data_sensor.h`).
+const GPS_TOW_AND_WEEK_VALID: u16 = 8 | 16;
 
 /// One command field taken from a packet: its set and descriptor (for the ack) and the
 /// decoded command or why it was not understood.
@@ -84,6 +91,8 @@ pub struct MipDevice {
     stream_enabled: bool,
     idle: bool,
     temperature: Option<(TemperatureStats, u64)>,
+    /// Scenario time and device time of the last sample with valid GNSS time.
+    gnss_anchor: Option<(f64, f64)>,
 }
 
 impl MipDevice {
@@ -93,13 +102,14 @@ impl MipDevice {
         let decimation = decimation_for(core.scenario().rate_hz);
         let idle = !core.scenario().device.power_up_streaming;
         Self {
-            core,
             decoder: MipDecoder::new(),
             requests: VecDeque::new(),
-            format: default_format(decimation),
+            format: default_format(decimation, core.scenario().device.gnss_time),
             stream_enabled: true,
             idle,
             temperature: None,
+            gnss_anchor: None,
+            core,
         }
     }
 
@@ -263,7 +273,8 @@ impl MipDevice {
             }
             Setting::Save => {}
             Setting::Load | Setting::Reset => {
-                self.format = default_format(self.decimation());
+                self.format =
+                    default_format(self.decimation(), self.core.scenario().device.gnss_time);
             }
         }
         MipReply::ack(key, AckCode::Ok)
@@ -286,13 +297,13 @@ impl MipDevice {
         let m = self.core.measure(t_s, true);
         let device_time_s = self.core.device_time_s(t_s);
         let ticks = (device_time_s * INTERNAL_TICK_HZ).floor().max(0.0) as u64;
-        let data = self.imu_data(&m, device_time_s, ticks);
+        let data = self.imu_data(&m, t_s, device_time_s, ticks);
         let truth = self.core.truth_sample(&m, IMU_DATA, ticks, false);
         (data.to_packet(), truth)
     }
 
     /// The fields of the message format, made from `m`.
-    fn imu_data(&mut self, m: &Measurement, device_time_s: f64, ticks: u64) -> ImuData {
+    fn imu_data(&mut self, m: &Measurement, t_s: f64, device_time_s: f64, ticks: u64) -> ImuData {
         let g0 = imu_model::units::STANDARD_GRAVITY_M_S2;
         let period_s = self.core.sample_period_s();
         let accel_g = m.accel_m_s2 / g0;
@@ -302,6 +313,7 @@ impl MipDevice {
             [v.x, v.y, v.z].map(|x| f32::from(scale::units_to_raw_bits(x, gain).counts))
         };
         let temperature = self.temperature_stats(m.conditions.temp_c);
+        let gps_time = self.gps_time(t_s, device_time_s);
         let mut d = ImuData::default();
         for f in &self.format.fields {
             match f.descriptor {
@@ -314,13 +326,7 @@ impl MipDevice {
                 field::DELTA_THETA => d.delta_theta_rad = Some(f32s(m.gyro_rad_s * period_s)),
                 field::DELTA_VELOCITY => d.delta_velocity_g_s = Some(f32s(accel_g * period_s)),
                 field::INTERNAL_TIMESTAMP => d.internal_ticks = Some(ticks as u32),
-                field::GPS_TIMESTAMP => {
-                    d.gps_time = Some(GpsTime {
-                        tow_s: device_time_s % GPS_WEEK_S,
-                        week: (device_time_s / GPS_WEEK_S) as u16,
-                        valid_flags: 0,
-                    });
-                }
+                field::GPS_TIMESTAMP => d.gps_time = Some(gps_time),
                 field::TEMPERATURE_ABS => d.temperature = Some(temperature),
                 field::REFERENCE_TIME => {
                     d.reference_time_ns = Some((device_time_s * 1e9).floor().max(0.0) as u64);
@@ -329,6 +335,37 @@ impl MipDevice {
             }
         }
         d
+    }
+
+    /// The GPS timestamp of a sample at scenario time `t_s`, device time `device_time_s`.
+    fn gps_time(&mut self, t_s: f64, device_time_s: f64) -> GpsTime {
+        let spec = &self.core.scenario().device;
+        if !spec.gnss_time {
+            return GpsTime {
+                tow_s: device_time_s % GPS_WEEK_S,
+                week: (device_time_s / GPS_WEEK_S) as u16,
+                valid_flags: 0,
+            };
+        }
+        let valid = spec.gnss_valid_at(t_s);
+        if valid {
+            self.gnss_anchor = Some((t_s, device_time_s));
+        }
+        // Valid: the true time. Not: propagated on the device's clock from the last valid one
+        // (or from scenario time 0 on the device clock, before any).
+        let (t0_s, d0_s) = self
+            .gnss_anchor
+            .unwrap_or((0.0, self.core.device_time_s(0.0)));
+        let since_s = if valid { 0.0 } else { device_time_s - d0_s };
+        let utc_ns =
+            (spec.gnss_epoch_utc_s * 1e9).round() as i64 + ((t0_s + since_s) * 1e9).round() as i64;
+        let gps_ns = gnss_time::unix_ns_to_gps_ns(utc_ns);
+        let week_ns = gnss_time::SECONDS_PER_WEEK as u64 * 1_000_000_000;
+        GpsTime {
+            tow_s: (gps_ns % week_ns) as f64 * 1e-9,
+            week: (gps_ns / week_ns) as u16,
+            valid_flags: if valid { GPS_TOW_AND_WEEK_VALID } else { 0 },
+        }
     }
 
     /// Min, max and mean of the temperature over the samples so far, this one included.
@@ -355,20 +392,26 @@ fn decimation_for(rate_hz: f64) -> u16 {
     (MIP_IMU_BASE_RATE_HZ / rate_hz).round() as u16
 }
 
-/// The power-on IMU message format: scaled accel, gyro, mag and the reference time.
-fn default_format(decimation: u16) -> MessageFormat {
+/// The power-on IMU message format: scaled accel, gyro, mag and the reference time, and the
+/// GPS timestamp on a unit with GNSS time.
+fn default_format(decimation: u16, gnss_time: bool) -> MessageFormat {
+    let mut fields = vec![
+        field::SCALED_ACCEL,
+        field::SCALED_GYRO,
+        field::SCALED_MAG,
+        field::REFERENCE_TIME,
+    ];
+    if gnss_time {
+        fields.push(field::GPS_TIMESTAMP);
+    }
     MessageFormat {
-        fields: [
-            field::SCALED_ACCEL,
-            field::SCALED_GYRO,
-            field::SCALED_MAG,
-            field::REFERENCE_TIME,
-        ]
-        .map(|descriptor| DescriptorRate {
-            descriptor,
-            decimation,
-        })
-        .to_vec(),
+        fields: fields
+            .into_iter()
+            .map(|descriptor| DescriptorRate {
+                descriptor,
+                decimation,
+            })
+            .collect(),
     }
 }
 

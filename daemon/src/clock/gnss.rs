@@ -244,10 +244,11 @@ impl GnssClock {
 
     /// Adds a valid GNSS time to its bucket and refits.
     fn add_point(&mut self, t_device_ns: u64, utc_ns: i64) {
-        if let Some(predicted) = self.line_at(t_device_ns) {
-            if (utc_ns - predicted).unsigned_abs() as f64 > STEP_S * 1e9 {
-                self.forget_line();
-            }
+        let stepped = self
+            .line_at(t_device_ns)
+            .is_some_and(|p| (utc_ns - p).unsigned_abs() as f64 > STEP_S * 1e9);
+        if stepped {
+            self.forget_line();
         }
         let (d0, u0) = *self.origin.get_or_insert((t_device_ns, utc_ns));
         let x_ns = t_device_ns as f64 - d0 as f64;
@@ -384,7 +385,10 @@ mod tests {
         let mut c = GnssClock::new();
         // 1 ms quantum, 150 ppm, the host 0.3 s off UTC.
         let out = run(&mut c, 12_000, 150.0, 1_000_000, 0.3, |_| false);
-        assert!(out.windows(2).all(|w| w[1].1 > w[0].1), "strictly increasing");
+        assert!(
+            out.windows(2).all(|w| w[1].1 > w[0].1),
+            "strictly increasing"
+        );
         assert!(out.iter().all(|r| r.2 == GnssState::Locked));
         // After 10 s (the first stamps slew from the first point's quantised time), the
         // stamps are the true times within 100 us: the quantum's mean (0.5 ms) is a bias.
@@ -405,7 +409,10 @@ mod tests {
         // Valid for 60 s, out 60-90 s (30 s), back after; the device runs 150 ppm fast.
         let outage = |t: f64| (60.0..90.0).contains(&t);
         let out = run(&mut c, 15_000, 150.0, 1, 0.0, outage);
-        assert!(out.windows(2).all(|w| w[1].1 > w[0].1), "strictly increasing");
+        assert!(
+            out.windows(2).all(|w| w[1].1 > w[0].1),
+            "strictly increasing"
+        );
         let states: Vec<GnssState> = out.iter().map(|r| r.2).collect();
         assert_eq!(states[at(60.0) - 1], GnssState::Locked);
         assert_eq!(states[at(60.0)], GnssState::Holdover);
@@ -425,7 +432,10 @@ mod tests {
         // device clock alone and gains 150 ppm x 20 s = 3 ms.
         let outage = |t: f64| (1.0..21.0).contains(&t);
         let out = run(&mut c, 4_000, 150.0, 1, 0.0, outage);
-        assert!(out.windows(2).all(|w| w[1].1 > w[0].1), "strictly increasing");
+        assert!(
+            out.windows(2).all(|w| w[1].1 > w[0].1),
+            "strictly increasing"
+        );
         for r in &out[100..at(21.0)] {
             let t_s = (r.0 - EPOCH_UTC_NS) as f64 * 1e-9;
             // Offset only (no rate yet): the drift since the first points' mean time.
@@ -461,6 +471,36 @@ mod tests {
         assert_eq!(out[at(69.0)].2, GnssState::Holdover);
         assert_eq!(out[7999].2, GnssState::Lost);
         assert!(out.windows(2).all(|w| w[1].1 > w[0].1));
+    }
+
+    #[test]
+    fn a_step_of_the_units_gnss_time_restarts_the_fit_and_is_slewed_to() {
+        let mut c = GnssClock::new();
+        // At 20 s the unit's time jumps 2 s ahead (a corrected fix): from then on that is the
+        // truth it reports.
+        let out = run(&mut c, 3_000, 50.0, 1, 0.0, |_| false);
+        let mut last = out.last().unwrap().1;
+        let mut utc_at = 0;
+        for k in 3_000..4_500u64 {
+            let t_s = k as f64 * PERIOD_S;
+            utc_at = EPOCH_UTC_NS + (t_s * 1e9).round() as i64 + 2_000_000_000;
+            let device_ns = (5.0e9 + t_s * 1e9 * (1.0 + 50e-6)) as u64;
+            let gnss = GnssTime {
+                utc_ns: utc_at,
+                valid: true,
+            };
+            let s = c.stamp(device_ns, (1.0e12 + t_s * 1e9) as u64, Some(gnss), 0);
+            // Forward at most 1.5 spacings a sample (half the spacing of slew while far off).
+            assert!(s > last && s - last <= (1.5 * PERIOD_S * 1e9) as u64 + 1_000);
+            last = s;
+        }
+        // 2 s at half a spacing a sample: caught up after 400 samples.
+        assert!(
+            (last as i64 - utc_at).abs() < 1_000,
+            "{}",
+            last as i64 - utc_at
+        );
+        assert_eq!(c.state(), GnssState::Locked);
     }
 
     #[test]

@@ -12,6 +12,10 @@
 //! by the fitted rate, nudged towards the fitted line by at most [`MAX_SLEW`] of the spacing
 //! (more while far off, e.g. after start-up). So stamps are strictly increasing, a stall cannot
 //! bend them, and a late or early host wake-up does not appear in them at all.
+//!
+//! Files: here the device-clock fit ([`ClockFit`]) and the wall stamps ([`WallStamps`]);
+//! `gnss.rs` the wall stamps that follow a unit's GNSS time ([`GnssClock`],
+//! `device.time-source = "gnss"`).
 
 pub mod gnss;
 

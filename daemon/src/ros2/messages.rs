@@ -4,8 +4,8 @@
 
 use imu_bus::recording::{header, imu_message};
 use imu_bus::ros2::{DiagnosticArray, DiagnosticLevel, DiagnosticStatus, Imu, KeyValue};
-use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 use imu_bus::sample::time_sync;
+use imu_bus::{CorrectedSample, DaemonStatus, RawSample};
 
 use super::Ros2Stats;
 

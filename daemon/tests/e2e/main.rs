@@ -2,7 +2,8 @@
 //! file, checked against the simulator's truth: no frame lost, values correct, hot reload,
 //! reconnect after unplug, garbage skipped and counted, a readable file after kill -9. The
 //! streaming tests run over both protocols (the simulated unit speaking 3DM-GX1 or MIP; imud
-//! probes which), the offline one too.
+//! probes which), the offline one too; `time_sync.rs` the time sources against a unit's GNSS
+//! time.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -20,6 +21,7 @@ use imu_sim::{Pacing, Scenario, SimOptions};
 mod faults;
 mod passive;
 mod polled_and_offline;
+mod time_sync;
 
 const TRUTH: &str = r#"
 format = "imud-calibration/1"

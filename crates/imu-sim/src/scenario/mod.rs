@@ -203,6 +203,37 @@ pub struct DeviceSpec {
     /// its IMU stream resumed). The scenario clock starts at power-up (`imu-sim
     /// --power-up-streaming` sets it too).
     pub power_up_streaming: bool,
+    /// A MIP unit with GNSS time: its GPS timestamp field (0x12) carries the true UTC time of
+    /// each sample (`gnss-epoch-utc-s` + scenario time), valid (time of week and week valid
+    /// flags) except during the `gnss-outage` windows, when its flags drop and it carries the
+    /// unit's own propagation on its drifting clock. Without it the field carries device time
+    /// since power-on, never valid.
+    pub gnss_time: bool,
+    /// UTC of scenario time 0, s since the Unix epoch (default 2026-01-01T00:00:00Z).
+    pub gnss_epoch_utc_s: f64,
+    /// Windows of scenario time with no valid GNSS time.
+    pub gnss_outage: Vec<GnssOutage>,
+}
+
+/// A window of scenario time during which the unit's GNSS time is invalid.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct GnssOutage {
+    /// Start, s of scenario time.
+    pub start_s: f64,
+    /// End, s of scenario time (GNSS time is valid again from here).
+    pub end_s: f64,
+}
+
+impl DeviceSpec {
+    /// True when the unit's GNSS time is valid at scenario time `t_s`.
+    pub fn gnss_valid_at(&self, t_s: f64) -> bool {
+        self.gnss_time
+            && !self
+                .gnss_outage
+                .iter()
+                .any(|o| (o.start_s..o.end_s).contains(&t_s))
+    }
 }
 
 impl Default for DeviceSpec {
@@ -219,6 +250,9 @@ impl Default for DeviceSpec {
             eeprom_read_fails: false,
             capture_bias_s: 3.0,
             power_up_streaming: false,
+            gnss_time: false,
+            gnss_epoch_utc_s: 1_767_225_600.0,
+            gnss_outage: Vec::new(),
         }
     }
 }

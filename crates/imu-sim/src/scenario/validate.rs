@@ -111,6 +111,25 @@ impl Scenario {
                 "must be well under 1e5 ppm".into(),
             ));
         }
+        let d = &self.device;
+        if !(d.gnss_epoch_utc_s.is_finite()
+            && d.gnss_epoch_utc_s >= imu_proto::gnss_time::GPS_EPOCH_UNIX_S as f64)
+        {
+            return Err(invalid(
+                "device.gnss-epoch-utc-s".into(),
+                "must be a UTC time after the GPS epoch (1980-01-06), s since 1970".into(),
+            ));
+        }
+        if let Some(o) = d
+            .gnss_outage
+            .iter()
+            .find(|o| !(o.start_s.is_finite() && o.end_s.is_finite() && o.start_s < o.end_s))
+        {
+            return Err(invalid(
+                "device.gnss-outage".into(),
+                format!("start-s {} must come before end-s {}", o.start_s, o.end_s),
+            ));
+        }
         let g = self.device.gain_scale;
         if g.accel == 0 || g.gyro == 0 || g.mag == 0 {
             return Err(invalid(

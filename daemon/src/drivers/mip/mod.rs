@@ -167,6 +167,7 @@ impl MipDriver {
                 ("clock".into(), timebase.name().into()),
                 ("magnetometer".into(), data.mag_gauss.is_some().to_string()),
                 ("temperature".into(), data.temperature.is_some().to_string()),
+                ("gps-timestamp".into(), data.gps_time.is_some().to_string()),
                 ("configuration-verified".into(), "false".into()),
             ],
         })));
@@ -201,7 +202,7 @@ impl MipDriver {
         let firmware = format_mip_firmware(info.firmware_version);
         let choice = c.choice;
         info!(
-            "device {} ({} {}) firmware {firmware} serial {}: {} Hz, clock {}{}{}",
+            "device {} ({} {}) firmware {firmware} serial {}: {} Hz, clock {}{}{}{}",
             self.path.display(),
             info.model_name,
             info.model_number,
@@ -218,6 +219,11 @@ impl MipDriver {
             } else {
                 ", no temperature"
             },
+            if choice.gps_time {
+                ", GPS timestamp"
+            } else {
+                ", no GPS timestamp"
+            },
         );
         DeviceIdentity {
             protocol: imu_proto::DeviceProtocol::Mip.name(),
@@ -232,6 +238,7 @@ impl MipDriver {
                 ("clock".into(), choice.timebase.name().into()),
                 ("magnetometer".into(), choice.mag.to_string()),
                 ("temperature".into(), choice.temperature.to_string()),
+                ("gps-timestamp".into(), choice.gps_time.to_string()),
                 ("message-format-command".into(), c.form.name()),
                 ("configuration-verified".into(), "true".into()),
             ],

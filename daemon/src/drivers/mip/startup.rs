@@ -4,9 +4,10 @@
 //!
 //! MIP replies name the command they answer (descriptor set and field descriptor), so unlike
 //! the GX1's no fencing is needed: a reply to another command is simply not the one awaited.
-//! The format asks for scaled accel, gyro and mag, a timestamp and the temperature; what the
-//! unit refuses (a nack) is dropped in a fixed order (the temperature, the magnetometer, then
-//! the reference time for the older internal timestamp), and what was configured is said in
+//! The format asks for scaled accel, gyro and mag, a timestamp, the temperature and the GPS
+//! timestamp (the unit's GNSS time, valid or not); what the
+//! unit refuses (a nack) is dropped in a fixed order (the GPS timestamp, the temperature, the
+//! magnetometer, then the reference time for the older internal timestamp), and what was configured is said in
 //! the log and the metadata. Time is passed in; the driver (`mod.rs`) feeds it packets and
 //! deadlines.
 
@@ -35,39 +36,54 @@ pub struct FormatChoice {
     pub mag: bool,
     /// With the temperature.
     pub temperature: bool,
+    /// With the GPS timestamp (0x12: the unit's GNSS time of each sample, for
+    /// `device.time-source = "gnss"`; its valid flags say whether the unit has GNSS time).
+    pub gps_time: bool,
 }
 
 /// The formats tried in order: the first the unit accepts is used.
-pub const CHOICES: [FormatChoice; 6] = [
+pub const CHOICES: [FormatChoice; 7] = [
     FormatChoice {
         timebase: MipTimebase::ReferenceTime,
         mag: true,
         temperature: true,
+        gps_time: true,
+    },
+    FormatChoice {
+        timebase: MipTimebase::ReferenceTime,
+        mag: true,
+        temperature: true,
+        gps_time: false,
     },
     FormatChoice {
         timebase: MipTimebase::ReferenceTime,
         mag: true,
         temperature: false,
+        gps_time: false,
     },
     FormatChoice {
         timebase: MipTimebase::ReferenceTime,
         mag: false,
         temperature: false,
+        gps_time: false,
     },
     FormatChoice {
         timebase: MipTimebase::InternalTimestamp,
         mag: true,
         temperature: true,
+        gps_time: false,
     },
     FormatChoice {
         timebase: MipTimebase::InternalTimestamp,
         mag: true,
         temperature: false,
+        gps_time: false,
     },
     FormatChoice {
         timebase: MipTimebase::InternalTimestamp,
         mag: false,
         temperature: false,
+        gps_time: false,
     },
 ];
 
@@ -83,6 +99,9 @@ impl FormatChoice {
             fields.push(field::TEMPERATURE_ABS);
         }
         fields.push(self.timebase.field());
+        if self.gps_time {
+            fields.push(field::GPS_TIMESTAMP);
+        }
         MessageFormat {
             fields: fields
                 .into_iter()
@@ -501,9 +520,17 @@ mod tests {
     fn formats_drop_optional_fields_before_the_clock() {
         let f = CHOICES[0].format(4);
         let descriptors: Vec<u8> = f.fields.iter().map(|d| d.descriptor).collect();
-        assert_eq!(descriptors, [0x04, 0x05, 0x06, 0x14, 0xD5]);
+        assert_eq!(descriptors, [0x04, 0x05, 0x06, 0x14, 0xD5, 0x12]);
         assert!(f.fields.iter().all(|d| d.decimation == 4));
-        assert_eq!(CHOICES[5].format(1).fields.len(), 3);
-        assert_eq!(CHOICES[5].timebase, MipTimebase::InternalTimestamp);
+        // The GPS timestamp goes first.
+        let descriptors: Vec<u8> = CHOICES[1]
+            .format(4)
+            .fields
+            .iter()
+            .map(|d| d.descriptor)
+            .collect();
+        assert_eq!(descriptors, [0x04, 0x05, 0x06, 0x14, 0xD5]);
+        assert_eq!(CHOICES[6].format(1).fields.len(), 3);
+        assert_eq!(CHOICES[6].timebase, MipTimebase::InternalTimestamp);
     }
 }
