@@ -459,6 +459,34 @@ mod tests {
     }
 
     #[test]
+    fn a_unit_with_gnss_time_sends_the_true_utc_and_drops_the_flags_in_an_outage() {
+        let text = "name = \"gnss\"\nrate-hz = 100.0\n[device]\nprotocol = \"mip\"\n\
+                    power-up-streaming = true\nclock-drift-ppm = 200.0\ngnss-time = true\n\
+                    gnss-epoch-utc-s = 1767225600.0\n\
+                    [[device.gnss-outage]]\nstart-s = 1.0\nend-s = 3.0\n\
+                    [[segment]]\nkind = \"static\"\nduration-s = 5.0\n";
+        let scenario = Scenario::from_toml_str(text, "gnss.toml").unwrap();
+        let mut d = MipDevice::new(DeviceCore::new(scenario, Calibration::identity(), 1));
+        let mut gnss_at = |t_s: f64| {
+            let (packet, truth) = d.data_packet(t_s);
+            assert_eq!(truth.t_s, t_s);
+            let g = ImuData::decode_packet(&packet).unwrap().gps_time.unwrap();
+            let utc_ns = gnss_time::gps_week_tow_to_unix_ns(u32::from(g.week), g.tow_s).unwrap();
+            (utc_ns - 1_767_225_600_000_000_000, g.valid_flags)
+        };
+        // Valid: the true time, to the ns.
+        assert_eq!(gnss_at(0.5), (500_000_000, GPS_TOW_AND_WEEK_VALID));
+        // In the outage: not valid, propagated on the 200 ppm fast clock from the last valid
+        // time (0.99 s): 2 s later it is 400 us ahead.
+        let (ns, flags) = gnss_at(0.99);
+        assert_eq!((ns, flags), (990_000_000, GPS_TOW_AND_WEEK_VALID));
+        let (ns, flags) = gnss_at(2.99);
+        assert_eq!(flags, 0);
+        assert!((ns - 2_990_400_000).abs() <= 1, "{ns}");
+        assert_eq!(gnss_at(3.0), (3_000_000_000, GPS_TOW_AND_WEEK_VALID));
+    }
+
+    #[test]
     fn identify_configure_and_resume() {
         let mut d = device(250.0);
         assert!(!d.is_streaming(), "powers up idle");

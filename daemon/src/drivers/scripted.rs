@@ -72,8 +72,20 @@ impl Peer {
         streaming: bool,
         origin: Instant,
     ) -> Self {
+        Self::powered_up_with(protocol, script, streaming, origin, |_| {})
+    }
+
+    /// The same with the demo scenario changed by `edit` first.
+    fn powered_up_with(
+        protocol: DeviceProtocol,
+        script: Script,
+        streaming: bool,
+        origin: Instant,
+        edit: impl FnOnce(&mut Scenario),
+    ) -> Self {
         let mut scenario = Scenario::from_toml_str(SCENARIO, "demo").expect("demo scenario");
         scenario.device.power_up_streaming = streaming;
+        edit(&mut scenario);
         scenario.set_protocol(protocol, "test").expect("protocol");
         let truth = imu_model::Calibration::from_toml_str(TRUTH, "truth").expect("truth model");
         let core = DeviceCore::new(scenario, truth, 7);
@@ -104,6 +116,15 @@ impl Peer {
     /// with the vendor's tool.
     pub fn streaming(protocol: DeviceProtocol, origin: Instant) -> Self {
         Self::powered_up(protocol, Box::new(|_, _| Fate::Deliver), true, origin)
+    }
+
+    /// A well-behaved device powered up streaming, its scenario changed by `edit`.
+    pub fn streaming_with(
+        protocol: DeviceProtocol,
+        origin: Instant,
+        edit: impl FnOnce(&mut Scenario),
+    ) -> Self {
+        Self::powered_up_with(protocol, Box::new(|_, _| Fate::Deliver), true, origin, edit)
     }
 
     fn t_s(&self, now: Instant) -> f64 {

@@ -172,6 +172,37 @@ fn a_passive_streaming_unit_is_published_sample_for_sample_and_never_sent_a_byte
 }
 
 #[test]
+fn a_passive_mip_unit_with_gnss_time_hands_it_over_and_the_gnss_stamps_lock() {
+    let epoch_utc_s = 1_767_225_600.0;
+    let mut h = passive(Some(DeviceProtocol::Mip), |o| {
+        Peer::streaming_with(DeviceProtocol::Mip, o, |s| {
+            s.device.gnss_time = true;
+            s.device.gnss_epoch_utc_s = epoch_utc_s;
+        })
+    });
+    h.pipeline.set_time_source(crate::config::TimeSource::Gnss);
+    h.start_up();
+    let id = h.seen.ready.clone().unwrap();
+    assert_eq!(detail(&id, "gps-timestamp"), Some("true"));
+    h.run_until(Duration::from_secs(4), |_| false);
+    // Every reading carries valid GNSS time: the scenario's epoch plus whole 10 ms samples
+    // (the peer's scenario clock starts at power-up, on the sample grid).
+    assert!(h.seen.readings.len() > 300);
+    for r in &h.seen.readings {
+        let g = r.gnss.expect("GNSS time");
+        assert!(g.valid);
+        let since_ns = g.utc_ns - (epoch_utc_s * 1e9) as i64;
+        assert_eq!(since_ns % 10_000_000, 0, "{since_ns}");
+    }
+    let s = h
+        .pipeline
+        .status(&h.driver.stats(), &Sinks::default(), 0, true, 0);
+    assert_eq!(s.time_source, imu_bus::sample::time_source::GNSS);
+    assert_eq!(s.time_sync, imu_bus::sample::time_sync::GNSS_LOCKED);
+    assert_eq!((s.gnss_valid_transitions, s.gnss_lost_transitions), (1, 0));
+}
+
+#[test]
 fn a_passive_gx1_takes_the_configured_gains_flagged_as_fallbacks() {
     let mut h = passive(Some(DeviceProtocol::Gx1), |o| {
         streaming_peer(DeviceProtocol::Gx1, o)

@@ -17,10 +17,13 @@
 //! of its shared-memory type ([`crate::sample`], encoded by [`WireRecord`]); all numbers
 //! little-endian.
 //! ```text
-//!  0 u8[4] magic "IMRD"     4 u16 version (2)       6 u8 stream (1 raw, 2 corrected,
+//!  0 u8[4] magic "IMRD"     4 u16 version (1)       6 u8 stream (1 raw, 2 corrected,
 //!  7 u8    reserved (0)     8 u64 dropped                3 status, 4 health)
 //! 16 record: 176 (raw), 128 (corrected), 208 (status) or 176 (health) bytes
 //! ```
+//! A record's length tells its layout: a status of 168 bytes (`imud::DaemonStatus.v3`, from an
+//! imud before the time sync) is read with the time sync unknown (source `device`, state
+//! `none`, NaN, 0), so a newer client reads an older imud.
 //! `dropped` is how many packets the server could not queue for this connection so far (its
 //! socket buffer was full: the server never waits for a reader); a reader also sees lost samples
 //! as gaps in `seq` ([`ReadersClient::missed`]).
@@ -42,9 +45,8 @@ pub use records::WireRecord;
 
 /// The first four bytes of every packet.
 pub const MAGIC: [u8; 4] = *b"IMRD";
-/// The packet layout version this build reads and writes (2: the status record gained the
-/// time sync, `imud::DaemonStatus.v4`).
-pub const VERSION: u16 = 2;
+/// The packet layout version this build reads and writes.
+pub const VERSION: u16 = 1;
 /// Bytes of the packet header.
 pub const HEADER_LEN: usize = 16;
 /// The largest packet (a header and the largest record).
@@ -172,6 +174,9 @@ pub fn decode_packet(packet: &[u8]) -> Result<(u64, Received), PacketError> {
     let received = match code {
         RawSample::CODE => Received::Raw(record(code, body)?),
         CorrectedSample::CODE => Received::Corrected(record(code, body)?),
+        DaemonStatus::CODE if body.len() == records::DAEMON_STATUS_V3_SIZE => {
+            Received::Status(records::decode_status_v3(body))
+        }
         DaemonStatus::CODE => Received::Status(record(code, body)?),
         CalibrationHealth::CODE => Received::Health(record(code, body)?),
         _ => return Err(PacketError::Stream { code }),

@@ -206,6 +206,21 @@ impl WireRecord for CorrectedSample {
     }
 }
 
+/// Bytes of a status before the time sync (`imud::DaemonStatus.v3`).
+pub(super) const DAEMON_STATUS_V3_SIZE: usize = 168;
+
+/// A v3 status (exactly [`DAEMON_STATUS_V3_SIZE`] bytes) with the time sync unknown: source
+/// `device`, state `none`, NaN offset and drift, no transitions.
+pub(super) fn decode_status_v3(bytes: &[u8]) -> DaemonStatus {
+    let mut full = [0u8; <DaemonStatus as WireRecord>::SIZE];
+    full[..DAEMON_STATUS_V3_SIZE].copy_from_slice(bytes);
+    DaemonStatus {
+        gnss_minus_wall_s: f64::NAN,
+        gnss_drift_ppm: f64::NAN,
+        ..DaemonStatus::decode(&full)
+    }
+}
+
 impl WireRecord for DaemonStatus {
     const CODE: u8 = 3;
     const SIZE: usize = 208;

@@ -101,6 +101,21 @@ fn fields_sit_at_the_documented_c_offsets() {
     assert_eq!(at::<2>(&status, 148), 0x1234u16.to_le_bytes());
     assert_eq!(at::<8>(&status, 160), 77u64.to_le_bytes());
     assert_eq!(status[169], 3);
+    // An older imud's status (v3, before the time sync) reads with the time sync unknown.
+    let mut packet = Vec::new();
+    encode_packet(
+        &DaemonStatus {
+            fields_skipped: 77,
+            time_sync: 3,
+            ..DaemonStatus::default()
+        },
+        &mut packet,
+    );
+    let Ok((_, Received::Status(v3))) = decode_packet(&packet[..HEADER_LEN + 168]) else {
+        panic!("a v3 status is refused");
+    };
+    assert_eq!((v3.fields_skipped, v3.time_sync), (77, 0));
+    assert!(v3.gnss_minus_wall_s.is_nan() && v3.gnss_drift_ppm.is_nan());
     assert_eq!(at::<8>(&status, 184), 150f64.to_le_bytes());
     assert_eq!(at::<8>(&status, 200), 5u64.to_le_bytes());
 
