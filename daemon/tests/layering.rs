@@ -1,15 +1,17 @@
 //! The device layer's invariant (ARCHITECTURE.md): nothing outside `daemon/src/drivers/` names
 //! a protocol. Outside it, the non-test code of every source file may use `imu_proto` only for
 //! the protocol's name a user configures (`DeviceProtocol`), the codec-neutral decoder counters
-//! and reject reasons, and the configuration's documented defaults; it never imports a codec
+//! and reject reasons, the one representation of a unit's GNSS time every codec converts to
+//! (`gnss_time::GnssTime`), and the configuration's documented defaults; it never imports a codec
 //! (commands, replies, decoders, MIP) or a protocol's driver.
 
 use std::path::Path;
 
 /// What non-driver code may name of `imu_proto`.
-const ALLOWED: [&str; 4] = [
+const ALLOWED: [&str; 5] = [
     "imu_proto::DeviceProtocol",
     "imu_proto::decoder::{DecoderStats, RejectReason}",
+    "imu_proto::gnss_time::GnssTime",
     "imu_proto::GainScales::DEFAULT_FALLBACK",
     "imu_proto::ticks::DEFAULT_TICK_PERIOD_S",
 ];

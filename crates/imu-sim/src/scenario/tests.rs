@@ -190,3 +190,23 @@ fn hand_tilts_poses_and_trembles() {
         assert!(e.starts_with("h.toml: ") && e.contains(key), "{e}");
     }
 }
+
+#[test]
+fn gnss_time_and_its_outages_parse_and_a_backwards_outage_is_named() {
+    let head = "name = \"t\"\nrate-hz = 100\n[device]\nprotocol = \"mip\"\ngnss-time = true\n";
+    let tail = "[[segment]]\nkind = \"static\"\nduration-s = 1\n";
+    let text = format!("{head}[[device.gnss-outage]]\nstart-s = 2.0\nend-s = 5.0\n{tail}");
+    let s = Scenario::from_toml_str(&text, "g.toml").unwrap();
+    assert!(s.device.gnss_valid_at(1.9) && s.device.gnss_valid_at(5.0));
+    assert!(!s.device.gnss_valid_at(2.0) && !s.device.gnss_valid_at(4.9));
+    assert_eq!(s.device.gnss_epoch_utc_s, 1_767_225_600.0);
+    let text = format!("{head}[[device.gnss-outage]]\nstart-s = 5.0\nend-s = 2.0\n{tail}");
+    let e = Scenario::from_toml_str(&text, "g.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("g.toml:") && e.contains("device.gnss-outage"),
+        "{e}"
+    );
+    assert!(e.contains("start-s 5 must come before end-s 2"), "{e}");
+}
