@@ -268,4 +268,44 @@ mod tests {
         let a = rec.raw[0].accel_device_m_s2;
         assert!((a[2] - g0).abs() < 1e-3 * g0, "{a:?}");
     }
+
+    /// GNSS time in holdover or lost is a warning, named in the message and the values; locked
+    /// is OK.
+    #[test]
+    fn gnss_holdover_and_loss_warn_in_the_diagnostics() {
+        let streaming = DaemonStatus {
+            device_connected: 1,
+            calibration_id: 7,
+            time_source: imu_bus::sample::time_source::GNSS,
+            ..DaemonStatus::default()
+        };
+        let value = |a: &DiagnosticArray, key: &str| {
+            a.status[0]
+                .values
+                .iter()
+                .find(|kv| kv.key == key)
+                .map(|kv| kv.value.clone())
+        };
+        for (state, level, name) in [
+            (time_sync::GNSS_LOCKED, DiagnosticLevel::Ok, "gnss-locked"),
+            (
+                time_sync::GNSS_HOLDOVER,
+                DiagnosticLevel::Warn,
+                "gnss-holdover",
+            ),
+            (time_sync::GNSS_LOST, DiagnosticLevel::Warn, "gnss-lost"),
+        ] {
+            let s = DaemonStatus {
+                time_sync: state,
+                ..streaming
+            };
+            let a = diagnostics(0, &s, Ros2Stats::default(), "imud", "imu0");
+            assert_eq!(a.status[0].level, level, "{name}");
+            assert_eq!(value(&a, "time_sync").as_deref(), Some(name));
+            assert_eq!(value(&a, "time_source").as_deref(), Some("gnss"));
+            if level == DiagnosticLevel::Warn {
+                assert!(a.status[0].message.contains("GNSS time"), "{name}");
+            }
+        }
+    }
 }
