@@ -127,10 +127,14 @@ fn throughput(n_frames: u64, rate_hz: Option<f64>, protocol: DeviceProtocol) {
     stop(daemon);
     let logged = recorded_raw(dir.path());
     let secs = (last - t0).as_secs_f64();
-    // A MIP unit sends nothing before it is configured; the GX1 answers one start-up poll.
+    // A MIP unit sends nothing before it is configured; the GX1 answers one start-up poll; an
+    // MTi streams from power-up until imud's GoToConfig, and those samples are not imud's.
     let sent = match protocol {
         DeviceProtocol::Gx1 => report.data_replies - 1,
         DeviceProtocol::Mip => report.data_replies,
+        DeviceProtocol::Xsens => {
+            report.data_replies - report.data_replies_before_first_command.unwrap_or(0)
+        }
     };
     println!(
         "throughput, {protocol} ({}): {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
