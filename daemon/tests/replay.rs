@@ -112,6 +112,10 @@ fn a_replayed_recording_reproduces_its_imu_data_bit_for_bit() {
         assert!(again.imu == original.imu, "{protocol}: /imu/data differs");
         assert!(again.raw == original.raw, "{protocol}: /imu/raw differs");
         assert!(again.frames == original.frames, "{protocol}: frames differ");
+        assert!(
+            again.device_compensated == original.device_compensated,
+            "{protocol}: /imu/device_compensated differs"
+        );
         assert_eq!(again.temperatures, original.temperatures, "{protocol}");
         assert_eq!(
             again.metadata["imud.replay"]["source"],
@@ -289,7 +293,11 @@ duration-s = 600.0
 
 #[test]
 fn a_recording_that_spans_a_reconnect_replays_as_two_sessions_bit_for_bit() {
-    for protocol in [DeviceProtocol::Gx1, DeviceProtocol::Mip] {
+    for protocol in [
+        DeviceProtocol::Gx1,
+        DeviceProtocol::Mip,
+        DeviceProtocol::Xsens,
+    ] {
         let dir = tempfile::tempdir().unwrap();
         let file = live_with_reconnect(dir.path(), protocol);
         let original = read_recording(&file).unwrap();
