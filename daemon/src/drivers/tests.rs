@@ -65,6 +65,23 @@ fn an_mti_streaming_from_power_up_is_recognised_without_a_command() {
 }
 
 #[test]
+fn an_mti_left_in_config_mode_acknowledges_go_to_config() {
+    let go_to_config = imu_proto::xsens::XsensCommand::GoToConfig.to_message();
+    let mut h = probing(AcquisitionMode::Continuous, |o| {
+        Peer::clean(DeviceProtocol::Xsens, o)
+    });
+    // The last host left it in config mode (imud's stop on shutdown): no stream to hear.
+    let origin = h.origin;
+    h.peer.receive(go_to_config.as_bytes(), origin);
+    h.start_up();
+    assert_eq!(h.seen.ready.as_ref().map(|i| i.protocol), Some("xsens"));
+    // Asked in turn: the GX1 firmware query, a MIP "set to idle", then GoToConfig.
+    assert_eq!(h.written[0].1, Command::FirmwareVersion.to_bytes());
+    assert_eq!(h.written[1].1, MipCommand::SetToIdle.to_packet().as_bytes());
+    assert_eq!(h.written[2].1, go_to_config.as_bytes());
+}
+
+#[test]
 fn an_idle_gx1_answers_the_firmware_query() {
     let mut h = probing(AcquisitionMode::Continuous, |o| {
         Peer::clean(DeviceProtocol::Gx1, o)
