@@ -222,3 +222,85 @@ fn config_problems_name_the_key() {
     c.mode = AcquisitionMode::Polled;
     assert_eq!(config_problem(&c).map(|p| p.0), Some("device.mode"));
 }
+
+#[test]
+fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() {
+    use imu_proto::xsens::data::UTC_VALID;
+    use imu_proto::xsens::{Format, MtData2, UtcTime};
+
+    let utc = UtcTime {
+        ns: 500_000_000,
+        year: 2026,
+        month: 3,
+        day: 1,
+        hour: 12,
+        minute: 0,
+        second: 0,
+        flags: UTC_VALID,
+    };
+    let first = MtData2 {
+        sample_time_fine: Some(u32::MAX - 95),
+        acceleration_hr_m_s2: Some([0.1, 0.2, -9.8]),
+        rate_of_turn_hr_rad_s: Some([0.01, 0.02, 0.03]),
+        acceleration_m_s2: Some([0.0, 0.0, -9.81]),
+        rate_of_turn_rad_s: Some([0.0, 0.0, 0.001]),
+        magnetic_field: Some([0.2, 0.0, 0.4]),
+        temperature_c: Some(30.5),
+        utc: Some(utc),
+        ..MtData2::default()
+    };
+    let mut readings = reading::Readings::new();
+    let c = readings.content(&first.to_message(Format::Float64));
+    let r = c.reading.expect("a sample");
+    assert_eq!(r.measured.accel_m_s2.as_slice(), [0.1, 0.2, -9.8]);
+    assert_eq!(r.measured.gyro_rad_s.as_slice(), [0.01, 0.02, 0.03]);
+    let comp = r.compensated.expect("compensated beside");
+    assert_eq!(comp.accel_m_s2.as_slice(), [0.0, 0.0, -9.81]);
+    assert_eq!(comp.gyro_rad_s.as_slice(), [0.0, 0.0, 0.001]);
+    let gnss = r.gnss.expect("UTC time");
+    assert!(gnss.valid);
+    assert_eq!(
+        gnss.utc_ns,
+        imu_proto::gnss_time::utc_fields_to_unix_ns(2026, 3, 1, 12, 0, 0, 500_000_000).unwrap()
+    );
+    assert_eq!(c.temperature.map(|t| t.0), Some(30.5));
+    assert_eq!(r.command, mid::MT_DATA2);
+
+    // SampleTimeFine wraps its u32 and is unwrapped; a UTC time without the valid flag is
+    // still reported, as invalid.
+    let next = MtData2 {
+        sample_time_fine: Some(4),
+        utc: Some(UtcTime { flags: 0, ..utc }),
+        ..first
+    };
+    let r = readings
+        .content(&next.to_message(Format::Float32))
+        .reading
+        .expect("a sample");
+    assert_eq!(r.ticks_unwrapped, (1u64 << 32) + 4);
+    assert!(r.gnss.is_some_and(|g| !g.valid));
+
+    // No HR outputs: the compensated ones are the reading, nothing beside them.
+    let no_hr = MtData2 {
+        acceleration_hr_m_s2: None,
+        rate_of_turn_hr_rad_s: None,
+        utc: None,
+        ..next
+    };
+    let r = readings
+        .content(&no_hr.to_message(Format::Float32))
+        .reading
+        .expect("a sample");
+    assert_eq!(r.measured.accel_m_s2.z, -9.81f32 as f64);
+    assert!(r.compensated.is_none() && r.gnss.is_none());
+
+    // No clock: unusable, its temperature still taken; another message: nothing.
+    let no_clock = MtData2 {
+        sample_time_fine: None,
+        ..no_hr
+    };
+    let c = readings.content(&no_clock.to_message(Format::Float32));
+    assert!(c.unusable && c.reading.is_none() && c.temperature.is_some());
+    let c = readings.content(&XsensCommand::GoToConfig.to_message());
+    assert!(!c.unusable && c.reading.is_none());
+}
