@@ -19,8 +19,8 @@ pub enum XsensError {
         /// Length that was given.
         found: usize,
     },
-    /// An extended length beyond the protocol's maximum, or one that fits the standard form.
-    #[error("extended length {0} is not in 255..={max}", max = super::MAX_DATA_LEN)]
+    /// An extended length beyond the protocol's maximum.
+    #[error("extended length {0} is beyond the maximum {max}", max = super::MAX_DATA_LEN)]
     BadExtendedLength(usize),
     /// The bytes after the preamble do not sum to 0 mod 256.
     #[error("bad checksum: the bytes after the preamble sum to 0x{0:02X}, not 0")]

@@ -134,7 +134,8 @@ fn message_len(bytes: &[u8]) -> Result<usize, XsensError> {
         return Err(XsensError::TooShort(bytes.len()));
     };
     let n = usize::from(u16::from_be_bytes([ext[0], ext[1]]));
-    if !(MAX_SHORT_DATA_LEN + 1..=MAX_DATA_LEN).contains(&n) {
+    // The extended form of a short length is unusual but not forbidden: taken as it is.
+    if n > MAX_DATA_LEN {
         return Err(XsensError::BadExtendedLength(n));
     }
     Ok(EXTENDED_HEADER_LEN + n + 1)
@@ -163,7 +164,7 @@ impl Framing for XbusFraming {
         }
         let ext = head.get(HEADER_LEN..EXTENDED_HEADER_LEN)?;
         let n = usize::from(u16::from_be_bytes([ext[0], ext[1]]));
-        if (MAX_SHORT_DATA_LEN + 1..=MAX_DATA_LEN).contains(&n) {
+        if n <= MAX_DATA_LEN {
             Some(EXTENDED_HEADER_LEN + n + 1)
         } else {
             // Never a message: the header alone is the candidate, rejected as malformed.

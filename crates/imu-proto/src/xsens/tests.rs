@@ -5,6 +5,7 @@ use proptest::prelude::*;
 
 use super::command::error_name;
 use super::data::{UTC_VALID, id};
+use super::message::checksum;
 use super::*;
 use crate::RejectReason;
 
@@ -272,9 +273,13 @@ fn whole_message_errors_name_the_problem() {
         })
     );
     assert_eq!(
-        Message::parse(&hex("FA FF 36 FF 00 10 00")),
-        Err(XsensError::BadExtendedLength(16))
+        Message::parse(&hex("FA FF 36 FF 20 00 00")),
+        Err(XsensError::BadExtendedLength(0x2000))
     );
+    // The extended form of a short length is taken as it is.
+    let mut short_ext = hex("FA FF 36 FF 00 02 10 20");
+    short_ext.push(checksum(&short_ext[1..]));
+    assert_eq!(Message::parse(&short_ext).unwrap().data(), [0x10, 0x20]);
     let e = XsensReply::decode(&Message::new(0x99, &[]).unwrap()).unwrap_err();
     assert_eq!(e.to_string(), "unknown message id 0x99");
     let e = XsensReply::decode(&Message::new(mid::DEVICE_ID, &[1, 2]).unwrap()).unwrap_err();
