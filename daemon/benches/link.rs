@@ -7,9 +7,11 @@
 //!    p99.9), both on CLOCK_MONOTONIC, with event wake-ups.
 //! 3. CPU use of the imud process at 100 Hz and at 1 kHz.
 //! 4. The same unit speaking MIP at 1 kHz (its base rate): every frame logged, and CPU.
+//! 5. The same unit as an Xsens MTi at 2 kHz (an MTi-600's highest HR rate): every frame sent
+//!    after imud's start-up logged; CPU at 1 kHz.
 //!
-//! Run: `cargo bench -p imud --bench link` (`-- mip` for the MIP part alone). Numbers go to
-//! BENCHMARKS.md.
+//! Run: `cargo bench -p imud --bench link` (`-- mip` or `-- xsens` for that part alone).
+//! Numbers go to BENCHMARKS.md.
 
 #[path = "common/cpu_time.rs"]
 mod cpu_time;
@@ -127,10 +129,14 @@ fn throughput(n_frames: u64, rate_hz: Option<f64>, protocol: DeviceProtocol) {
     stop(daemon);
     let logged = recorded_raw(dir.path());
     let secs = (last - t0).as_secs_f64();
-    // A MIP unit sends nothing before it is configured; the GX1 answers one start-up poll.
+    // A MIP unit sends nothing before it is configured; the GX1 answers one start-up poll; an
+    // MTi streams from power-up until imud's GoToConfig, and those samples are not imud's.
     let sent = match protocol {
         DeviceProtocol::Gx1 => report.data_replies - 1,
         DeviceProtocol::Mip => report.data_replies,
+        DeviceProtocol::Xsens => {
+            report.data_replies - report.data_replies_before_first_command.unwrap_or(0)
+        }
     };
     println!(
         "throughput, {protocol} ({}): {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",
@@ -213,9 +219,15 @@ fn cpu(rate_hz: f64, protocol: DeviceProtocol) {
 
 fn main() {
     let mip = DeviceProtocol::Mip;
+    let xsens = DeviceProtocol::Xsens;
     if std::env::args().skip(1).any(|a| a == "mip") {
         throughput(60_000, Some(1000.0), mip);
         cpu(1000.0, mip);
+        return;
+    }
+    if std::env::args().skip(1).any(|a| a == "xsens") {
+        throughput(120_000, Some(2000.0), xsens);
+        cpu(1000.0, xsens);
         return;
     }
     let gx1 = DeviceProtocol::Gx1;
@@ -226,4 +238,6 @@ fn main() {
     cpu(1000.0, gx1);
     throughput(60_000, Some(1000.0), mip);
     cpu(1000.0, mip);
+    throughput(120_000, Some(2000.0), xsens);
+    cpu(1000.0, xsens);
 }

@@ -1,6 +1,8 @@
 //! Per-frame cost of imud's data path: decode + calibrate + publish (iceoryx2) + log enqueue
-//! (MCAP writer thread), on pre-encoded 3DM-GX1 raw-bits frames and on MIP IMU packets (the
-//! fields imud configures: scaled accel, gyro, mag, temperature, reference time). Prints the
+//! (MCAP writer thread), on pre-encoded 3DM-GX1 raw-bits frames, on MIP IMU packets (the
+//! fields imud configures: scaled accel, gyro, mag, temperature, reference time) and on Xsens
+//! MTData2 messages (the outputs imud configures: counter, SampleTimeFine, UTC time,
+//! temperature, HR and compensated acceleration and rate of turn, magnetic field). Prints the
 //! median and tail of the per-frame time over batches, for each stage combination and protocol.
 //! Run: `cargo bench -p imud --bench pipeline`.
 
@@ -13,9 +15,11 @@ use imu_model::Calibration;
 use imu_proto::DeviceProtocol;
 use imu_proto::mip::{ImuData, TemperatureStats};
 use imu_proto::reply::Reply;
+use imu_proto::xsens::{Format, MtData2, UtcTime};
 use imud::config::DeviceConfig;
 use imud::drivers::gx1::{self, Gx1Driver};
 use imud::drivers::mip::{self, MipDriver, MipTimebase};
+use imud::drivers::xsens::{self, XsensDriver};
 use imud::drivers::{Driver, DriverEvent, FrameSlot};
 use imud::pipeline::{
     Acquisition, ActiveCalibration, GainFallback, Gains, Pipeline, SessionSpec, Sinks, log_rejected,
@@ -68,6 +72,39 @@ fn frames(protocol: DeviceProtocol) -> (Vec<Vec<u8>>, u64) {
                 .collect();
             (frames, 1_000_000)
         }
+        DeviceProtocol::Xsens => {
+            let frames = (0..BATCH)
+                .map(|i| {
+                    let f = |k| f64::from(w(i, k)) * 1e-3;
+                    let accel = [f(0), f(1), -9.8 + f(2)];
+                    let gyro = [f(3), f(4), f(5)];
+                    MtData2 {
+                        packet_counter: Some(i as u16),
+                        // 10 kHz: 10 counts a frame at 1 kHz.
+                        sample_time_fine: Some(10 * i as u32),
+                        utc: Some(UtcTime {
+                            ns: 1_000_000 * i as u32,
+                            year: 2026,
+                            month: 1,
+                            day: 1,
+                            flags: imu_proto::xsens::data::UTC_VALID,
+                            ..UtcTime::default()
+                        }),
+                        temperature_c: Some(24.5),
+                        acceleration_hr_m_s2: Some(accel),
+                        rate_of_turn_hr_rad_s: Some(gyro),
+                        acceleration_m_s2: Some(accel),
+                        rate_of_turn_rad_s: Some(gyro),
+                        magnetic_field: Some([0.2 + f(6), f(7), 0.4]),
+                        ..MtData2::default()
+                    }
+                    .to_message(Format::Float32)
+                    .as_bytes()
+                    .to_vec()
+                })
+                .collect();
+            (frames, 1_000_000)
+        }
     }
 }
 
@@ -101,6 +138,7 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
             Box::new(MipDriver::with_session(&cfg, MipTimebase::ReferenceTime)),
             mip::session(MipTimebase::ReferenceTime),
         ),
+        DeviceProtocol::Xsens => (Box::new(XsensDriver::with_session(&cfg)), xsens::session()),
     };
     let mut pipeline = Pipeline::new(session, cal);
     // The daemon watches its calibration's health by default (imud::health).
@@ -115,6 +153,7 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
         let batch = match protocol {
             DeviceProtocol::Gx1 => stream.clone(),
             DeviceProtocol::Mip => shifted_mip(&stream, (b * BATCH) as u64 * spacing_ns),
+            DeviceProtocol::Xsens => shifted_xsens(&stream, (b * BATCH) as u64 * spacing_ns),
         };
         let start = Instant::now();
         for (k, frame) in batch.iter().enumerate() {
@@ -180,10 +219,25 @@ fn shifted_mip(stream: &[Vec<u8>], offset_ns: u64) -> Vec<Vec<u8>> {
         .collect()
 }
 
+/// The Xsens messages with their SampleTimeFine moved on by `offset_ns` (re-encoded,
+/// untimed; the u32 wraps as the unit's does).
+fn shifted_xsens(stream: &[Vec<u8>], offset_ns: u64) -> Vec<Vec<u8>> {
+    let offset_ticks = (offset_ns / 100_000) as u32;
+    stream
+        .iter()
+        .map(|bytes| {
+            let msg = imu_proto::xsens::Message::parse(bytes).expect("message");
+            let mut data = MtData2::decode(&msg).expect("data");
+            data.sample_time_fine = data.sample_time_fine.map(|t| t.wrapping_add(offset_ticks));
+            data.to_message(Format::Float32).as_bytes().to_vec()
+        })
+        .collect()
+}
+
 fn main() {
     let protocol = match std::env::args()
         .skip(1)
-        .find(|a| a == "mip" || a == "3dm-gx1")
+        .find(|a| a == "mip" || a == "3dm-gx1" || a == "xsens")
     {
         Some(p) => p.parse().expect("protocol"),
         None => {

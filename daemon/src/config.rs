@@ -130,8 +130,8 @@ pub struct DeviceConfig {
     /// The protocol the device speaks; none: probed at each start-up (`drivers/probe.rs`).
     #[serde(with = "protocol_option", skip_serializing_if = "Option::is_none")]
     pub protocol: Option<imu_proto::DeviceProtocol>,
-    /// MIP: the data rate to configure, Hz (the unit's base rate / a whole decimation); none:
-    /// the rate the unit is set to.
+    /// MIP: the data rate to configure, Hz (the unit's base rate / a whole decimation); Xsens:
+    /// the output rate, a whole number of Hz; none: the rate the unit is set to.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rate_hz: Option<f64>,
     /// Serial line rate, bits/s (38400 is the factory default).
@@ -237,7 +237,7 @@ impl Default for DeviceConfig {
     }
 }
 
-/// `device.protocol` as its name (`"3dm-gx1"`, `"mip"`), absent when probed.
+/// `device.protocol` as its name (`"3dm-gx1"`, `"mip"`, `"xsens"`), absent when probed.
 mod protocol_option {
     use imu_proto::DeviceProtocol;
     use serde::{Deserialize, Deserializer, Serializer};

@@ -15,7 +15,10 @@ use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
 use imu_proto::mip::data::field;
 use imu_proto::mip::{DescriptorRate, MessageFormat, MipCommand, PacketBuilder, Setting};
+use imu_proto::xsens::data::id;
+use imu_proto::xsens::{DataId, Format, OutputConfiguration, OutputSetting, XsensCommand};
 use imu_sim::mip_device::MipDevice;
+use imu_sim::xsens_device::XsensDevice;
 use imu_sim::{DeviceCore, Scenario};
 use imud::config::Config;
 use imud::drivers::{Device, Driver};
@@ -37,7 +40,7 @@ struct Case {
     make: fn() -> Vec<u8>,
 }
 
-const CASES: [Case; 5] = [
+const CASES: [Case; 8] = [
     Case {
         name: "gx1-raw-faults",
         protocol: DeviceProtocol::Gx1,
@@ -62,6 +65,21 @@ const CASES: [Case; 5] = [
         name: "mip-7series-interleaved",
         protocol: DeviceProtocol::Mip,
         make: mip_seven_series,
+    },
+    Case {
+        name: "xsens-hr-faults",
+        protocol: DeviceProtocol::Xsens,
+        make: xsens_hr_faults,
+    },
+    Case {
+        name: "xsens-fp1632",
+        protocol: DeviceProtocol::Xsens,
+        make: xsens_fp1632,
+    },
+    Case {
+        name: "xsens-power-up-default",
+        protocol: DeviceProtocol::Xsens,
+        make: xsens_power_up_default,
     },
 ];
 
@@ -200,6 +218,73 @@ fn mip_seven_series() -> Vec<u8> {
         }
     }
     out
+}
+
+/// A simulated MTi set to `outputs` (if any) and in measurement mode.
+fn xsens_unit(outputs: Option<OutputConfiguration>) -> XsensDevice {
+    let mut d = XsensDevice::new(core(DeviceProtocol::Xsens));
+    if let Some(outputs) = outputs {
+        for cmd in [
+            XsensCommand::GoToConfig,
+            XsensCommand::SetOutputConfiguration(outputs),
+            XsensCommand::GoToMeasurement,
+        ] {
+            d.push(cmd.to_message().as_bytes());
+            while let Some(Ok(r)) = d.next_request() {
+                let _ = d.handle(r);
+            }
+        }
+    }
+    d
+}
+
+/// An MTi set up as imud's start-up sets it (HR and compensated outputs, magnetic field,
+/// temperature, UTC time; float32) at 100 Hz for 1.5 s, with faults: two messages lost, a
+/// corrupted byte, garbage with a false preamble.
+fn xsens_hr_faults() -> Vec<u8> {
+    let mut d = xsens_unit(Some(imud::drivers::xsens::preferred_outputs(100)));
+    let mut out = Vec::new();
+    for k in 0..150u64 {
+        let mut msg = d.data_message(k as f64 * 0.01).0.as_bytes().to_vec();
+        match k {
+            40 | 41 => continue,
+            80 => msg[30] ^= 0x01,
+            120 => out.extend_from_slice(&[0xFA, 0x00, 0xFA, 0xFF, 0x36]),
+            _ => {}
+        }
+        out.extend_from_slice(&msg);
+    }
+    out
+}
+
+/// The HR outputs in fixed point 16.32 with `SampleTimeFine`, 1 s.
+fn xsens_fp1632() -> Vec<u8> {
+    let outputs = [
+        (id::SAMPLE_TIME_FINE, 0xFFFF),
+        (
+            DataId::with_format(id::ACCELERATION_HR, Format::Fp1632).0,
+            100,
+        ),
+        (
+            DataId::with_format(id::RATE_OF_TURN_HR, Format::Fp1632).0,
+            100,
+        ),
+    ]
+    .map(|(data_id, rate_hz)| OutputSetting { data_id, rate_hz })
+    .to_vec();
+    let mut d = xsens_unit(Some(OutputConfiguration(outputs)));
+    (0..100u64)
+        .flat_map(|k| d.data_message(k as f64 * 0.01).0.as_bytes().to_vec())
+        .collect()
+}
+
+/// A unit as it powers up: its default outputs (compensated acceleration, rate of turn and
+/// magnetic field, no HR outputs), 1 s.
+fn xsens_power_up_default() -> Vec<u8> {
+    let mut d = xsens_unit(None);
+    (0..100u64)
+        .flat_map(|k| d.data_message(k as f64 * 0.01).0.as_bytes().to_vec())
+        .collect()
 }
 
 fn golden_dir() -> PathBuf {

@@ -49,7 +49,9 @@ fn nothing_outside_drivers_names_a_protocol() {
                 && !ALLOWED
                     .iter()
                     .any(|a| line.contains(a) && line.matches("imu_proto::").count() == 1);
-            let names_driver = line.contains("drivers::gx1") || line.contains("drivers::mip");
+            let names_driver = ["drivers::gx1", "drivers::mip", "drivers::xsens"]
+                .iter()
+                .any(|d| line.contains(d));
             if names_codec || names_driver {
                 offences.push(format!("{}:{}: {line}", f.display(), i + 1));
             }

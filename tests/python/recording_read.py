@@ -41,7 +41,7 @@ def floats(a):
 
 
 def convert(topic, m):
-    if topic == "/imu/data":
+    if topic in ("/imu/data", "/imu/device_compensated"):
         q = m.orientation
         return {
             "header": stamp(m.header),

@@ -269,8 +269,16 @@ fn workbench_ladder_through_imud_over_mip() {
     workbench_ladder_through_imud(imu_proto::DeviceProtocol::Mip);
 }
 
+/// The same loop with the unit speaking Xsens: its HR outputs (factory calibration only, as
+/// SI floats) are what the workbench reads and imud corrects; its compensated outputs are
+/// recorded beside them and play no part.
+#[test]
+fn workbench_ladder_through_imud_over_xsens() {
+    workbench_ladder_through_imud(imu_proto::DeviceProtocol::Xsens);
+}
+
 /// The scenario file for `protocol`: the shipped one, or a copy in `dir` whose device speaks
-/// MIP (its truth model is passed explicitly, so the copy's place does not matter).
+/// `protocol` (its truth model is passed explicitly, so the copy's place does not matter).
 fn scenario_for(dir: &Path, rel: &str, protocol: imu_proto::DeviceProtocol) -> PathBuf {
     let path = config_path(rel);
     if protocol == imu_proto::DeviceProtocol::Gx1 {
@@ -324,6 +332,26 @@ fn workbench_ladder_through_imud(protocol: imu_proto::DeviceProtocol) {
     );
     let raw = read_mcap(&recording, Source::Raw, None).unwrap();
     let corrected = read_mcap(&recording, Source::Corrected, None).unwrap();
+    if protocol == imu_proto::DeviceProtocol::Xsens {
+        // The unit's own compensated outputs are read by name; the recording's default IMU
+        // stream stays imud's corrected one. The simulated unit compensates with the truth
+        // model, not the ladder's calibration, so its stream has one sample per raw sample
+        // and agrees with imud's to about the calibration's residuals.
+        let compensated = read_mcap(
+            &recording,
+            Source::Corrected,
+            Some(imu_rec::recording::DEVICE_COMPENSATED_TOPIC),
+        )
+        .unwrap();
+        assert_eq!(compensated.len(), corrected.len());
+        let worst = compensated
+            .gyro_rad_s
+            .iter()
+            .zip(&corrected.gyro_rad_s)
+            .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst < 5e-3, "{worst} rad/s");
+    }
     let reference = Reference::TruthFile(truth);
     let segmentation = detect(&raw, &SegmentOptions::default()).unwrap();
     let segment_truth = reference

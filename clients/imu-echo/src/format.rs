@@ -193,6 +193,7 @@ impl Echo for DaemonStatus {
         out.push(Cell::Text(match self.protocol {
             device_protocol::MIP => "mip",
             device_protocol::ROS2_INPUT => "ros2-input",
+            device_protocol::XSENS => "xsens",
             _ => "3dm-gx1",
         }));
         out.push(Cell::U(self.configuration_unverified.into()));

@@ -24,14 +24,17 @@ pub enum Target {
     CommandDecoder,
     /// MIP packets, both sides (`imu_proto::mip::MipDecoder`).
     MipDecoder,
+    /// Xsens Xbus messages, both sides (`imu_proto::xsens::XsensDecoder`).
+    XsensDecoder,
 }
 
 impl Target {
     /// Every target, in the order reports list them.
-    pub const ALL: [Target; 3] = [
+    pub const ALL: [Target; 4] = [
         Target::ReplyDecoder,
         Target::CommandDecoder,
         Target::MipDecoder,
+        Target::XsensDecoder,
     ];
 
     /// The name of the cargo-fuzz binary and of the corpus directory.
@@ -40,6 +43,7 @@ impl Target {
             Target::ReplyDecoder => "reply_decoder",
             Target::CommandDecoder => "command_decoder",
             Target::MipDecoder => "mip_decoder",
+            Target::XsensDecoder => "xsens_decoder",
         }
     }
 
@@ -54,6 +58,7 @@ impl Target {
             Target::ReplyDecoder => targets::reply_decoder(data),
             Target::CommandDecoder => targets::command_decoder(data),
             Target::MipDecoder => targets::mip_decoder(data),
+            Target::XsensDecoder => targets::xsens_decoder(data),
         }
     }
 

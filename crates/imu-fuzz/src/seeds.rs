@@ -6,6 +6,7 @@ use imu_proto::Command;
 use imu_proto::checksum::checksum;
 use imu_proto::mip::{PacketBuilder, descriptor_set};
 use imu_proto::reply::{KNOWN_REPLY_CODES, reply_len_for_code};
+use imu_proto::xsens::{Message, mid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -21,6 +22,7 @@ pub fn seeds(target: Target) -> Vec<Vec<u8>> {
         Target::ReplyDecoder => reply_frames(&mut rng),
         Target::CommandDecoder => command_frames(),
         Target::MipDecoder => mip_frames(&mut rng),
+        Target::XsensDecoder => xsens_frames(&mut rng),
     };
     let mut streams: Vec<Vec<u8>> = frames.clone();
     // Runs of frames, garbage between them, a frame cut short and one with its last byte changed.
@@ -154,5 +156,60 @@ fn mip_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
             }
             b.build().as_bytes().to_vec()
         })
+        .collect()
+}
+
+fn xsens_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
+    // (message id, [(data id, item size)]): MTData2 as a unit streams it (float32, fp1220,
+    // fp1632 and float64 items, an unknown id), requests, acknowledgements, replies with data
+    // and one extended-length message.
+    let items: [&[(u16, u8)]; 4] = [
+        &[
+            (0x1020, 2),
+            (0x1060, 4),
+            (0x4040, 12),
+            (0x8040, 12),
+            (0xE020, 4),
+        ],
+        &[
+            (0x1010, 12),
+            (0x4021, 12),
+            (0x8022, 18),
+            (0xC023, 24),
+            (0x0810, 4),
+        ],
+        &[(0xA010, 20), (0x4010, 12), (0x8030, 16), (0x2010, 16)],
+        &[(0x1060, 4), (0x4020, 12), (0x8020, 12), (0xC020, 12)],
+    ];
+    let mut messages = Vec::new();
+    for items in items {
+        let mut data = Vec::new();
+        for &(id, size) in items {
+            data.extend_from_slice(&id.to_be_bytes());
+            data.push(size);
+            data.extend((0..size).map(|_| rng.random::<u8>()));
+        }
+        messages.push(Message::new(mid::MT_DATA2, &data));
+    }
+    let others = [
+        (mid::GO_TO_CONFIG, 0),
+        (mid::GO_TO_CONFIG_ACK, 0),
+        (mid::WAKE_UP, 0),
+        (mid::DEVICE_ID, 4),
+        (mid::PRODUCT_CODE, 14),
+        (mid::FIRMWARE_REV, 11),
+        (mid::SET_OUTPUT_CONFIGURATION, 20),
+        (mid::OUTPUT_CONFIGURATION, 20),
+        (mid::ERROR, 1),
+        (0x0D, 300),
+    ];
+    for (m, n) in others {
+        let data: Vec<u8> = (0..n).map(|_| rng.random()).collect();
+        messages.push(Message::new(m, &data));
+    }
+    messages
+        .into_iter()
+        .filter_map(Result::ok)
+        .map(|m| m.as_bytes().to_vec())
         .collect()
 }

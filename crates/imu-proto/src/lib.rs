@@ -1,5 +1,6 @@
 //! Sans-IO codec for the MicroStrain 3DM-GX1 serial protocol: bytes <-> typed frames, both ways.
-//! Its successor, the MIP protocol of today's MicroStrain devices, is in [`mip`].
+//! Its successor, the MIP protocol of today's MicroStrain devices, is in [`mip`]; Xsens's Xbus
+//! protocol (MTi units) is in [`xsens`].
 //!
 //! The same code serves the host (encode [`Command`]s, decode [`Reply`]s from a byte stream with
 //! [`ReplyDecoder`]) and the device side used by the simulator (decode commands with
@@ -66,6 +67,7 @@ pub mod protocol;
 pub mod reply;
 pub mod scale;
 pub mod ticks;
+pub mod xsens;
 
 pub use command::Command;
 pub use decoder::{

@@ -13,17 +13,24 @@ pub enum DeviceProtocol {
     Gx1,
     /// MIP packets, as spoken by the 3DM-GX3/GX4/GX5, CV5/CV7 and GQ7 ([`crate::mip`]).
     Mip,
+    /// Xsens Xbus messages, as spoken by the MTi-1/10/100/600 series ([`crate::xsens`]).
+    Xsens,
 }
 
 impl DeviceProtocol {
     /// Every protocol, in the order they are listed to users.
-    pub const ALL: [DeviceProtocol; 2] = [DeviceProtocol::Gx1, DeviceProtocol::Mip];
+    pub const ALL: [DeviceProtocol; 3] = [
+        DeviceProtocol::Gx1,
+        DeviceProtocol::Mip,
+        DeviceProtocol::Xsens,
+    ];
 
     /// The name used in configuration files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             DeviceProtocol::Gx1 => "3dm-gx1",
             DeviceProtocol::Mip => "mip",
+            DeviceProtocol::Xsens => "xsens",
         }
     }
 }
@@ -36,7 +43,7 @@ impl fmt::Display for DeviceProtocol {
 
 /// The name is not one of [`DeviceProtocol::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown device protocol {0:?}: expected \"3dm-gx1\" or \"mip\"")]
+#[error("unknown device protocol {0:?}: expected \"3dm-gx1\", \"mip\" or \"xsens\"")]
 pub struct UnknownProtocol(pub String);
 
 impl FromStr for DeviceProtocol {

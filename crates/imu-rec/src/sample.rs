@@ -371,6 +371,8 @@ pub mod device_protocol {
     pub const MIP: u8 = 1;
     /// A ROS 2 `sensor_msgs/msg/Imu` topic taken over DDS as the device (`imud --ros2-input`).
     pub const ROS2_INPUT: u8 = 2;
+    /// An Xsens MTi.
+    pub const XSENS: u8 = 3;
 }
 
 /// The health of one triad's calibration ([`CalibrationHealth`] `accel_state` / `gyro_state`).

@@ -24,7 +24,9 @@ fn message_count(records: &[LogRecord]) -> u64 {
         .iter()
         .map(|r| match r {
             LogRecord::Corrected(_) => 2,
-            LogRecord::Sample { frame, .. } => 3 + u64::from(frame.is_some()),
+            LogRecord::Sample {
+                frame, compensated, ..
+            } => 3 + u64::from(frame.is_some()) + u64::from(compensated.is_some()),
             _ => 1,
         })
         .sum()
@@ -90,7 +92,7 @@ fn every_record_is_read_back_in_order_with_equal_values() {
 
     // The summary is complete: every channel, every message counted.
     let summary = mcap::Summary::read(&bytes).unwrap().expect("summary");
-    assert_eq!(summary.channels.len(), 8);
+    assert_eq!(summary.channels.len(), 9);
     let stats = summary.stats.unwrap();
     assert_eq!(stats.message_count, message_count(&records));
     let imu = summary
@@ -125,6 +127,7 @@ fn streaming_reader_delivers_messages_in_file_order() {
             RecordedMessage::Temperature(_) => 't',
             RecordedMessage::Status { .. } => 's',
             RecordedMessage::Health(_) => 'h',
+            RecordedMessage::DeviceCompensated(_) => 'd',
         })
     })
     .unwrap();
@@ -133,8 +136,26 @@ fn streaming_reader_delivers_messages_in_file_order() {
         .map(|r| match r {
             LogRecord::Calibration { .. } => "c",
             LogRecord::RawFrame { .. } => "f",
-            LogRecord::Sample { frame: Some(_), .. } => "frim",
-            LogRecord::Sample { frame: None, .. } => "rim",
+            LogRecord::Sample {
+                frame: Some(_),
+                compensated: None,
+                ..
+            } => "frim",
+            LogRecord::Sample {
+                frame: Some(_),
+                compensated: Some(_),
+                ..
+            } => "frimd",
+            LogRecord::Sample {
+                frame: None,
+                compensated: None,
+                ..
+            } => "rim",
+            LogRecord::Sample {
+                frame: None,
+                compensated: Some(_),
+                ..
+            } => "rimd",
             LogRecord::Raw(_) => "r",
             LogRecord::Corrected(_) => "im",
             LogRecord::Temperature { .. } => "t",

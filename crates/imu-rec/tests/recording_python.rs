@@ -117,6 +117,30 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
         );
     }
 
+    // The unit's compensated outputs, a sensor_msgs/msg/Imu of their own.
+    let comp = msgs["/imu/device_compensated"].as_array().unwrap();
+    assert_eq!(comp.len(), want.device_compensated.len());
+    assert!(!comp.is_empty());
+    for (i, (g, w)) in comp.iter().zip(&want.device_compensated).enumerate() {
+        let what = format!("/imu/device_compensated[{i}]");
+        check_header(&g["header"], w.header.stamp.to_ns(), "imu_link", &what);
+        close_all(
+            &g["angular_velocity"],
+            &<[f64; 3]>::from(w.angular_velocity),
+            &what,
+        );
+        close_all(
+            &g["linear_acceleration"],
+            &<[f64; 3]>::from(w.linear_acceleration),
+            &what,
+        );
+        assert_eq!(
+            g["orientation_covariance"][0].as_f64(),
+            Some(-1.0),
+            "{what}"
+        );
+    }
+
     let mag = msgs["/imu/mag"].as_array().unwrap();
     assert_eq!(mag.len(), want.mag.len());
     for (i, (g, w)) in mag.iter().zip(&want.mag).enumerate() {
@@ -282,7 +306,7 @@ fn python_mcap_ros2_decodes_every_topic_as_written() {
     assert_eq!(
         u(&out["statistics_message_count"]),
         (imu.len() + mag.len() + temps.len() + raw.len() + frames.len()) as u64
-            + (statuses.len() + cals.len() + health.len()) as u64
+            + (statuses.len() + cals.len() + health.len() + comp.len()) as u64
     );
     assert_eq!(out["metadata"]["imud.recording"]["frame-id"], "imu_link");
 }

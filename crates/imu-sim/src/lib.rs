@@ -19,6 +19,7 @@ pub mod motion;
 pub mod scenario;
 pub mod tremor;
 pub mod virtual_device;
+pub mod xsens_device;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -122,6 +122,10 @@ pub struct LinkReport {
     pub bytes_in: u64,
     /// Data replies sent (equals the number of truth samples).
     pub data_replies: u64,
+    /// Data replies sent before the host's first command (a unit that powers up streaming,
+    /// such as an Xsens MTi, streams before its host configures it); `None` while no command
+    /// came.
+    pub data_replies_before_first_command: Option<u64>,
     /// Host bytes that did not form a valid command.
     pub rejected_command_bytes: u64,
     /// Continuous-mode samples the device could not send because the link was still busy
@@ -267,6 +271,9 @@ impl Loop<'_> {
                     continue;
                 }
             };
+            self.report
+                .data_replies_before_first_command
+                .get_or_insert(self.report.data_replies);
             let is_data = request.is_data();
             let t_s = self.now_s(is_data);
             if is_data && self.finished(t_s) {

@@ -1,6 +1,7 @@
 //! The device the link runs, by protocol: one enum over the 3DM-GX1 ([`DeviceCore`] with its
-//! command decoder) and the MIP unit ([`MipDevice`]), so the pty loop in [`crate::link`] knows
-//! no protocol. A third protocol is a third variant here and a device file beside these.
+//! command decoder), the MIP unit ([`MipDevice`]) and the Xsens MTi ([`XsensDevice`]), so the
+//! pty loop in [`crate::link`] knows no protocol. Another protocol is another variant here and
+//! a device file beside these.
 
 use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
@@ -9,6 +10,7 @@ use imu_rec::truth::TruthSample;
 
 use crate::device::DeviceCore;
 use crate::mip_device::{MipDevice, MipRequest};
+use crate::xsens_device::{XsensDevice, XsensRequest};
 
 /// A running virtual device of either protocol.
 pub enum VirtualDevice {
@@ -21,6 +23,8 @@ pub enum VirtualDevice {
     },
     /// A MIP unit.
     Mip(MipDevice),
+    /// An Xsens MTi.
+    Xsens(XsensDevice),
 }
 
 /// One command from the host, in its protocol's terms.
@@ -30,6 +34,8 @@ pub enum Request {
     Gx1(Command),
     /// A MIP command field.
     Mip(MipRequest),
+    /// An Xsens message.
+    Xsens(XsensRequest),
 }
 
 impl Request {
@@ -38,7 +44,7 @@ impl Request {
     pub fn is_data(&self) -> bool {
         match self {
             Request::Gx1(c) => c.is_data(),
-            Request::Mip(_) => false,
+            Request::Mip(_) | Request::Xsens(_) => false,
         }
     }
 }
@@ -63,6 +69,7 @@ impl VirtualDevice {
                 decoder: CommandDecoder::new(),
             },
             DeviceProtocol::Mip => VirtualDevice::Mip(MipDevice::new(core)),
+            DeviceProtocol::Xsens => VirtualDevice::Xsens(XsensDevice::new(core)),
         }
     }
 
@@ -71,6 +78,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { core, .. } => core,
             VirtualDevice::Mip(d) => d.core(),
+            VirtualDevice::Xsens(d) => d.core(),
         }
     }
 
@@ -79,6 +87,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { decoder, .. } => decoder.push(bytes),
             VirtualDevice::Mip(d) => d.push(bytes),
+            VirtualDevice::Xsens(d) => d.push(bytes),
         }
     }
 
@@ -87,6 +96,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { decoder, .. } => decoder.pending_len(),
             VirtualDevice::Mip(d) => d.pending_len(),
+            VirtualDevice::Xsens(d) => d.pending_len(),
         }
     }
 
@@ -102,6 +112,10 @@ impl VirtualDevice {
                 d.expire_partial();
                 0
             }
+            VirtualDevice::Xsens(d) => {
+                d.expire_partial();
+                0
+            }
         }
     }
 
@@ -110,6 +124,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { decoder, .. } => *decoder = CommandDecoder::new(),
             VirtualDevice::Mip(d) => d.reset_link(),
+            VirtualDevice::Xsens(d) => d.reset_link(),
         }
     }
 
@@ -121,6 +136,7 @@ impl VirtualDevice {
                 CommandEvent::Rejected { bytes, .. } => Err(bytes.len() as u64),
             }),
             VirtualDevice::Mip(d) => Some(d.next_request()?.map(Request::Mip)),
+            VirtualDevice::Xsens(d) => Some(d.next_request()?.map(Request::Xsens)),
         }
     }
 
@@ -140,6 +156,14 @@ impl VirtualDevice {
                 truth: None,
                 delay_s: 0.0,
             },
+            (VirtualDevice::Xsens(d), Request::Xsens(req)) => Answer {
+                bytes: d
+                    .handle(req)
+                    .map(|m| m.as_bytes().to_vec())
+                    .unwrap_or_default(),
+                truth: None,
+                delay_s: 0.0,
+            },
             // A request comes from the same device's decoder, so the protocols always match.
             _ => Answer::default(),
         }
@@ -150,6 +174,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { core, .. } => core.streaming().is_some(),
             VirtualDevice::Mip(d) => d.is_streaming(),
+            VirtualDevice::Xsens(d) => d.is_streaming(),
         }
     }
 
@@ -171,15 +196,23 @@ impl VirtualDevice {
                 out.extend_from_slice(packet.as_bytes());
                 Some(truth)
             }
+            VirtualDevice::Xsens(d) => {
+                if !d.is_streaming() {
+                    return None;
+                }
+                let (msg, truth) = d.data_message(t_s);
+                out.extend_from_slice(msg.as_bytes());
+                Some(truth)
+            }
         }
     }
 
     /// The line rate the link is paced to in real time, bits/s; `None`: not paced (a MIP unit
-    /// on a USB virtual serial port).
+    /// or an MTi on a USB virtual serial port).
     pub fn baud(&self) -> Option<u32> {
         match self {
             VirtualDevice::Gx1 { core, .. } => Some(core.scenario().device.baud),
-            VirtualDevice::Mip(_) => None,
+            VirtualDevice::Mip(_) | VirtualDevice::Xsens(_) => None,
         }
     }
 }

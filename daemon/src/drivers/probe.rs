@@ -2,13 +2,16 @@
 //! machine like the drivers', time passed in.
 //!
 //! 1. Listen: a unit that streams already says who it is. Several good frames of one protocol
-//!    and fewer of the other decide (a MIP stream holds, by chance, a GX1-shaped run with a
-//!    good 16-bit checksum about once in 65536 candidates, so one frame is not proof).
+//!    and fewer of each other decide (a MIP stream holds, by chance, a GX1-shaped run with a
+//!    good 16-bit checksum about once in 65536 candidates, so one frame is not proof). An
+//!    Xsens MTi powers up streaming, so it is usually recognised here.
 //! 2. Ask the 3DM-GX1 question, its firmware query (one byte, 0xF0, which a MIP unit discards
 //!    as garbage): a GX1 answers with an 0xF0 reply. No data reply is provoked, so nothing
 //!    but the configured stream ever becomes a sample.
 //! 3. Ask the MIP question, "set to idle": only a MIP unit acknowledges it (and it stops one
 //!    that streams).
+//! 4. Ask the Xsens question, `GoToConfig`: only an MTi acknowledges it (and it stops its
+//!    stream).
 //!
 //! Passive (`device.configure = false`), only step 1: the probe listens for up to the silence
 //! time-out (at least [`LISTEN`]) and asks nothing, so a unit that streams is recognised without
@@ -26,6 +29,7 @@ use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
 use imu_proto::decoder::{DecodeEvent, ReplyDecoder};
 use imu_proto::mip::{MipCommand, MipDecoder, MipEvent, MipReply};
+use imu_proto::xsens::{XsensCommand, XsensDecoder, XsensEvent, mid};
 use tracing::info;
 
 use crate::config::DeviceConfig;
@@ -44,6 +48,8 @@ enum Stage {
     AskGx1,
     /// The MIP "set to idle" is out.
     AskMip,
+    /// The Xsens `GoToConfig` is out.
+    AskXsens,
     /// Decided (or failed): the result is waiting to be taken.
     Done,
 }
@@ -60,10 +66,13 @@ pub struct Probe {
     bytes: Vec<u8>,
     gx1: ReplyDecoder,
     mip: MipDecoder,
+    xsens: XsensDecoder,
     gx1_frames: u32,
     mip_packets: u32,
+    xsens_messages: u32,
     gx1_firmware_reply: bool,
     mip_idle_ack: bool,
+    xsens_config_ack: bool,
     transmit: Option<Vec<u8>>,
     result: Option<anyhow::Result<(DeviceProtocol, Vec<u8>)>>,
 }
@@ -87,10 +96,13 @@ impl Probe {
             bytes: Vec::new(),
             gx1: ReplyDecoder::default(),
             mip: MipDecoder::default(),
+            xsens: XsensDecoder::default(),
             gx1_frames: 0,
             mip_packets: 0,
+            xsens_messages: 0,
             gx1_firmware_reply: false,
             mip_idle_ack: false,
+            xsens_config_ack: false,
             transmit: None,
             result: None,
         }
@@ -110,6 +122,7 @@ impl Probe {
         self.bytes.extend_from_slice(bytes);
         self.gx1.push(bytes);
         self.mip.push(bytes);
+        self.xsens.push(bytes);
         while let Some(ev) = self.gx1.next_event() {
             if let DecodeEvent::Frame { reply, .. } = ev {
                 self.gx1_frames += 1;
@@ -124,6 +137,12 @@ impl Probe {
                     .is_ok_and(|r| r.iter().any(|r| (r.descriptor_set, r.command) == idle));
             }
         }
+        while let Some(ev) = self.xsens.next_event() {
+            if let XsensEvent::Packet { packet, .. } = ev {
+                self.xsens_messages += 1;
+                self.xsens_config_ack |= packet.mid() == mid::GO_TO_CONFIG_ACK;
+            }
+        }
         match self.stage {
             Stage::Listen => {
                 if let Some(p) = self.streaming() {
@@ -136,19 +155,24 @@ impl Probe {
             Stage::AskMip if self.mip_idle_ack => {
                 self.decide(DeviceProtocol::Mip, "it acknowledges a MIP \"set to idle\"");
             }
+            Stage::AskXsens if self.xsens_config_ack => {
+                self.decide(DeviceProtocol::Xsens, "it acknowledges an Xsens GoToConfig");
+            }
             _ => {}
         }
     }
 
     /// The protocol of a unit that streams, if the evidence says it.
     fn streaming(&self) -> Option<DeviceProtocol> {
-        if self.mip_packets >= STREAM_EVIDENCE && self.mip_packets > self.gx1_frames {
-            Some(DeviceProtocol::Mip)
-        } else if self.gx1_frames >= STREAM_EVIDENCE && self.gx1_frames > self.mip_packets {
-            Some(DeviceProtocol::Gx1)
-        } else {
-            None
-        }
+        let counts = [
+            (DeviceProtocol::Gx1, self.gx1_frames),
+            (DeviceProtocol::Mip, self.mip_packets),
+            (DeviceProtocol::Xsens, self.xsens_messages),
+        ];
+        counts.iter().find_map(|&(p, n)| {
+            let most = counts.iter().all(|&(q, m)| q == p || n > m);
+            (n >= STREAM_EVIDENCE && most).then_some(p)
+        })
     }
 
     fn decide(&mut self, protocol: DeviceProtocol, why: &str) {
@@ -199,10 +223,16 @@ impl Probe {
                 self.deadline = now + self.reply_timeout;
             }
             Stage::AskMip => {
+                self.stage = Stage::AskXsens;
+                self.transmit = Some(XsensCommand::GoToConfig.to_message().as_bytes().to_vec());
+                self.deadline = now + self.reply_timeout;
+            }
+            Stage::AskXsens => {
                 self.stage = Stage::Done;
                 self.result = Some(Err(anyhow!(
-                    "the device answers neither the 3DM-GX1 firmware query nor a MIP \
-                     \"set to idle\" (set device.protocol to skip this probe)"
+                    "the device answers neither the 3DM-GX1 firmware query, a MIP \
+                     \"set to idle\" nor an Xsens GoToConfig (set device.protocol to skip \
+                     this probe)"
                 )));
             }
             Stage::Done => {}

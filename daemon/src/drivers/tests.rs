@@ -48,6 +48,40 @@ fn a_streaming_gx1_is_recognised_without_a_command() {
 }
 
 #[test]
+fn an_mti_streaming_from_power_up_is_recognised_without_a_command() {
+    let mut h = probing(AcquisitionMode::Continuous, |o| {
+        Peer::clean(DeviceProtocol::Xsens, o)
+    });
+    h.start_up();
+    assert_eq!(h.seen.ready.as_ref().map(|i| i.protocol), Some("xsens"));
+    // The probe asked nothing: the first bytes written are the start-up's GoToConfig.
+    assert_eq!(
+        h.written[0].1,
+        imu_proto::xsens::XsensCommand::GoToConfig
+            .to_message()
+            .as_bytes()
+    );
+    assert_eq!(configuration_unverified(&h), 0);
+}
+
+#[test]
+fn an_mti_left_in_config_mode_acknowledges_go_to_config() {
+    let go_to_config = imu_proto::xsens::XsensCommand::GoToConfig.to_message();
+    let mut h = probing(AcquisitionMode::Continuous, |o| {
+        Peer::clean(DeviceProtocol::Xsens, o)
+    });
+    // The last host left it in config mode (imud's stop on shutdown): no stream to hear.
+    let origin = h.origin;
+    h.peer.receive(go_to_config.as_bytes(), origin);
+    h.start_up();
+    assert_eq!(h.seen.ready.as_ref().map(|i| i.protocol), Some("xsens"));
+    // Asked in turn: the GX1 firmware query, a MIP "set to idle", then GoToConfig.
+    assert_eq!(h.written[0].1, Command::FirmwareVersion.to_bytes());
+    assert_eq!(h.written[1].1, MipCommand::SetToIdle.to_packet().as_bytes());
+    assert_eq!(h.written[2].1, go_to_config.as_bytes());
+}
+
+#[test]
 fn an_idle_gx1_answers_the_firmware_query() {
     let mut h = probing(AcquisitionMode::Continuous, |o| {
         Peer::clean(DeviceProtocol::Gx1, o)
@@ -143,6 +177,8 @@ fn a_passive_streaming_unit_is_published_sample_for_sample_and_never_sent_a_byte
         (DeviceProtocol::Gx1, Some(DeviceProtocol::Gx1)),
         (DeviceProtocol::Mip, None),
         (DeviceProtocol::Mip, Some(DeviceProtocol::Mip)),
+        (DeviceProtocol::Xsens, None),
+        (DeviceProtocol::Xsens, Some(DeviceProtocol::Xsens)),
     ] {
         let mut h = passive(configured, |o| streaming_peer(protocol, o));
         h.start_up();

@@ -21,7 +21,7 @@ mod sinks;
 use std::sync::Arc;
 
 use imu_bus::CalibrationHealth;
-use imu_bus::recording::{FrameData, LogRecord, SampleFrame};
+use imu_bus::recording::{DeviceCompensated, FrameData, LogRecord, SampleFrame};
 use imu_bus::sample::HealthState;
 use imu_bus::sample::{corrected_flags, raw_flags};
 use imu_bus::shm::{Publishers, ShmEvent};
@@ -443,7 +443,11 @@ impl Pipeline {
         let mut corrected = self.correct(m, t_sample_ns, t_device_ns);
         corrected.t_wall_ns = t_sample_wall_ns;
         self.watch_health(&mut corrected, (t_mono_ns, t_wall_ns), sinks);
-        self.publish(raw, corrected, sinks);
+        let compensated = reading.compensated.map(|c| DeviceCompensated {
+            accel_m_s2: c.accel_m_s2.into(),
+            gyro_rad_s: c.gyro_rad_s.into(),
+        });
+        self.publish(raw, corrected, compensated, sinks);
     }
 
     /// Applies the calibration in force (or only the GainScales) to one sample.
@@ -555,7 +559,14 @@ impl Pipeline {
     }
 
     /// Counts the sample and hands it to shared memory and the log.
-    fn publish(&mut self, raw: RawSample, corrected: CorrectedSample, sinks: &mut Sinks) {
+    /// `compensated`: the unit's own compensated reading, recorded beside the sample.
+    fn publish(
+        &mut self,
+        raw: RawSample,
+        corrected: CorrectedSample,
+        compensated: Option<DeviceCompensated>,
+        sinks: &mut Sinks,
+    ) {
         self.rate_origin
             .get_or_insert((raw.t_sample_ns, self.counters.samples));
         self.last_sample_ns = Some(raw.t_sample_ns);
@@ -580,6 +591,7 @@ impl Pipeline {
                 frame: self.pending_frame.take(),
                 raw,
                 corrected,
+                compensated,
             });
         }
     }

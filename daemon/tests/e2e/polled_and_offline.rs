@@ -146,6 +146,11 @@ fn offline_mip_recording_equals_the_truth_sample_for_sample() {
     offline_recording_equals_the_truth(DeviceProtocol::Mip);
 }
 
+#[test]
+fn offline_xsens_recording_equals_the_truth_sample_for_sample() {
+    offline_recording_equals_the_truth(DeviceProtocol::Xsens);
+}
+
 fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let scenario_path = dir.path().join("scenario.toml");
@@ -202,7 +207,7 @@ fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
                 );
                 assert_eq!(r.accel_device_m_s2[2], a);
             }
-            DeviceProtocol::Mip => {
+            DeviceProtocol::Mip | DeviceProtocol::Xsens => {
                 // No counts; the device reading is the measurement in f32.
                 assert_eq!(r.flags & imu_bus::sample::raw_flags::NO_COUNTS, 16);
                 for k in 0..3 {

@@ -100,7 +100,7 @@ impl Collector {
                 self.imu_topics.insert(topic.to_string(), 1);
             }
         }
-        if !self.wants_imu() {
+        if !self.wants_imu() || self.not_by_default(topic) {
             return Ok(());
         }
         let pick = match &self.requested {
@@ -115,6 +115,12 @@ impl Collector {
         self.series.accel_m_s2.push(vec3(&m.linear_acceleration));
         self.series.gyro_rad_s.push(vec3(&m.angular_velocity));
         Ok(())
+    }
+
+    /// An imud recording's `/imu/device_compensated` (a unit's own compensated outputs) is read
+    /// only when asked for by name: without a topic, a recording's IMU stream is `/imu/data`.
+    fn not_by_default(&self, topic: &str) -> bool {
+        self.requested.is_none() && topic == imu_rec::recording::DEVICE_COMPENSATED_TOPIC
     }
 
     /// True if a raw read takes imud raw samples (a corrected read does not decode them).
@@ -195,7 +201,13 @@ impl Collector {
                 self.chosen = Some(t.clone());
                 Ok(())
             }
-            None if self.imu_topics.values().filter(|n| **n > 0).count() > 1 => {
+            None if self
+                .imu_topics
+                .iter()
+                .filter(|(t, n)| **n > 0 && !self.not_by_default(t))
+                .count()
+                > 1 =>
+            {
                 Err(InputError::AmbiguousTopic {
                     path: path.to_path_buf(),
                     topics: listed(),

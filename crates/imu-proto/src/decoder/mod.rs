@@ -21,6 +21,7 @@ use crate::error::FrameError;
 use crate::reply::{KNOWN_REPLY_CODES, MAX_REPLY_LEN, Reply, reply_len_for_code};
 
 mod command;
+pub mod framed;
 mod reply;
 pub(crate) mod stream;
 

@@ -32,6 +32,20 @@ pub fn imu_message(
     }
 }
 
+/// The `/imu/device_compensated` message of a unit's compensated reading at `t_wall_ns`:
+/// covariances unknown (zeros), orientation not provided.
+pub fn device_compensated_message(t_wall_ns: u64, c: &DeviceCompensated, frame_id: &str) -> Imu {
+    Imu {
+        header: header(t_wall_ns, frame_id),
+        orientation: Quaternion::default(),
+        orientation_covariance: ros2::NOT_PROVIDED_COVARIANCE,
+        angular_velocity: c.gyro_rad_s.into(),
+        angular_velocity_covariance: [0.0; 9],
+        linear_acceleration: c.accel_m_s2.into(),
+        linear_acceleration_covariance: [0.0; 9],
+    }
+}
+
 /// The `/imu/mag` message of a corrected sample (gauss converted to tesla).
 pub fn magnetic_field_message(
     sample: &CorrectedSample,

@@ -7,7 +7,9 @@
 //! (`sensor_msgs/msg/MagneticField`, tesla), `/imu/temperature` (`sensor_msgs/msg/Temperature`),
 //! `/imu/raw` (`imud_msgs/msg/RawSample`), `/imu/raw_frame` (`imud_msgs/msg/RawFrame`: every
 //! byte received, accepted or rejected), `/imud/status` (`imud_msgs/msg/DaemonStatus`) and
-//! `/imud/calibration` (`imud_msgs/msg/Calibration`), `/imud/health` (`imud_msgs/msg/CalibrationHealth`). Message log times and header stamps are
+//! `/imud/calibration` (`imud_msgs/msg/Calibration`), `/imud/health` (`imud_msgs/msg/CalibrationHealth`),
+//! and, for a unit that sends its own compensated outputs beside the raw ones (Xsens),
+//! `/imu/device_compensated` (`sensor_msgs/msg/Imu`, at the sample's stamp). Message log times and header stamps are
 //! host wall-clock nanoseconds; `/imu/raw` is the authoritative per-sample record (it carries the
 //! sequence number and every timestamp).
 //!
@@ -56,6 +58,10 @@ pub const TEMPERATURE_TOPIC: &str = "/imu/temperature";
 pub const RAW_TOPIC: &str = "/imu/raw";
 /// Every run of bytes from the device, accepted or rejected, as `imud_msgs/msg/RawFrame`.
 pub const RAW_FRAME_TOPIC: &str = "/imu/raw_frame";
+/// The unit's own compensated outputs (its factory calibration and bias estimates applied),
+/// when it sends them beside the raw reading, as `sensor_msgs/msg/Imu` stamped like the
+/// sample's `/imu/data`; never corrected by imud.
+pub const DEVICE_COMPENSATED_TOPIC: &str = "/imu/device_compensated";
 /// Daemon health counters as `imud_msgs/msg/DaemonStatus`.
 pub const STATUS_TOPIC: &str = "/imud/status";
 /// Each calibration put in force, as `imud_msgs/msg/Calibration`.
@@ -75,7 +81,7 @@ pub const CALIBRATION_METADATA: &str = "imud.calibration";
 pub const TESLA_PER_GAUSS: f64 = 1e-4;
 
 /// Every channel of a recording: topic and message type, in channel-id order.
-pub const CHANNELS: [(&str, &MsgDefinition); 8] = [
+pub const CHANNELS: [(&str, &MsgDefinition); 9] = [
     (IMU_TOPIC, &ros2::IMU_DEF),
     (MAG_TOPIC, &ros2::MAGNETIC_FIELD_DEF),
     (TEMPERATURE_TOPIC, &ros2::TEMPERATURE_DEF),
@@ -84,6 +90,7 @@ pub const CHANNELS: [(&str, &MsgDefinition); 8] = [
     (STATUS_TOPIC, &ros2::DAEMON_STATUS_DEF),
     (CALIBRATION_TOPIC, &ros2::CALIBRATION_DEF),
     (HEALTH_TOPIC, &ros2::CALIBRATION_HEALTH_DEF),
+    (DEVICE_COMPENSATED_TOPIC, &ros2::IMU_DEF),
 ];
 const CH_IMU: usize = 0;
 const CH_MAG: usize = 1;
@@ -93,6 +100,7 @@ const CH_FRAME: usize = 4;
 const CH_STATUS: usize = 5;
 const CH_CALIBRATION: usize = 6;
 const CH_HEALTH: usize = 7;
+const CH_DEVICE_COMPENSATED: usize = 8;
 
 /// Noise variances of the corrected outputs, used as the diagonal covariances of `/imu/data`
 /// and `/imu/mag`.
@@ -122,6 +130,15 @@ pub struct SampleFrame {
     pub stream_offset: u64,
     /// The frame, header to checksum.
     pub bytes: FrameData,
+}
+
+/// A unit's own compensated reading of one sample (`/imu/device_compensated`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DeviceCompensated {
+    /// Compensated specific force, m/s^2.
+    pub accel_m_s2: [f64; 3],
+    /// Compensated angular rate, rad/s.
+    pub gyro_rad_s: [f64; 3],
 }
 
 /// One thing to log. Times are host clock nanoseconds (`_wall_ns`: Unix epoch).
@@ -154,7 +171,8 @@ pub enum LogRecord {
     /// record (one hand-off to the writer per frame instead of three). Written as the frame
     /// (`/imu/raw_frame`, at the raw sample's host times), then `/imu/raw`, `/imu/data` and
     /// `/imu/mag`: the same messages as a [`LogRecord::RawFrame`], a [`LogRecord::Raw`] and a
-    /// [`LogRecord::Corrected`] in that order.
+    /// [`LogRecord::Corrected`] in that order; then the unit's compensated reading, if any
+    /// (`/imu/device_compensated`).
     Sample {
         /// The frame (`None`: a sample without one, or whose frame was logged already).
         frame: Option<SampleFrame>,
@@ -162,6 +180,8 @@ pub enum LogRecord {
         raw: RawSample,
         /// The corrected sample.
         corrected: CorrectedSample,
+        /// The unit's own compensated reading of the sample, when it sends one.
+        compensated: Option<DeviceCompensated>,
     },
     /// A decoded data frame (`/imu/raw`, stamped with its `t_host_wall_ns`).
     Raw(RawSample),

@@ -99,6 +99,8 @@ pub enum RecordedMessage {
     Calibration(RecordedCalibration),
     /// `/imud/health`.
     Health(CalibrationHealth),
+    /// `/imu/device_compensated`.
+    DeviceCompensated(Imu),
 }
 
 pub(super) fn decode<M: RosMessage>(
@@ -126,6 +128,7 @@ pub fn for_each_record(
     mcap_read::for_each_message(path, |channel, _header, data| {
         let msg = match channel.topic.as_str() {
             IMU_TOPIC => RecordedMessage::Imu(decode(channel, data)?),
+            DEVICE_COMPENSATED_TOPIC => RecordedMessage::DeviceCompensated(decode(channel, data)?),
             MAG_TOPIC => RecordedMessage::MagneticField(decode(channel, data)?),
             TEMPERATURE_TOPIC => RecordedMessage::Temperature(decode(channel, data)?),
             RAW_TOPIC => RecordedMessage::Raw(decode::<RawSampleMsg>(channel, data)?.sample),
@@ -184,6 +187,8 @@ pub struct Recording {
     pub calibrations: Vec<RecordedCalibration>,
     /// `/imud/health`, in order.
     pub health: Vec<CalibrationHealth>,
+    /// `/imu/device_compensated`, in order (empty for a unit that sends none).
+    pub device_compensated: Vec<Imu>,
     /// Metadata records by name (the last of each name).
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
     /// `Some(reason)` when the file ended before its footer (killed writer, damage).
@@ -204,6 +209,7 @@ pub fn read_recording(path: &Path) -> Result<Recording, McapReadError> {
         RecordedMessage::Status { t_wall_ns, status } => rec.statuses.push((t_wall_ns, status)),
         RecordedMessage::Calibration(c) => rec.calibrations.push(c),
         RecordedMessage::Health(h) => rec.health.push(h),
+        RecordedMessage::DeviceCompensated(m) => rec.device_compensated.push(m),
     })?;
     rec.metadata = report.metadata;
     rec.stopped_early = report.stopped_early;

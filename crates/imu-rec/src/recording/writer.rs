@@ -581,6 +581,7 @@ pub(super) fn write_record(
             frame,
             raw,
             corrected,
+            compensated,
         } => {
             if let Some(frame) = frame {
                 // The accepted frame, at the host times of the read that completed it.
@@ -595,7 +596,14 @@ pub(super) fn write_record(
                 write_record(file, frame, frame_id, noise, scratch)?;
             }
             write_raw(file, raw, frame_id, scratch)?;
-            write_corrected(file, &corrected, frame_id, noise, scratch)
+            write_corrected(file, &corrected, frame_id, noise, scratch)?;
+            match compensated {
+                Some(c) => {
+                    let msg = device_compensated_message(corrected.t_wall_ns, &c, frame_id);
+                    file.write_msg(CH_DEVICE_COMPENSATED, corrected.t_wall_ns, &msg, scratch)
+                }
+                None => Ok(()),
+            }
         }
         LogRecord::Raw(sample) => write_raw(file, sample, frame_id, scratch),
         LogRecord::Corrected(sample) => write_corrected(file, &sample, frame_id, noise, scratch),

@@ -10,8 +10,9 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use imu_rec::recording::{
-    ImuNoiseVariances, LogRecord, RecordedCalibration, RecordedFrame, Recorder, Recording,
-    RecordingConfig, SampleFrame, imu_message, magnetic_field_message,
+    DeviceCompensated, ImuNoiseVariances, LogRecord, RecordedCalibration, RecordedFrame, Recorder,
+    Recording, RecordingConfig, SampleFrame, device_compensated_message, imu_message,
+    magnetic_field_message,
 };
 use imu_rec::sample::{CorrectedSample, DaemonStatus, RawSample, raw_flags};
 use serde_json::Value;
@@ -108,6 +109,11 @@ pub fn sample(seq: u64) -> Vec<LogRecord> {
         }),
         raw: raw(seq),
         corrected: corrected(seq),
+        // A unit's own compensated reading on every fourth (an Xsens unit sends one a sample).
+        compensated: (seq % 4 == 1).then(|| DeviceCompensated {
+            accel_m_s2: [0.1 * seq as f64, -9.8, 0.25],
+            gyro_rad_s: [0.001, -0.002 * seq as f64, 0.003],
+        }),
     }]
 }
 
@@ -258,6 +264,7 @@ pub fn expected(records: &[LogRecord], frame_id: &str) -> Recording {
                 frame,
                 raw,
                 corrected,
+                compensated,
             } => {
                 // The frame at the raw sample's host times, accepted; then raw, imu, mag.
                 if let Some(f) = frame {
@@ -275,6 +282,13 @@ pub fn expected(records: &[LogRecord], frame_id: &str) -> Recording {
                     .push(imu_message(&corrected, frame_id, noise.as_ref()));
                 rec.mag
                     .push(magnetic_field_message(&corrected, frame_id, noise.as_ref()));
+                if let Some(c) = compensated {
+                    rec.device_compensated.push(device_compensated_message(
+                        corrected.t_wall_ns,
+                        &c,
+                        frame_id,
+                    ));
+                }
             }
             LogRecord::Raw(s) => rec.raw.push(s),
             LogRecord::Corrected(c) => {
@@ -314,6 +328,7 @@ pub fn append(a: &mut Recording, b: Recording) {
     a.frames.extend(b.frames);
     a.statuses.extend(b.statuses);
     a.calibrations.extend(b.calibrations);
+    a.device_compensated.extend(b.device_compensated);
 }
 
 /// Field-by-field comparison with a useful message.
@@ -335,6 +350,10 @@ pub fn assert_same_messages(actual: &Recording, expected: &Recording) {
     assert_eq!(actual.frames, expected.frames, "raw frames");
     assert_eq!(actual.statuses, expected.statuses, "statuses");
     assert_eq!(actual.calibrations, expected.calibrations, "calibrations");
+    assert_eq!(
+        actual.device_compensated, expected.device_compensated,
+        "device compensated"
+    );
 }
 
 /// A config for tests: fast flushing and retrying, no rotation, in `dir`.

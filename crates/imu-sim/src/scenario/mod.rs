@@ -163,6 +163,10 @@ fn default_transition_s() -> f64 {
 /// rate divided by the decimation the host sets, so a MIP scenario's `rate-hz` divides it.
 pub const MIP_IMU_BASE_RATE_HZ: f64 = 1000.0;
 
+/// The highest output rate of the simulated Xsens unit (an MTi-600's HR outputs): an Xsens
+/// scenario's `rate-hz` is a whole number of Hz up to this, as output configurations carry it.
+pub const XSENS_MAX_RATE_HZ: f64 = 2000.0;
+
 fn deserialize_protocol<'de, D: serde::Deserializer<'de>>(
     d: D,
 ) -> Result<DeviceProtocol, D::Error> {
@@ -174,8 +178,8 @@ fn deserialize_protocol<'de, D: serde::Deserializer<'de>>(
 #[derive(Debug, Clone, Deserialize)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
 pub struct DeviceSpec {
-    /// The protocol the device speaks: `"3dm-gx1"` (default) or `"mip"` (the command line's
-    /// `--protocol` overrides it).
+    /// The protocol the device speaks: `"3dm-gx1"` (default), `"mip"` or `"xsens"` (the
+    /// command line's `--protocol` overrides it).
     #[serde(deserialize_with = "deserialize_protocol")]
     pub protocol: DeviceProtocol,
     /// Serial number reported by command 0xF1.

@@ -137,6 +137,18 @@ impl Scenario {
                 "GainScale words must be non-zero".into(),
             ));
         }
+        if self.device.protocol == DeviceProtocol::Xsens
+            && (self.rate_hz > XSENS_MAX_RATE_HZ || self.rate_hz.fract() != 0.0)
+        {
+            return Err(invalid(
+                "rate-hz".into(),
+                format!(
+                    "{} Hz is not an Xsens output rate: the simulated MTi streams a whole number \
+                     of Hz up to {} Hz",
+                    self.rate_hz, XSENS_MAX_RATE_HZ
+                ),
+            ));
+        }
         if self.device.protocol == DeviceProtocol::Mip {
             let decimation = MIP_IMU_BASE_RATE_HZ / self.rate_hz;
             if self.rate_hz > MIP_IMU_BASE_RATE_HZ || (decimation - decimation.round()).abs() > 1e-9
