@@ -5,11 +5,11 @@
 //! Input is a rate series `y` (e.g. gyro rad/s or accel m/s^2) sampled every `tau0_s`. It is
 //! integrated once into the phase `x[0] = 0, x[i+1] = tau0 * sum(y[0..=i])` (the same order of
 //! operations as allantools, so results agree to rounding), and every deviation is then an O(N)
-//! pass over `x` (MDEV/TDEV use the cumulative sum of `x`, so their inner m-term sums are O(1)).
-//! The deviation comes out in the unit of `y`. OADEV, the usual IMU choice, sums all its taus in
-//! one cache-blocked pass whose kernels pick the CPU's widest SIMD at run time (AVX2 with FMA on
-//! x86-64 v3 and later, through the `pulp` crate, whose dispatch keeps this crate free of
-//! `unsafe`); the build itself stays baseline x86-64.
+//! pass over `x` (MDEV/TDEV's inner m-term sums follow a running recurrence, O(1) a step).
+//! The deviation comes out in the unit of `y`. Every kind sums all its taus in one fused
+//! cache-blocked pass (`kernels.rs`, `passes.rs`) whose kernels pick the CPU's widest SIMD at
+//! run time (AVX2 with FMA on x86-64 v3 and later, through the `pulp` crate, whose dispatch
+//! keeps this crate free of `unsafe`); the build itself stays baseline x86-64.
 //!
 //! Confidence intervals ([`EdfMethod`]): either Greenhall's EDF algorithm with the noise type
 //! identified per tau as Stable32 does (the lag-1 autocorrelation of the m-averaged frequency,
@@ -21,6 +21,7 @@
 //! the exact quantiles (`statrs`).
 //!
 //! Files: `taus.rs` (tau sets), `kernels.rs` (phase integration, the blocked SIMD OADEV sums),
+//! `passes.rs` (the fused passes of the other kinds),
 //! `confidence.rs` (SP 1065 EDF and the bounds), `greenhall.rs` (Greenhall's EDF),
 //! `noise_id.rs` (lag-1 autocorrelation and B1 noise identification), `streaming.rs`
 //! (bounded-memory OADEV).
