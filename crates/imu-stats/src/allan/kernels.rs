@@ -1,8 +1,6 @@
 //! Phase integration and the overlapping second-difference sums behind OADEV: cache-blocked,
 //! SIMD through `pulp` runtime dispatch, on two threads for long series.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use pulp::{Arch, Simd, WithSimd};
 
 /// Series at least this long (phase points) are computed on two threads.
@@ -95,11 +93,6 @@ pub(super) fn sum_by(idx: impl Iterator<Item = usize>, f: impl Fn(usize) -> f64)
         acc[k & 3] += f(i);
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3])
-}
-
-/// Sum over all i of (x[i+2m] - 2 x[i+m] + x[i])^2: the overlapping Allan hot loop.
-pub(super) fn second_difference_sum_sq(x: &[f64], m: usize) -> f64 {
-    oadev_sums(x, &[m])[0]
 }
 
 /// Taus per pass of the second-difference kernels: a block of `x` is read once for up to this
@@ -314,44 +307,14 @@ impl WithSimd for BlockedPass<'_> {
 
 /// All OADEV second-difference sums for increasing `ms` (each `m <= (x.len() - 1) / 2`), with
 /// the widest SIMD the CPU has (runtime dispatch through `pulp`: AVX2 + FMA on x86-64 v3, the
-/// baseline instructions otherwise), on two threads for long series. The threads take chunks of
-/// `i` from a shared counter, so a thread that loses its core to another process does not hold
-/// the other one up, and both read neighbouring parts of `x`; the chunks' sums are added in
-/// chunk order, so the result does not depend on which thread took which chunk.
+/// baseline instructions otherwise), on two threads for long series (chunks of `i` from a
+/// shared counter, `passes::chunked_sums`).
 pub(super) fn oadev_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
     let Some(&m_min) = ms.first() else {
         return Vec::new();
     };
     let arch = Arch::new();
-    let pass = |range| arch.dispatch(BlockedPass { x, ms, range });
-    let end = x.len() - 2 * m_min;
-    if x.len() < PARALLEL_MIN_PHASE_POINTS {
-        return pass(0..end);
-    }
-    const CHUNK: usize = 4 * BLOCK;
-    let next = AtomicUsize::new(0);
-    let work = || {
-        let mut done = Vec::new();
-        loop {
-            let c = next.fetch_add(1, Ordering::Relaxed);
-            if c * CHUNK >= end {
-                return done;
-            }
-            done.push((c, pass(c * CHUNK..((c + 1) * CHUNK).min(end))));
-        }
-    };
-    let (mut chunks, theirs) = std::thread::scope(|scope| {
-        let other = scope.spawn(work);
-        let mine = work();
-        (mine, other.join().expect("deviation worker panicked"))
-    });
-    chunks.extend(theirs);
-    chunks.sort_unstable_by_key(|&(c, _)| c);
-    let mut sums = vec![0.0; ms.len()];
-    for (_, part) in &chunks {
-        for (s, p) in sums.iter_mut().zip(part) {
-            *s += p;
-        }
-    }
-    sums
+    super::passes::chunked_sums(x.len(), x.len() - 2 * m_min, ms.len(), |range| {
+        arch.dispatch(BlockedPass { x, ms, range })
+    })
 }

@@ -5,11 +5,11 @@
 //! Input is a rate series `y` (e.g. gyro rad/s or accel m/s^2) sampled every `tau0_s`. It is
 //! integrated once into the phase `x[0] = 0, x[i+1] = tau0 * sum(y[0..=i])` (the same order of
 //! operations as allantools, so results agree to rounding), and every deviation is then an O(N)
-//! pass over `x` (MDEV/TDEV use the cumulative sum of `x`, so their inner m-term sums are O(1)).
-//! The deviation comes out in the unit of `y`. OADEV, the usual IMU choice, sums all its taus in
-//! one cache-blocked pass whose kernels pick the CPU's widest SIMD at run time (AVX2 with FMA on
-//! x86-64 v3 and later, through the `pulp` crate, whose dispatch keeps this crate free of
-//! `unsafe`); the build itself stays baseline x86-64.
+//! pass over `x` (MDEV/TDEV's inner m-term sums follow a running recurrence, O(1) a step).
+//! The deviation comes out in the unit of `y`. Every kind sums all its taus in one fused
+//! cache-blocked pass (`kernels.rs`, `passes.rs`) whose kernels pick the CPU's widest SIMD at
+//! run time (AVX2 with FMA on x86-64 v3 and later, through the `pulp` crate, whose dispatch
+//! keeps this crate free of `unsafe`); the build itself stays baseline x86-64.
 //!
 //! Confidence intervals ([`EdfMethod`]): either Greenhall's EDF algorithm with the noise type
 //! identified per tau as Stable32 does (the lag-1 autocorrelation of the m-averaged frequency,
@@ -21,6 +21,7 @@
 //! the exact quantiles (`statrs`).
 //!
 //! Files: `taus.rs` (tau sets), `kernels.rs` (phase integration, the blocked SIMD OADEV sums),
+//! `passes.rs` (the fused passes of the other kinds),
 //! `confidence.rs` (SP 1065 EDF and the bounds), `greenhall.rs` (Greenhall's EDF),
 //! `noise_id.rs` (lag-1 autocorrelation and B1 noise identification), `streaming.rs`
 //! (bounded-memory OADEV).
@@ -29,6 +30,7 @@ mod confidence;
 mod greenhall;
 mod kernels;
 mod noise_id;
+mod passes;
 mod streaming;
 mod taus;
 mod theo;
@@ -39,10 +41,7 @@ use thiserror::Error;
 pub use confidence::{confidence_interval, edf_oadev};
 pub use greenhall::{Estimator, edf_greenhall, edf_totdev};
 pub use kernels::phase_from_rate;
-use kernels::{
-    LongArray, PARALLEL_MIN_PHASE_POINTS, integrate_into, oadev_sums, second_difference_sum_sq,
-    sum_by,
-};
+use kernels::{LongArray, PARALLEL_MIN_PHASE_POINTS, integrate_into, oadev_sums, sum_by};
 pub use noise_id::{autocorrelation_alpha, b1_alpha};
 pub use streaming::StreamingOadev;
 pub use taus::TauSet;
@@ -323,39 +322,45 @@ fn check(n_y: usize, tau0_s: f64) -> Result<(), AllanError> {
 /// Variance and number of terms of one deviation at one m, from phase `x`. Returns `None` if m
 /// is out of range.
 fn variance_at(kind: Kind, x: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usize)> {
-    let n = x.len();
-    if m == 0 || m > kind.max_m(n) {
+    if m == 0 || m > kind.max_m(x.len()) || kind.is_theo() {
         return None;
     }
+    let sum = kind_sums(kind, x, &[m])[0];
+    Some(variance_from_sum(kind, x, m, sum, tau0_s))
+}
+
+/// The squared-difference sums of `kind` at every m of increasing `ms` (each within
+/// `kind.max_m`), all taus in one fused pass (`kernels.rs`, `passes.rs`). TOTDEV's is its
+/// interior, the OADEV sum (`variance_from_sum` adds the edges); not for the Theo kinds.
+fn kind_sums(kind: Kind, x: &[f64], ms: &[usize]) -> Vec<f64> {
+    match kind {
+        Kind::Oadev | Kind::Totdev => oadev_sums(x, ms),
+        Kind::Adev => passes::non_overlapping_sums::<2>(x, ms),
+        Kind::Hdev => passes::non_overlapping_sums::<3>(x, ms),
+        Kind::Ohdev => passes::overlapping_third_sums(x, ms),
+        Kind::Mdev | Kind::Tdev => passes::modified_sums(x, ms),
+        Kind::Theo1 | Kind::Theoh => vec![f64::NAN; ms.len()],
+    }
+}
+
+/// Variance and number of terms of `kind` at `m` from its sum (`kind_sums`).
+fn variance_from_sum(kind: Kind, x: &[f64], m: usize, sum: f64, tau0_s: f64) -> (f64, usize) {
+    let n = x.len();
     let tau = m as f64 * tau0_s;
-    Some(match kind {
+    match kind {
         Kind::Oadev | Kind::Adev => {
             let stride = if kind == Kind::Adev { m } else { 1 };
-            let last = n - 1 - 2 * m;
-            let terms = last / stride + 1;
-            let s = if stride == 1 {
-                second_difference_sum_sq(x, m)
-            } else {
-                sum_by((0..=last).step_by(stride), |i| {
-                    let d = x[i + 2 * m] - 2.0 * x[i + m] + x[i];
-                    d * d
-                })
-            };
-            (s / (2.0 * terms as f64 * tau * tau), terms)
+            let terms = (n - 1 - 2 * m) / stride + 1;
+            (sum / (2.0 * terms as f64 * tau * tau), terms)
         }
         Kind::Hdev | Kind::Ohdev => {
             let stride = if kind == Kind::Hdev { m } else { 1 };
-            let last = n - 1 - 3 * m;
-            let terms = last / stride + 1;
-            let s = sum_by((0..=last).step_by(stride), |i| {
-                let d = x[i + 3 * m] - 3.0 * x[i + 2 * m] + 3.0 * x[i + m] - x[i];
-                d * d
-            });
-            (s / (6.0 * terms as f64 * tau * tau), terms)
+            let terms = (n - 1 - 3 * m) / stride + 1;
+            (sum / (6.0 * terms as f64 * tau * tau), terms)
         }
         Kind::Mdev | Kind::Tdev => {
             let terms = n - 3 * m + 1;
-            let mvar = modified_sum_sq(x, m) / (2.0 * (m * m) as f64 * tau * tau * terms as f64);
+            let mvar = sum / (2.0 * (m * m) as f64 * tau * tau * terms as f64);
             if kind == Kind::Tdev {
                 (mvar * tau * tau / 3.0, terms)
             } else {
@@ -363,12 +368,11 @@ fn variance_at(kind: Kind, x: &[f64], m: usize, tau0_s: f64) -> Option<(f64, usi
             }
         }
         Kind::Totdev => {
-            let s = second_difference_sum_sq(x, m) + totdev_edge_sum_sq(x, m);
-            (s / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
+            let total = sum + totdev_edge_sum_sq(x, m);
+            (total / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
         }
-        // Their points come from `theo_points`.
-        Kind::Theo1 | Kind::Theoh => return None,
-    })
+        Kind::Theo1 | Kind::Theoh => (f64::NAN, 0),
+    }
 }
 
 /// The total variance's sum over i in 1..=n-2 of (x*(i-m) - 2 x(i) + x*(i+m))^2 on the phase
@@ -389,25 +393,6 @@ fn totdev_edge_sum_sq(x: &[f64], m: usize) -> f64 {
         d * d
     });
     low + high
-}
-
-/// Sum over j of v_j^2, v_j = sum_{i=j}^{j+m-1} (x[i+2m] - 2 x[i+m] + x[i]): the modified
-/// Allan variance's numerator. Each v_j is the previous one plus a third difference of `x` (the
-/// recurrence allantools uses), so the sum only ever adds small phase differences. The
-/// alternative, differences of the running sum of `x`, cancels catastrophically: that running
-/// sum grows like N^2 times the frequency offset, and on a 10 M-sample record with a random-walk
-/// rate it left MDEV/TDEV 4.2e-6 (relative) from allantools, which agrees with an
-/// extended-precision reference to 1e-12; this recurrence agrees with allantools to 2e-11
-/// (BENCHMARKS.md, issue 24).
-fn modified_sum_sq(x: &[f64], m: usize) -> f64 {
-    let terms = x.len() - 3 * m + 1;
-    let mut v = sum_by(0..m, |i| x[i + 2 * m] - 2.0 * x[i + m] + x[i]);
-    let mut s = v * v;
-    for j in 0..terms - 1 {
-        v += (x[j + 3 * m] - 3.0 * x[j + 2 * m]) + (3.0 * x[j + m] - x[j]);
-        s += v * v;
-    }
-    s
 }
 
 /// Computes one deviation of rate data `y` (sample period `tau0_s`) at the tau set in `options`.
@@ -569,76 +554,29 @@ fn is_theo_point(kind: Kind, p: &DevPoint, tau0_s: f64) -> bool {
     kind.is_theo() && p.tau_s != p.m as f64 * tau0_s
 }
 
-/// The deviation at every factor, intervals not yet set.
+/// The deviation at every factor, intervals not yet set: every tau's sum in one fused pass.
 fn deviation_points(kind: Kind, x: &[f64], tau0_s: f64, factors: &[usize]) -> Vec<DevPoint> {
-    let n = x.len();
-    // OADEV, and TOTDEV's interior: every tau in one blocked pass (see `oadev_sums`).
-    let fused: Vec<(usize, f64)> = if matches!(kind, Kind::Oadev | Kind::Totdev) {
-        let ms: Vec<usize> = factors
-            .iter()
-            .copied()
-            .filter(|&m| m <= kind.max_m(n))
-            .collect();
-        ms.iter().copied().zip(oadev_sums(x, &ms)).collect()
-    } else {
-        Vec::new()
-    };
-    let point = |m: usize| {
-        let (var, n_terms) = match fused.iter().find(|(fm, _)| *fm == m) {
-            Some(&(_, sum)) if kind == Kind::Oadev => {
-                let terms = n - 2 * m;
-                let tau = m as f64 * tau0_s;
-                (sum / (2.0 * terms as f64 * tau * tau), terms)
+    let ms: Vec<usize> = factors
+        .iter()
+        .copied()
+        .filter(|&m| m >= 1 && m <= kind.max_m(x.len()))
+        .collect();
+    let sums = kind_sums(kind, x, &ms);
+    ms.iter()
+        .zip(sums)
+        .map(|(&m, sum)| {
+            let (var, n_terms) = variance_from_sum(kind, x, m, sum, tau0_s);
+            DevPoint {
+                m,
+                tau_s: m as f64 * tau0_s,
+                dev: var.max(0.0).sqrt(),
+                n_terms,
+                edf: 0.0,
+                dev_lo: 0.0,
+                dev_hi: 0.0,
             }
-            Some(&(_, sum)) => {
-                let tau = m as f64 * tau0_s;
-                let total = sum + totdev_edge_sum_sq(x, m);
-                (total / (2.0 * (n - 2) as f64 * tau * tau), n - 2)
-            }
-            None => variance_at(kind, x, m, tau0_s)?,
-        };
-        Some(DevPoint {
-            m,
-            tau_s: m as f64 * tau0_s,
-            dev: var.max(0.0).sqrt(),
-            n_terms,
-            edf: 0.0,
-            dev_lo: 0.0,
-            dev_hi: 0.0,
         })
-    };
-    if n >= PARALLEL_MIN_PHASE_POINTS && factors.len() > 1 && fused.is_empty() {
-        on_two_threads(factors, point)
-    } else {
-        factors.iter().filter_map(|&m| point(m)).collect()
-    }
-}
-
-/// Long series: the taus are independent passes over memory; split them over two threads
-/// (interleaved, so both get short and long taus). Results do not depend on the split.
-fn on_two_threads(
-    factors: &[usize],
-    point: impl Fn(usize) -> Option<DevPoint> + Sync,
-) -> Vec<DevPoint> {
-    let (mut a, b) = std::thread::scope(|scope| {
-        let other = scope.spawn(|| {
-            factors
-                .iter()
-                .skip(1)
-                .step_by(2)
-                .filter_map(|&m| point(m))
-                .collect::<Vec<_>>()
-        });
-        let mine: Vec<DevPoint> = factors
-            .iter()
-            .step_by(2)
-            .filter_map(|&m| point(m))
-            .collect();
-        (mine, other.join().expect("deviation worker panicked"))
-    });
-    a.extend(b);
-    a.sort_by_key(|p| p.m);
-    a
+        .collect()
 }
 
 /// Sets each point's EDF and confidence bounds by `options.edf`; returns the noise types used.

@@ -3,6 +3,7 @@
 use pulp::{Arch, Simd};
 
 use super::kernels::*;
+use super::passes::*;
 use super::*;
 
 #[test]
@@ -61,7 +62,7 @@ fn second_difference_kernels_equal_the_plain_sum() {
         });
         for (k, &m) in ms.iter().enumerate() {
             let want = plain(m);
-            for got in [scalar[k], best[k], second_difference_sum_sq(&x, m)] {
+            for got in [scalar[k], best[k], oadev_sums(&x, &[m])[0]] {
                 assert!((got / want - 1.0).abs() < 1e-12, "m {m}: {got} vs {want}");
             }
         }
@@ -155,4 +156,201 @@ fn mdev_of_a_large_offset_equals_the_direct_sum() {
             p.dev
         );
     }
+}
+
+/// A random walk of `len` points (xorshift steps in -0.5..0.5).
+fn walk(len: usize, mut state: u64) -> Vec<f64> {
+    let mut w = 0.0;
+    (0..len)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            w += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            w
+        })
+        .collect()
+}
+
+/// The ADEV/HDEV, OHDEV and MDEV passes (tau groups, per-tau leftovers, block edges, vector
+/// tails, MDEV's lanes and their parts) on both the scalar and the best SIMD instruction set,
+/// against plain loops: the strided and overlapping sums term by term, MDEV by the serial
+/// recurrence.
+#[test]
+fn fused_passes_equal_the_plain_sums() {
+    let x = walk(2 * BLOCK + 1237, 0x2545_f491_4f6c_dd1d);
+    let n = x.len();
+    let plain = |d: usize, m: usize, stride: usize| -> f64 {
+        (0..n - d * m)
+            .step_by(stride)
+            .map(|i| {
+                let t = if d == 2 {
+                    passes_second(&x, i, m)
+                } else {
+                    passes_third(&x, i, m)
+                };
+                t * t
+            })
+            .sum()
+    };
+    let close = |got: f64, want: f64, what: &str, m: usize| {
+        assert!(
+            (got / want - 1.0).abs() < 1e-12,
+            "{what} m {m}: {got} vs {want}"
+        );
+    };
+    let max_m = (n - 1) / 3;
+    for ms in [
+        TauSet::Octave.factors(max_m),
+        TauSet::PerDecade(7).factors(max_m),
+        vec![
+            1, 2, 3, 5, 6, 12, 24, 25, 50, 100, 101, 202, 404, 808, 1616, 3232, max_m,
+        ],
+        vec![max_m],
+        vec![max_m - 3],
+    ] {
+        let scalar = pulp::Scalar::new();
+        let arch = Arch::new();
+        let adev = [
+            scalar.vectorize(NonOverlappingPass::<2> {
+                x: &x,
+                ms: &ms,
+                range: 0..n - 2,
+            }),
+            arch.dispatch(NonOverlappingPass::<2> {
+                x: &x,
+                ms: &ms,
+                range: 0..n - 2,
+            }),
+            non_overlapping_sums::<2>(&x, &ms),
+        ];
+        let hdev = [
+            scalar.vectorize(NonOverlappingPass::<3> {
+                x: &x,
+                ms: &ms,
+                range: 0..n - 3,
+            }),
+            arch.dispatch(NonOverlappingPass::<3> {
+                x: &x,
+                ms: &ms,
+                range: 0..n - 3,
+            }),
+            non_overlapping_sums::<3>(&x, &ms),
+        ];
+        let ohdev = [
+            scalar.vectorize(OverlappingThirdPass {
+                x: &x,
+                ms: &ms,
+                range: 0..n - 3 * ms[0],
+            }),
+            arch.dispatch(OverlappingThirdPass {
+                x: &x,
+                ms: &ms,
+                range: 0..n - 3 * ms[0],
+            }),
+            overlapping_third_sums(&x, &ms),
+        ];
+        let long: Vec<usize> = ms
+            .iter()
+            .copied()
+            .filter(|&m| n - 3 * m + 1 >= 4 * LANES)
+            .collect();
+        let mdev = [
+            scalar.vectorize(ModifiedPass {
+                x: &x,
+                ms: &long,
+                part: 0,
+                parts: 1,
+            }),
+            arch.dispatch(ModifiedPass {
+                x: &x,
+                ms: &long,
+                part: 0,
+                parts: 1,
+            }),
+            {
+                let pass = |part| {
+                    arch.dispatch(ModifiedPass {
+                        x: &x,
+                        ms: &long,
+                        part,
+                        parts: 3,
+                    })
+                };
+                let (a, b, c) = (pass(0), pass(1), pass(2));
+                (0..long.len()).map(|k| a[k] + b[k] + c[k]).collect()
+            },
+        ];
+        for (k, &m) in ms.iter().enumerate() {
+            for got in &adev {
+                close(got[k], plain(2, m, m), "adev", m);
+            }
+            for got in &hdev {
+                close(got[k], plain(3, m, m), "hdev", m);
+            }
+            for got in &ohdev {
+                close(got[k], plain(3, m, 1), "ohdev", m);
+            }
+            let want = modified_sum_plain(&x, m);
+            close(modified_sums(&x, &ms)[k], want, "mdev", m);
+            if let Some(j) = long.iter().position(|&l| l == m) {
+                for got in &mdev {
+                    close(got[j], want, "mdev lanes", m);
+                }
+            }
+        }
+    }
+}
+
+fn passes_second(x: &[f64], i: usize, m: usize) -> f64 {
+    x[i + 2 * m] - 2.0 * x[i + m] + x[i]
+}
+
+fn passes_third(x: &[f64], i: usize, m: usize) -> f64 {
+    x[i + 3 * m] - 3.0 * x[i + 2 * m] + 3.0 * x[i + m] - x[i]
+}
+
+/// On a long series the two-thread passes (chunks of i; MDEV's halves of every tau) give the
+/// single-threaded sums.
+#[test]
+fn long_series_fused_passes_equal_one_thread() {
+    let x = walk(PARALLEL_MIN_PHASE_POINTS + 4321, 0x9e37_79b9_7f4a_7c15);
+    let n = x.len();
+    let arch = Arch::new();
+    let close = |a: &[f64], b: &[f64], what: &str| {
+        assert_eq!(a.len(), b.len());
+        for (p, q) in a.iter().zip(b) {
+            assert!((p / q - 1.0).abs() < 1e-12, "{what}: {p} vs {q}");
+        }
+    };
+    let ms = TauSet::Octave.factors(Kind::Hdev.max_m(n));
+    close(
+        &non_overlapping_sums::<2>(&x, &ms),
+        &arch.dispatch(NonOverlappingPass::<2> {
+            x: &x,
+            ms: &ms,
+            range: 0..n - 2,
+        }),
+        "adev",
+    );
+    close(
+        &non_overlapping_sums::<3>(&x, &ms),
+        &arch.dispatch(NonOverlappingPass::<3> {
+            x: &x,
+            ms: &ms,
+            range: 0..n - 3,
+        }),
+        "hdev",
+    );
+    close(
+        &overlapping_third_sums(&x, &ms),
+        &arch.dispatch(OverlappingThirdPass {
+            x: &x,
+            ms: &ms,
+            range: 0..n - 3,
+        }),
+        "ohdev",
+    );
+    let plain: Vec<f64> = ms.iter().map(|&m| modified_sum_plain(&x, m)).collect();
+    close(&modified_sums(&x, &ms), &plain, "mdev");
 }
