@@ -237,12 +237,12 @@ impl<'p> Pass<'p> {
         Ok(Flow::Stop)
     }
 
-    /// Reads the next bytes of the file into the reader's `buf`; returns how many.
     /// Bytes of the file not read yet (by its size at open).
     fn bytes_left(&self) -> usize {
         usize::try_from(self.total_bytes.saturating_sub(self.read_bytes)).unwrap_or(usize::MAX)
     }
 
+    /// Reads the next bytes of the file into the reader's `buf`; returns how many.
     fn fill(&mut self, buf: &mut [u8]) -> Result<usize, McapReadError> {
         let n = match self.file.read(buf) {
             Ok(n) => n,
