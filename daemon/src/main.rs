@@ -66,6 +66,10 @@ struct Args {
     /// Instance name (overrides name).
     #[arg(long, value_name = "NAME")]
     name: Option<String>,
+    /// Serve imud's streams to other users' processes on this socket (overrides
+    /// publish.readers-socket).
+    #[arg(long, value_name = "PATH")]
+    readers_socket: Option<PathBuf>,
     /// Run against a built-in virtual 3DM-GX1 on a pty instead of a real device; optionally with
     /// a scenario file (default: a built-in demo tour, then still forever). The simulator's
     /// ground truth is written next to the recordings.
@@ -270,6 +274,9 @@ fn effective_config(args: &Args) -> anyhow::Result<Config> {
     }
     if let Some(n) = &args.name {
         config.name = n.clone();
+    }
+    if let Some(r) = &args.readers_socket {
+        config.publish.readers_socket = Some(r.clone());
     }
     if args.ros2 {
         config.ros2.enabled = true;

@@ -1,6 +1,6 @@
 //! `imu-fuzz`: the stable-Rust fuzz harness's command line. `imu-fuzz run` replays each target's
 //! committed corpus and then N seeded mutations of it (the long runs of BENCHMARKS.md);
-//! `imu-fuzz seed` writes the seed inputs a corpus starts from.
+//! `imu-fuzz seed` writes the seed inputs a corpus starts from; `imu-fuzz list` names the targets.
 
 use std::fs;
 use std::path::PathBuf;
@@ -8,10 +8,10 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use imu_fuzz::{Target, corpus, run, seeds};
+use imu_fuzz::{ALL, Target, corpus, run};
 
 #[derive(Parser)]
-#[command(about = "Stable-Rust fuzz harness for the imu-proto decoders")]
+#[command(about = "Stable-Rust fuzz harness for the decoders and file readers")]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
@@ -22,7 +22,7 @@ enum Cmd {
     /// Check every corpus input, then N mutations of the corpus, for each target named (all by
     /// default); failing inputs are written to --artifacts and the exit code is 1.
     Run {
-        /// Targets: reply_decoder, command_decoder, mip_decoder, xsens_decoder.
+        /// Targets (`imu-fuzz list`).
         targets: Vec<String>,
         /// Mutated inputs per target (after the corpus).
         #[arg(long, default_value_t = 1_000_000)]
@@ -36,26 +36,31 @@ enum Cmd {
         /// Where failing inputs are written.
         #[arg(long, default_value = "target/fuzz-artifacts")]
         artifacts: PathBuf,
+        /// Also write each target's slowest input into this directory.
+        #[arg(long)]
+        slowest: Option<PathBuf>,
     },
     /// Write the seed inputs of each target named (all by default) into DIR/<target>/.
     Seed {
-        /// Targets: reply_decoder, command_decoder, mip_decoder, xsens_decoder.
+        /// Targets (`imu-fuzz list`); those whose seeds another writer made are skipped.
         targets: Vec<String>,
         /// Corpus root.
         #[arg(long)]
         out: PathBuf,
     },
+    /// Name every target and what it fuzzes.
+    List,
 }
 
-fn targets(names: &[String]) -> Result<Vec<Target>> {
+fn targets(names: &[String]) -> Result<Vec<&'static Target>> {
     if names.is_empty() {
-        return Ok(Target::ALL.to_vec());
+        return Ok(ALL.to_vec());
     }
     names
         .iter()
         .map(|n| {
             Target::from_name(n).with_context(|| {
-                let known: Vec<_> = Target::ALL.iter().map(|t| t.name()).collect();
+                let known: Vec<_> = ALL.iter().map(|t| t.name).collect();
                 format!("unknown target `{n}` (targets: {})", known.join(", "))
             })
         })
@@ -80,12 +85,13 @@ fn real_main() -> Result<ExitCode> {
             seed,
             corpus: root,
             artifacts,
+            slowest,
         } => {
             let mut failed = false;
             for target in targets(&names)? {
                 let dir = root
                     .as_ref()
-                    .map_or_else(|| target.corpus_dir(), |r| r.join(target.name()));
+                    .map_or_else(|| target.corpus_dir(), |r| r.join(target.name));
                 let inputs_corpus = corpus::load(&dir)?;
                 if inputs_corpus.is_empty() {
                     bail!("the corpus {} is empty", dir.display());
@@ -93,19 +99,29 @@ fn real_main() -> Result<ExitCode> {
                 let report = run(target, &inputs_corpus, inputs, seed);
                 let secs = report.elapsed.as_secs_f64();
                 println!(
-                    "{}: {} inputs ({} corpus), {} bytes, {} failures, {:.1} s, {:.0} inputs/s",
-                    target.name(),
+                    "{}: {} inputs ({} corpus), {} bytes, {} failures, {:.1} s, {:.0} inputs/s, \
+                     slowest input {:.1} ms (#{})",
+                    target.name,
                     report.inputs,
                     report.corpus_inputs,
                     report.bytes,
                     report.failures.len(),
                     secs,
-                    report.inputs as f64 / secs.max(1e-9)
+                    report.inputs as f64 / secs.max(1e-9),
+                    report.slowest.0.as_secs_f64() * 1e3,
+                    report.slowest.1
                 );
+                if let Some(path) = &slowest {
+                    fs::create_dir_all(path)
+                        .with_context(|| format!("creating {}", path.display()))?;
+                    let path = path.join(format!("{}-slowest", target.name));
+                    fs::write(&path, &report.slowest_input)
+                        .with_context(|| format!("writing {}", path.display()))?;
+                }
                 for f in &report.failures {
                     fs::create_dir_all(&artifacts)
                         .with_context(|| format!("creating {}", artifacts.display()))?;
-                    let path = artifacts.join(format!("{}-crash-{}", target.name(), f.index));
+                    let path = artifacts.join(format!("{}-crash-{}", target.name, f.index));
                     fs::write(&path, &f.input)
                         .with_context(|| format!("writing {}", path.display()))?;
                     println!("  input {} -> {}: {}", f.index, path.display(), f.message);
@@ -123,9 +139,19 @@ fn real_main() -> Result<ExitCode> {
             out,
         } => {
             for target in targets(&names)? {
-                let s = seeds::seeds(target);
-                corpus::store(&out.join(target.name()), "seed", &s)?;
-                println!("{}: {} seeds", target.name(), s.len());
+                match target.seeds() {
+                    Some(s) => {
+                        corpus::store(&out.join(target.name), "seed", &s)?;
+                        println!("{}: {} seeds", target.name, s.len());
+                    }
+                    None => println!("{}: seeds made by another writer, kept", target.name),
+                }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::List => {
+            for target in ALL {
+                println!("{}\t{}", target.name, target.about);
             }
             Ok(ExitCode::SUCCESS)
         }

@@ -11,66 +11,18 @@ use crate::Target;
 /// Longest input the mutator makes (longer than any frame, short enough to keep a run fast).
 pub const MAX_INPUT_LEN: usize = 4096;
 
-/// Bytes that mean something to the decoders: GX1 reply/command codes and their argument bytes,
-/// MIP's sync bytes and descriptor sets, and edge values of lengths and counters.
-fn dictionary(target: Target) -> &'static [&'static [u8]] {
-    match target {
-        Target::ReplyDecoder | Target::CommandDecoder => &[
-            &[0x01],
-            &[0x02],
-            &[0x03],
-            &[0x0C],
-            &[0x10, 0x00],
-            &[0x0F, 0xC1, 0xC3, 0xC5],
-            &[0x28, 0x00, 0xE6],
-            &[0x29, 0x71],
-            &[0x31],
-            &[0xF0],
-            &[0xF1],
-            &[0xFF, 0xFF],
-            &[0x00, 0x00],
-            &[0x80, 0x00],
-        ],
-        Target::MipDecoder => &[
-            &[0x75, 0x65],
-            &[0x75, 0x65, 0x80],
-            &[0x75, 0x65, 0x01],
-            &[0x75, 0x65, 0x0C],
-            &[0x75],
-            &[0x80],
-            &[0xFF],
-            &[0x00],
-            &[0x0E, 0x04],
-            &[0x06, 0xD3],
-            &[0xF1],
-        ],
-        Target::XsensDecoder => &[
-            &[0xFA, 0xFF],
-            &[0xFA, 0xFF, 0x36],
-            &[0xFA, 0xFF, 0x36, 0xFF],
-            &[0xFA, 0xFF, 0xC1],
-            &[0xFA],
-            &[0xFF],
-            &[0x00],
-            &[0x10, 0x60, 0x04],
-            &[0x40, 0x42, 0x0C],
-            &[0x10, 0x10, 0x0C],
-        ],
-    }
-}
-
 /// Makes mutated inputs from a corpus, deterministically for a seed.
 pub struct Mutator {
     rng: ChaCha8Rng,
-    target: Target,
+    dictionary: &'static [&'static [u8]],
 }
 
 impl Mutator {
     /// A mutator for `target`'s inputs, seeded.
-    pub fn new(target: Target, seed: u64) -> Self {
+    pub fn new(target: &Target, seed: u64) -> Self {
         Self {
             rng: ChaCha8Rng::seed_from_u64(seed),
-            target,
+            dictionary: target.dictionary,
         }
     }
 
@@ -128,7 +80,7 @@ impl Mutator {
                 data.splice(at..at, other[start..end].iter().copied());
             }
             6 => {
-                let dict = dictionary(self.target);
+                let dict = self.dictionary;
                 let token = dict[rng.random_range(0..dict.len())];
                 let at = rng.random_range(0..=len);
                 if rng.random_bool(0.5) || at + token.len() > len {

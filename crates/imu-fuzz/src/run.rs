@@ -25,7 +25,7 @@ pub struct Failure {
 #[derive(Debug, Clone)]
 pub struct RunReport {
     /// The target run.
-    pub target: Target,
+    pub target: &'static Target,
     /// Inputs checked: corpus entries plus mutations (fewer if it stopped on failures).
     pub inputs: u64,
     /// Of those, the corpus entries.
@@ -36,12 +36,17 @@ pub struct RunReport {
     pub failures: Vec<Failure>,
     /// Wall-clock time of the run (for the benchmark record, never asserted).
     pub elapsed: Duration,
+    /// The longest any one input took, and its index (the work per input is bounded when a
+    /// long run's slowest input stays short; recorded, never asserted).
+    pub slowest: (Duration, u64),
+    /// That input (to look at what made it slow).
+    pub slowest_input: Vec<u8>,
 }
 
 /// Checks every corpus input, then `n_mutations` inputs mutated from the corpus with `seed`.
 ///
 /// The default panic hook prints each caught panic to stderr as well; the report holds them.
-pub fn run(target: Target, corpus: &[Vec<u8>], n_mutations: u64, seed: u64) -> RunReport {
+pub fn run(target: &'static Target, corpus: &[Vec<u8>], n_mutations: u64, seed: u64) -> RunReport {
     let start = Instant::now();
     let mut report = RunReport {
         target,
@@ -50,9 +55,17 @@ pub fn run(target: Target, corpus: &[Vec<u8>], n_mutations: u64, seed: u64) -> R
         bytes: 0,
         failures: Vec::new(),
         elapsed: Duration::ZERO,
+        slowest: (Duration::ZERO, 0),
+        slowest_input: Vec::new(),
     };
     let check = |input: &[u8], report: &mut RunReport| {
+        let started = Instant::now();
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| target.check(input)));
+        let took = started.elapsed();
+        if took > report.slowest.0 {
+            report.slowest = (took, report.inputs);
+            report.slowest_input = input.to_vec();
+        }
         if let Err(payload) = outcome {
             let message = payload
                 .downcast_ref::<String>()

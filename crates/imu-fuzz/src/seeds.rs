@@ -1,6 +1,10 @@
-//! Seed inputs a corpus starts from (`imu-fuzz seed`): valid frames of every kind the codec knows,
-//! built by the codec's own encoders, alone, in runs, between garbage, cut short and with a bad
-//! checksum, each under a few chunk layouts. The fuzzers grow the corpus from there.
+//! Seed inputs a corpus starts from (`imu-fuzz seed`), made by our own encoders and writers: for
+//! the stream decoders valid frames of every kind the codec knows, alone, in runs, between
+//! garbage, cut short and with a bad checksum, each under a few chunk layouts; for the message
+//! decoders each message type; for the MCAP reader small truth files, whole and cut. The ROS 1
+//! bag and rosbag2 sqlite3 seeds were written by Python `rosbags` (`tests/python/
+//! write_ros_logs.py`, imud writes neither format) and are committed as they are. The fuzzers
+//! grow the corpus from there.
 
 use imu_proto::Command;
 use imu_proto::checksum::checksum;
@@ -10,22 +14,164 @@ use imu_proto::xsens::{Message, mid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::Target;
+use imu_proto::ros2_frame;
 
 /// Chunk layouts the seeds are pushed in: whole, byte by byte, and two uneven cycles.
 const LAYOUTS: [&[u8]; 4] = [&[], &[1], &[3, 7], &[2, 5, 1]];
 
-/// The seed inputs of `target`, deterministic.
-pub fn seeds(target: Target) -> Vec<Vec<u8>> {
+/// Seeds of `reply_decoder`: every reply the codec knows.
+pub(crate) fn reply_decoder() -> Vec<Vec<u8>> {
     let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
-    let frames = match target {
-        Target::ReplyDecoder => reply_frames(&mut rng),
-        Target::CommandDecoder => command_frames(),
-        Target::MipDecoder => mip_frames(&mut rng),
-        Target::XsensDecoder => xsens_frames(&mut rng),
+    let frames = reply_frames(&mut rng);
+    stream_seeds(&frames, &mut rng, |stream, i| {
+        // Every other seed declares the codes it expects (what the daemon does while streaming).
+        if i.is_multiple_of(2) {
+            vec![0]
+        } else {
+            vec![1, stream.first().copied().unwrap_or(0x31)]
+        }
+    })
+}
+
+/// Seeds of `command_decoder`: every command the codec knows.
+pub(crate) fn command_decoder() -> Vec<Vec<u8>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
+    stream_seeds(&command_frames(), &mut rng, |_, _| Vec::new())
+}
+
+/// Seeds of `mip_decoder`: IMU data, commands and replies.
+pub(crate) fn mip_decoder() -> Vec<Vec<u8>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
+    let frames = mip_frames(&mut rng);
+    stream_seeds(&frames, &mut rng, |_, _| Vec::new())
+}
+
+/// Seeds of `xsens_decoder`: MTData2 in every number format, requests, acknowledgements and
+/// replies, one extended-length message.
+pub(crate) fn xsens_decoder() -> Vec<Vec<u8>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
+    let frames = xsens_frames(&mut rng);
+    stream_seeds(&frames, &mut rng, |_, _| Vec::new())
+}
+
+/// Seeds of `ros2_frame`: frames of the ROS 2 input carrying `sensor_msgs/msg/Imu` messages.
+pub(crate) fn ros2_frame() -> Vec<Vec<u8>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
+    let frames: Vec<Vec<u8>> = ros2_messages()
+        .iter()
+        .map(|cdr| {
+            let mut frame = Vec::new();
+            ros2_frame::encode(cdr, &mut frame);
+            frame
+        })
+        .collect();
+    stream_seeds(&frames, &mut rng, |_, _| Vec::new())
+}
+
+/// Seeds of `cdr`: each message type imud writes, made by its encoder, after the selector that
+/// names its type (see `targets::cdr`).
+pub(crate) fn cdr() -> Vec<Vec<u8>> {
+    crate::targets::cdr::samples()
+}
+
+/// Seeds of `mcap`: truth files made by the simulator's writer, complete and cut short (the
+/// writer killed before its footer), each read whole and cut at a few places.
+pub(crate) fn mcap() -> Vec<Vec<u8>> {
+    let mut seeds = Vec::new();
+    for n_samples in [0, 3, 12] {
+        let file = truth_file(n_samples);
+        let len = file.len();
+        for cut in [len, len - 1, len / 2, len.saturating_sub(40)] {
+            seeds.push(crate::targets::with_cut(cut, &file));
+        }
+    }
+    seeds
+}
+
+/// `sensor_msgs/msg/Imu` messages in CDR: a few stamps, frames and values.
+pub(crate) fn ros2_messages() -> Vec<Vec<u8>> {
+    use imu_rec::ros2::{Header, Imu, RosMessage, Time};
+    [
+        (0u64, ""),
+        (1_700_000_000_123_456_789, "imu_link"),
+        (5, "x"),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, &(t_ns, frame_id))| {
+        let x = i as f64;
+        Imu {
+            header: Header {
+                stamp: Time::from_ns(t_ns),
+                frame_id: frame_id.to_owned(),
+            },
+            angular_velocity: [0.01 * x, -0.02, 0.5].into(),
+            linear_acceleration: [0.1, 0.2 * x, -9.81].into(),
+            ..Imu::default()
+        }
+        .to_cdr()
+    })
+    .collect()
+}
+
+/// A truth file of `n_samples` samples and one segment, in memory.
+fn truth_file(n_samples: u32) -> Vec<u8> {
+    use imu_rec::truth::{TruthSample, TruthSegment, TruthWriter};
+    let run = std::collections::BTreeMap::from([("seed".to_owned(), "1".to_owned())]);
+    let mut sink = std::io::Cursor::new(Vec::new());
+    let path = std::path::Path::new("seed.mcap");
+    let mut w = TruthWriter::new(path, &mut sink, &run, "[scenario]", "[model]")
+        .expect("writing to memory cannot fail");
+    let seg = TruthSegment {
+        index: 0,
+        kind: "static".into(),
+        label: "level".into(),
+        start_s: 0.0,
+        end_s: None,
+        gravity_dir_sensor: [0.0, 0.0, -1.0],
+        axis_sensor: None,
+        table_rate_rad_s: None,
     };
-    let mut streams: Vec<Vec<u8>> = frames.clone();
-    // Runs of frames, garbage between them, a frame cut short and one with its last byte changed.
+    w.write_segment(&seg).expect("in memory");
+    for k in 0..n_samples {
+        let t_s = f64::from(k) * 0.01;
+        let v = [0.1 * t_s, -0.2, 9.8];
+        w.write_sample(&TruthSample {
+            seq: u64::from(k),
+            command: 0x31,
+            ticks: (k * 2) as u16,
+            ticks_unwrapped: u64::from(k) * 2,
+            t_s,
+            time_since_power_on_s: 10.0 + t_s,
+            segment: 0,
+            specific_force_m_s2: v,
+            angular_rate_rad_s: v,
+            angular_accel_rad_s2: v,
+            mag_field_gauss: v,
+            temp_c: 25.0,
+            enu_from_sensor: [1.0, 0.0, 0.0, 0.0],
+            table_angle_rad: 0.0,
+            table_rate_rad_s: 0.0,
+            measured_accel_m_s2: v,
+            measured_gyro_rad_s: v,
+            measured_mag_gauss: v,
+            saturated: false,
+        })
+        .expect("in memory");
+    }
+    w.finish().expect("in memory");
+    sink.into_inner()
+}
+
+/// A stream decoder's seeds: the frames alone, in runs, between garbage, cut short and with a
+/// bad checksum, each under one of the chunk layouts; `params(stream, i)` gives the target
+/// parameters that go between the chunk sizes and the stream.
+fn stream_seeds(
+    frames: &[Vec<u8>],
+    rng: &mut ChaCha8Rng,
+    params: impl Fn(&[u8], usize) -> Vec<u8>,
+) -> Vec<Vec<u8>> {
+    let mut streams: Vec<Vec<u8>> = frames.to_vec();
     for (i, frame) in frames.iter().enumerate() {
         let next = &frames[(i + 1) % frames.len()];
         let mut s = frame.clone();
@@ -50,24 +196,15 @@ pub fn seeds(target: Target) -> Vec<Vec<u8>> {
     streams
         .into_iter()
         .enumerate()
-        .map(|(i, stream)| with_layout(target, LAYOUTS[i % LAYOUTS.len()], &stream, i))
+        .map(|(i, stream)| {
+            let sizes = LAYOUTS[i % LAYOUTS.len()];
+            let mut input = vec![sizes.len() as u8];
+            input.extend_from_slice(sizes);
+            input.extend(params(&stream, i));
+            input.extend_from_slice(&stream);
+            input
+        })
         .collect()
-}
-
-/// The input a target takes: chunk sizes, target parameters, then the stream.
-fn with_layout(target: Target, sizes: &[u8], stream: &[u8], i: usize) -> Vec<u8> {
-    let mut input = vec![sizes.len() as u8];
-    input.extend_from_slice(sizes);
-    if target == Target::ReplyDecoder {
-        // Every other seed declares the codes it expects (what the daemon does while streaming).
-        if i.is_multiple_of(2) {
-            input.push(0);
-        } else {
-            input.extend_from_slice(&[1, stream.first().copied().unwrap_or(0x31)]);
-        }
-    }
-    input.extend_from_slice(stream);
-    input
 }
 
 fn reply_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
@@ -160,9 +297,8 @@ fn mip_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
 }
 
 fn xsens_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
-    // (message id, [(data id, item size)]): MTData2 as a unit streams it (float32, fp1220,
-    // fp1632 and float64 items, an unknown id), requests, acknowledgements, replies with data
-    // and one extended-length message.
+    // (data id, item size) lists: MTData2 as a unit streams it (float32, fp1220, fp1632 and
+    // float64 items, an unknown id).
     let items: [&[(u16, u8)]; 4] = [
         &[
             (0x1020, 2),

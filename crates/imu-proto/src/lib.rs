@@ -1,6 +1,7 @@
 //! Sans-IO codec for the MicroStrain 3DM-GX1 serial protocol: bytes <-> typed frames, both ways.
 //! Its successor, the MIP protocol of today's MicroStrain devices, is in [`mip`]; Xsens's Xbus
-//! protocol (MTi units) is in [`xsens`].
+//! protocol (MTi units) is in [`xsens`]; the framing of imud's ROS 2 input (a ROS 2 IMU topic
+//! read as a device's byte stream) in [`ros2_frame`].
 //!
 //! The same code serves the host (encode [`Command`]s, decode [`Reply`]s from a byte stream with
 //! [`ReplyDecoder`]) and the device side used by the simulator (decode commands with
@@ -65,6 +66,7 @@ pub mod gnss_time;
 pub mod mip;
 pub mod protocol;
 pub mod reply;
+pub mod ros2_frame;
 pub mod scale;
 pub mod ticks;
 pub mod xsens;

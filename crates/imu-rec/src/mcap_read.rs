@@ -145,6 +145,11 @@ pub fn for_each_message_with_progress(
         let flow = match event {
             Err(e) => pass.reader_error(e)?,
             Ok(LinearReadEvent::ReadRequest(need)) => {
+                // The reader asks for a whole record at once; a damaged length field can ask for
+                // up to the limit (1 GiB, zero-filled before the read). No more than the file
+                // holds (and 64 KiB beyond it, should the file grow) is asked of it, so a small
+                // damaged file costs little memory and time: the read ends at its end anyway.
+                let need = need.min(pass.bytes_left().saturating_add(64 * 1024));
                 let n = pass.fill(reader.insert(need))?;
                 reader.notify_read(n);
                 Flow::Continue
@@ -230,6 +235,11 @@ impl<'p> Pass<'p> {
             format!("damaged record: {e}")
         });
         Ok(Flow::Stop)
+    }
+
+    /// Bytes of the file not read yet (by its size at open).
+    fn bytes_left(&self) -> usize {
+        usize::try_from(self.total_bytes.saturating_sub(self.read_bytes)).unwrap_or(usize::MAX)
     }
 
     /// Reads the next bytes of the file into the reader's `buf`; returns how many.

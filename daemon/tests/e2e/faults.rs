@@ -210,13 +210,16 @@ fn bad_config_and_calibration_files_are_clear_errors() {
     // --print-config shows the effective configuration with flags applied.
     let out = Command::new(env!("CARGO_BIN_EXE_imud"))
         .args(["--print-config", "--baud", "115200", "--name", "printed"])
+        .args(["--readers-socket", "/run/printed/r.sock"])
         .env_remove("IMUD_CONFIG")
         .output()
         .unwrap();
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("baud = 115200") && text.contains("name = \"printed\""),
+        text.contains("baud = 115200")
+            && text.contains("name = \"printed\"")
+            && text.contains("readers-socket = \"/run/printed/r.sock\""),
         "{text}"
     );
 }

@@ -1,46 +1,56 @@
-//! `CommandDecoder`: the events, re-encoded, are exactly the input, and the counters agree.
+//! `CommandDecoder` (3DM-GX1 commands, device side): the events, re-encoded, are exactly the
+//! input, and the counters agree.
 
 use imu_proto::decoder::{CommandDecoder, CommandEvent};
 
-use super::{push_in_chunks, split_chunk_sizes};
+use super::{assert_contiguous, check_stream, split_chunk_sizes, stream};
+use crate::Target;
+
+/// The target.
+pub(crate) static TARGET: Target = Target {
+    name: "command_decoder",
+    about: "3DM-GX1 commands, device side (imu_proto::decoder::CommandDecoder)",
+    check,
+    seeds: Some(crate::seeds::command_decoder),
+    dictionary: GX1_DICTIONARY,
+    ci_mutations: 1_000_000,
+};
+
+/// Bytes that mean something to the 3DM-GX1 decoders: reply/command codes and their argument
+/// bytes, and edge values of words.
+pub(crate) const GX1_DICTIONARY: &[&[u8]] = &[
+    &[0x01],
+    &[0x02],
+    &[0x03],
+    &[0x0C],
+    &[0x10, 0x00],
+    &[0x0F, 0xC1, 0xC3, 0xC5],
+    &[0x28, 0x00, 0xE6],
+    &[0x29, 0x71],
+    &[0x31],
+    &[0xF0],
+    &[0xF1],
+    &[0xFF, 0xFF],
+    &[0x00, 0x00],
+    &[0x80, 0x00],
+];
 
 /// Input: `[n_chunk_sizes, chunk sizes..., stream]`.
-pub(crate) fn command_decoder(data: &[u8]) {
-    let Some((sizes, stream)) = split_chunk_sizes(data) else {
-        return;
-    };
-    let mut d = CommandDecoder::new();
-    let mut rebuilt = Vec::with_capacity(stream.len());
-    push_in_chunks(stream, sizes, |chunk| {
-        d.push(chunk);
-        drain(&mut d, &mut rebuilt);
-    });
-    d.flush();
-    drain(&mut d, &mut rebuilt);
-    assert_eq!(d.pending_len(), 0, "flush reports everything");
-    assert_eq!(rebuilt, stream, "events rebuild the stream");
+fn check(data: &[u8]) {
+    if let Some((sizes, stream)) = split_chunk_sizes(data) {
+        check_stream(CommandDecoder::new(), sizes, stream);
+    }
 }
 
-fn drain(d: &mut CommandDecoder, rebuilt: &mut Vec<u8>) {
-    while let Some(ev) = d.next_event() {
-        match ev {
-            CommandEvent::Command(c) => c.encode(rebuilt),
-            CommandEvent::Rejected { bytes, offset, .. } => {
-                assert_eq!(offset, rebuilt.len() as u64, "events are contiguous");
-                assert!(!bytes.is_empty(), "no empty events");
-                rebuilt.extend_from_slice(&bytes);
-            }
+stream!(CommandDecoder, CommandEvent, command_bytes, account);
+
+/// Checks one event and appends its bytes to `rebuilt`.
+fn account(ev: CommandEvent, rebuilt: &mut Vec<u8>) {
+    match ev {
+        CommandEvent::Command(c) => c.encode(rebuilt),
+        CommandEvent::Rejected { bytes, offset, .. } => {
+            assert_contiguous(offset, &bytes, rebuilt);
+            rebuilt.extend_from_slice(&bytes);
         }
     }
-    let s = d.stats();
-    assert_eq!(
-        s.bytes_in,
-        rebuilt.len() as u64 + d.pending_len() as u64,
-        "conservation: bytes in = bytes reported + pending"
-    );
-    assert_eq!(
-        s.bytes_in,
-        s.command_bytes + s.rejected_bytes + d.pending_len() as u64,
-        "conservation: bytes in = command + rejected + pending"
-    );
 }

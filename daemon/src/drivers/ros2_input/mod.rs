@@ -11,7 +11,9 @@
 //! and a topic silent for `device.silence-timeout-s` fails the session (retried with
 //! back-off).
 
-pub mod frame;
+/// The frames of the byte stream: their home is `imu_proto::ros2_frame`, with the other decoders
+/// (the fuzz targets and replay share it).
+pub use imu_proto::ros2_frame as frame;
 pub mod reading;
 #[cfg(test)]
 mod tests;

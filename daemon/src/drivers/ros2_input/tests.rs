@@ -214,13 +214,13 @@ fn the_decoder_accounts_for_every_byte_of_random_input() {
         let s = d.stats();
         assert_eq!(
             s.bytes_in,
-            s.frame_bytes + s.rejected_bytes + d.pending() as u64
+            s.frame_bytes + s.rejected_bytes + d.pending_len() as u64
         );
         assert_eq!(seen, s.frame_bytes + s.rejected_bytes);
     }
     d.flush();
     while d.next_event().is_some() {}
-    assert_eq!(d.pending(), 0);
+    assert_eq!(d.pending_len(), 0);
 }
 
 #[test]

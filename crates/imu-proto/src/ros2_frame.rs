@@ -1,4 +1,5 @@
-//! The ROS 2 input's byte stream: each message the DDS subscription takes becomes one frame,
+//! The byte stream of imud's ROS 2 input (a live ROS 2 IMU taken as the device): each message
+//! the DDS subscription takes becomes one frame,
 //! `"R2" | length (u32, little-endian) | the message's CDR bytes` (encapsulation header
 //! included), so the session reads a topic like a serial line, the log keeps every message as a
 //! raw frame and `imud replay` feeds the recorded frames back through the same decoder.
@@ -8,7 +9,7 @@
 //! the magic, rejects (and counts) what is not a frame, and keeps the byte accounting of every
 //! decoder (`bytes_in = frame bytes + rejected bytes + pending`).
 
-use imu_proto::decoder::{DecoderStats, RejectReason};
+use crate::decoder::{DecoderStats, RejectReason};
 
 /// The two bytes that open every frame.
 pub const MAGIC: [u8; 2] = *b"R2";
@@ -152,9 +153,8 @@ impl FrameDecoder {
         Some(FrameEvent::Frame { offset, bytes })
     }
 
-    /// Bytes held and not yet reported.
-    #[cfg(test)]
-    pub fn pending(&self) -> usize {
+    /// Bytes held and not yet reported (`bytes_in = frame + rejected + pending`).
+    pub fn pending_len(&self) -> usize {
         self.buf.len()
     }
 }
