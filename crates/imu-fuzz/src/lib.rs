@@ -24,14 +24,18 @@ pub enum Target {
     CommandDecoder,
     /// MIP packets, both sides (`imu_proto::mip::MipDecoder`).
     MipDecoder,
+    /// VectorNav binary messages and ASCII sentences, both sides
+    /// (`imu_proto::vectornav::VnDecoder`).
+    VectornavDecoder,
 }
 
 impl Target {
     /// Every target, in the order reports list them.
-    pub const ALL: [Target; 3] = [
+    pub const ALL: [Target; 4] = [
         Target::ReplyDecoder,
         Target::CommandDecoder,
         Target::MipDecoder,
+        Target::VectornavDecoder,
     ];
 
     /// The name of the cargo-fuzz binary and of the corpus directory.
@@ -40,6 +44,7 @@ impl Target {
             Target::ReplyDecoder => "reply_decoder",
             Target::CommandDecoder => "command_decoder",
             Target::MipDecoder => "mip_decoder",
+            Target::VectornavDecoder => "vectornav_decoder",
         }
     }
 
@@ -54,6 +59,7 @@ impl Target {
             Target::ReplyDecoder => targets::reply_decoder(data),
             Target::CommandDecoder => targets::command_decoder(data),
             Target::MipDecoder => targets::mip_decoder(data),
+            Target::VectornavDecoder => targets::vectornav_decoder(data),
         }
     }
 

@@ -22,7 +22,7 @@ enum Cmd {
     /// Check every corpus input, then N mutations of the corpus, for each target named (all by
     /// default); failing inputs are written to --artifacts and the exit code is 1.
     Run {
-        /// Targets: reply_decoder, command_decoder, mip_decoder.
+        /// Targets: reply_decoder, command_decoder, mip_decoder, vectornav_decoder.
         targets: Vec<String>,
         /// Mutated inputs per target (after the corpus).
         #[arg(long, default_value_t = 1_000_000)]
@@ -39,7 +39,7 @@ enum Cmd {
     },
     /// Write the seed inputs of each target named (all by default) into DIR/<target>/.
     Seed {
-        /// Targets: reply_decoder, command_decoder, mip_decoder.
+        /// Targets: reply_decoder, command_decoder, mip_decoder, vectornav_decoder.
         targets: Vec<String>,
         /// Corpus root.
         #[arg(long)]

@@ -12,7 +12,8 @@ use crate::Target;
 pub const MAX_INPUT_LEN: usize = 4096;
 
 /// Bytes that mean something to the decoders: GX1 reply/command codes and their argument bytes,
-/// MIP's sync bytes and descriptor sets, and edge values of lengths and counters.
+/// MIP's sync bytes and descriptor sets, VectorNav's sync and group bytes and sentence pieces,
+/// and edge values of lengths and counters.
 fn dictionary(target: Target) -> &'static [&'static [u8]] {
     match target {
         Target::ReplyDecoder | Target::CommandDecoder => &[
@@ -43,6 +44,22 @@ fn dictionary(target: Target) -> &'static [&'static [u8]] {
             &[0x0E, 0x04],
             &[0x06, 0xD3],
             &[0xF1],
+        ],
+        Target::VectornavDecoder => &[
+            &[0xFA],
+            &[0xFA, 0x01],
+            &[0xFA, 0x07],
+            &[0xFA, 0x80],
+            &[0xFF, 0x87],
+            b"$VN",
+            b"$VNRRG,",
+            b"$VNWRG,75,",
+            b"$VNERR,",
+            b"*XX\r\n",
+            b"*",
+            b"\r\n",
+            b",",
+            &[0x00],
         ],
     }
 }

@@ -6,6 +6,11 @@ use imu_proto::Command;
 use imu_proto::checksum::checksum;
 use imu_proto::mip::{PacketBuilder, descriptor_set};
 use imu_proto::reply::{KNOWN_REPLY_CODES, reply_len_for_code};
+use imu_proto::vectornav::binary::{common, group, imu, time};
+use imu_proto::vectornav::{
+    BinaryData, BinaryMessage, BinaryOutputConfig, Check, DeltaTheta, OutputFields, Register,
+    TimeStatus, VnCommand, VnReply,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -21,6 +26,7 @@ pub fn seeds(target: Target) -> Vec<Vec<u8>> {
         Target::ReplyDecoder => reply_frames(&mut rng),
         Target::CommandDecoder => command_frames(),
         Target::MipDecoder => mip_frames(&mut rng),
+        Target::VectornavDecoder => vectornav_frames(&mut rng),
     };
     let mut streams: Vec<Vec<u8>> = frames.clone();
     // Runs of frames, garbage between them, a frame cut short and one with its last byte changed.
@@ -155,4 +161,76 @@ fn mip_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
             b.build().as_bytes().to_vec()
         })
         .collect()
+}
+
+fn vectornav_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
+    let mut v3 = || -> [f32; 3] { [rng.random(), rng.random(), rng.random()] };
+    let data = BinaryData {
+        startup_ns: Some(123_456_789),
+        gps_ns: Some(1_400_000_000_000_000_000),
+        time_status: Some(TimeStatus(7)),
+        uncomp_mag_gauss: Some(v3()),
+        uncomp_accel_m_s2: Some(v3()),
+        uncomp_gyro_rad_s: Some(v3()),
+        temp_c: Some(25.0),
+        pres_kpa: Some(101.0),
+        delta_theta: Some(DeltaTheta {
+            dt_s: 0.00125,
+            theta_deg: v3(),
+        }),
+        delta_vel_m_s: Some(v3()),
+        mag_gauss: Some(v3()),
+        accel_m_s2: Some(v3()),
+        angular_rate_rad_s: Some(v3()),
+        ..BinaryData::default()
+    };
+    // Binary messages as a unit streams them (a VN-100's IMU fields, a VN-200's with GPS time),
+    // then the register sentences of a start-up, an error and the power-up YPR output.
+    let layouts: [(u16, u16, u16); 3] = [
+        (common::TIME_STARTUP, 0, 0x070E),
+        (
+            common::TIME_STARTUP,
+            time::TIME_GPS | time::TIME_STATUS,
+            0x07FE,
+        ),
+        (
+            common::IMU | common::DELTA_THETA_VEL | common::MAG_PRES,
+            0,
+            0,
+        ),
+    ];
+    let mut frames: Vec<Vec<u8>> = layouts
+        .iter()
+        .filter_map(|&(c, t, i)| {
+            let mut f = OutputFields::default();
+            f.words[group::COMMON] = c;
+            f.words[group::TIME] = t;
+            f.words[group::IMU] = i;
+            BinaryMessage::encode(f, &data)
+                .ok()
+                .map(|m| m.as_bytes().to_vec())
+        })
+        .collect();
+    let mut fields = OutputFields::default();
+    fields.words[group::IMU] = imu::UNCOMP_ACCEL | imu::UNCOMP_GYRO;
+    let binary_output = Register::BinaryOutput {
+        index: 1,
+        config: BinaryOutputConfig {
+            async_mode: 1,
+            rate_divisor: 4,
+            fields,
+        },
+    };
+    let sentences = [
+        VnCommand::Read(1).to_sentence(Check::Checksum8),
+        VnCommand::Write(Register::AsyncOutputType(0)).to_sentence(Check::Crc16),
+        VnCommand::Write(binary_output.clone()).to_sentence(Check::Wildcard),
+        VnReply::Read(Register::Model("VN-100T-CR".into())).to_sentence(Check::Checksum8),
+        VnReply::Read(Register::SerialNumber(100_012_345)).to_sentence(Check::Checksum8),
+        VnReply::Written(binary_output).to_sentence(Check::Checksum8),
+        VnReply::Error(8).to_sentence(Check::Checksum8),
+        VnReply::Ypr([10.5, -0.25, 3.0]).to_sentence(Check::Checksum8),
+    ];
+    frames.extend(sentences.iter().map(|s| s.as_bytes().to_vec()));
+    frames
 }

@@ -53,6 +53,11 @@ fn mip_decoder_survives_its_corpus_and_mutations() {
 }
 
 #[test]
+fn vectornav_decoder_survives_its_corpus_and_mutations() {
+    fuzz_tier(Target::VectornavDecoder);
+}
+
+#[test]
 fn a_seed_reproduces_its_inputs_and_another_seed_does_not() {
     let corpus = corpus::load(&Target::MipDecoder.corpus_dir()).unwrap();
     let draw = |seed| {

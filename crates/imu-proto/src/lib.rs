@@ -66,6 +66,7 @@ pub mod protocol;
 pub mod reply;
 pub mod scale;
 pub mod ticks;
+pub mod vectornav;
 
 pub use command::Command;
 pub use decoder::{

@@ -5,10 +5,12 @@
 mod command;
 mod mip;
 mod reply;
+mod vectornav;
 
 pub(crate) use command::command_decoder;
 pub(crate) use mip::mip_decoder;
 pub(crate) use reply::reply_decoder;
+pub(crate) use vectornav::vectornav_decoder;
 
 /// Splits the leading chunk sizes (at most 7) off an input.
 fn split_chunk_sizes(data: &[u8]) -> Option<(&[u8], &[u8])> {
