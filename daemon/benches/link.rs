@@ -130,7 +130,7 @@ fn throughput(n_frames: u64, rate_hz: Option<f64>, protocol: DeviceProtocol) {
     // A MIP unit sends nothing before it is configured; the GX1 answers one start-up poll.
     let sent = match protocol {
         DeviceProtocol::Gx1 => report.data_replies - 1,
-        DeviceProtocol::Mip => report.data_replies,
+        DeviceProtocol::Mip | DeviceProtocol::Vectornav => report.data_replies,
     };
     println!(
         "throughput, {protocol} ({}): {} frames sent in {:.2} s = {:.0} frames/s; logged {} ({}), subscriber saw {} (buffer 256; a slower subscriber loses the oldest)",

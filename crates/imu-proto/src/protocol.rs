@@ -13,17 +13,25 @@ pub enum DeviceProtocol {
     Gx1,
     /// MIP packets, as spoken by the 3DM-GX3/GX4/GX5, CV5/CV7 and GQ7 ([`crate::mip`]).
     Mip,
+    /// VectorNav's ASCII registers and binary outputs, as spoken by the VN-100/200/300
+    /// ([`crate::vectornav`]).
+    Vectornav,
 }
 
 impl DeviceProtocol {
     /// Every protocol, in the order they are listed to users.
-    pub const ALL: [DeviceProtocol; 2] = [DeviceProtocol::Gx1, DeviceProtocol::Mip];
+    pub const ALL: [DeviceProtocol; 3] = [
+        DeviceProtocol::Gx1,
+        DeviceProtocol::Mip,
+        DeviceProtocol::Vectornav,
+    ];
 
     /// The name used in configuration files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             DeviceProtocol::Gx1 => "3dm-gx1",
             DeviceProtocol::Mip => "mip",
+            DeviceProtocol::Vectornav => "vectornav",
         }
     }
 }
@@ -36,7 +44,7 @@ impl fmt::Display for DeviceProtocol {
 
 /// The name is not one of [`DeviceProtocol::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown device protocol {0:?}: expected \"3dm-gx1\" or \"mip\"")]
+#[error("unknown device protocol {0:?}: expected \"3dm-gx1\", \"mip\" or \"vectornav\"")]
 pub struct UnknownProtocol(pub String);
 
 impl FromStr for DeviceProtocol {

@@ -303,6 +303,8 @@ pub mod device_protocol {
     pub const MIP: u8 = 1;
     /// A ROS 2 `sensor_msgs/msg/Imu` topic taken over DDS as the device (`imud --ros2-input`).
     pub const ROS2_INPUT: u8 = 2;
+    /// A VectorNav VN-100/200/300.
+    pub const VECTORNAV: u8 = 4;
 }
 
 /// The health of one triad's calibration ([`CalibrationHealth`] `accel_state` / `gyro_state`).

@@ -1,5 +1,5 @@
 //! The device the link runs, by protocol: one enum over the 3DM-GX1 ([`DeviceCore`] with its
-//! command decoder) and the MIP unit ([`MipDevice`]), so the pty loop in [`crate::link`] knows
+//! command decoder), the MIP unit ([`MipDevice`]) and the VectorNav unit ([`VnDevice`]), so the pty loop in [`crate::link`] knows
 //! no protocol. A third protocol is a third variant here and a device file beside these.
 
 use imu_proto::DeviceProtocol;
@@ -9,6 +9,7 @@ use imu_rec::truth::TruthSample;
 
 use crate::device::DeviceCore;
 use crate::mip_device::{MipDevice, MipRequest};
+use crate::vectornav_device::{VnDevice, VnRequest};
 
 /// A running virtual device of either protocol.
 pub enum VirtualDevice {
@@ -21,6 +22,8 @@ pub enum VirtualDevice {
     },
     /// A MIP unit.
     Mip(MipDevice),
+    /// A VectorNav unit.
+    Vectornav(VnDevice),
 }
 
 /// One command from the host, in its protocol's terms.
@@ -30,6 +33,8 @@ pub enum Request {
     Gx1(Command),
     /// A MIP command field.
     Mip(MipRequest),
+    /// A VectorNav sentence.
+    Vectornav(VnRequest),
 }
 
 impl Request {
@@ -38,7 +43,7 @@ impl Request {
     pub fn is_data(&self) -> bool {
         match self {
             Request::Gx1(c) => c.is_data(),
-            Request::Mip(_) => false,
+            Request::Mip(_) | Request::Vectornav(_) => false,
         }
     }
 }
@@ -63,6 +68,7 @@ impl VirtualDevice {
                 decoder: CommandDecoder::new(),
             },
             DeviceProtocol::Mip => VirtualDevice::Mip(MipDevice::new(core)),
+            DeviceProtocol::Vectornav => VirtualDevice::Vectornav(VnDevice::new(core)),
         }
     }
 
@@ -71,6 +77,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { core, .. } => core,
             VirtualDevice::Mip(d) => d.core(),
+            VirtualDevice::Vectornav(d) => d.core(),
         }
     }
 
@@ -79,6 +86,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { decoder, .. } => decoder.push(bytes),
             VirtualDevice::Mip(d) => d.push(bytes),
+            VirtualDevice::Vectornav(d) => d.push(bytes),
         }
     }
 
@@ -87,6 +95,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { decoder, .. } => decoder.pending_len(),
             VirtualDevice::Mip(d) => d.pending_len(),
+            VirtualDevice::Vectornav(d) => d.pending_len(),
         }
     }
 
@@ -102,6 +111,10 @@ impl VirtualDevice {
                 d.expire_partial();
                 0
             }
+            VirtualDevice::Vectornav(d) => {
+                d.expire_partial();
+                0
+            }
         }
     }
 
@@ -110,6 +123,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { decoder, .. } => *decoder = CommandDecoder::new(),
             VirtualDevice::Mip(d) => d.reset_link(),
+            VirtualDevice::Vectornav(d) => d.reset_link(),
         }
     }
 
@@ -121,6 +135,7 @@ impl VirtualDevice {
                 CommandEvent::Rejected { bytes, .. } => Err(bytes.len() as u64),
             }),
             VirtualDevice::Mip(d) => Some(d.next_request()?.map(Request::Mip)),
+            VirtualDevice::Vectornav(d) => Some(d.next_request()?.map(Request::Vectornav)),
         }
     }
 
@@ -140,6 +155,11 @@ impl VirtualDevice {
                 truth: None,
                 delay_s: 0.0,
             },
+            (VirtualDevice::Vectornav(d), Request::Vectornav(req)) => Answer {
+                bytes: d.handle(req),
+                truth: None,
+                delay_s: 0.0,
+            },
             // A request comes from the same device's decoder, so the protocols always match.
             _ => Answer::default(),
         }
@@ -150,6 +170,7 @@ impl VirtualDevice {
         match self {
             VirtualDevice::Gx1 { core, .. } => core.streaming().is_some(),
             VirtualDevice::Mip(d) => d.is_streaming(),
+            VirtualDevice::Vectornav(d) => d.is_streaming(),
         }
     }
 
@@ -171,15 +192,16 @@ impl VirtualDevice {
                 out.extend_from_slice(packet.as_bytes());
                 Some(truth)
             }
+            VirtualDevice::Vectornav(d) => d.stream_sample(t_s, out),
         }
     }
 
-    /// The line rate the link is paced to in real time, bits/s; `None`: not paced (a MIP unit
-    /// on a USB virtual serial port).
+    /// The line rate the link is paced to in real time, bits/s; `None`: not paced (a MIP or
+    /// VectorNav unit on a USB virtual serial port).
     pub fn baud(&self) -> Option<u32> {
         match self {
             VirtualDevice::Gx1 { core, .. } => Some(core.scenario().device.baud),
-            VirtualDevice::Mip(_) => None,
+            VirtualDevice::Mip(_) | VirtualDevice::Vectornav(_) => None,
         }
     }
 }

@@ -25,6 +25,7 @@ pub mod ros2_input;
 mod scripted;
 #[cfg(test)]
 mod tests;
+pub mod vectornav;
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -173,6 +174,7 @@ pub struct Device {
     config: DeviceConfig,
     gx1: Option<gx1::Gx1Driver>,
     mip: Option<mip::MipDriver>,
+    vectornav: Option<vectornav::VnDriver>,
     /// The ROS 2 input, when one is configured (`input.ros2-topic`): then the only driver.
     ros2: Option<ros2_input::Ros2InputDriver>,
     /// The protocol of the session (the configured one, or the last one probed).
@@ -189,6 +191,7 @@ impl Device {
             config: config.device.clone(),
             gx1: None,
             mip: None,
+            vectornav: None,
             ros2: config
                 .input
                 .ros2_topic
@@ -211,6 +214,9 @@ impl Device {
             DeviceProtocol::Mip => self
                 .mip
                 .get_or_insert_with(|| mip::MipDriver::new(&self.config)),
+            DeviceProtocol::Vectornav => self
+                .vectornav
+                .get_or_insert_with(|| vectornav::VnDriver::new(&self.config)),
         }
     }
 
@@ -221,6 +227,7 @@ impl Device {
         match self.protocol {
             DeviceProtocol::Gx1 => self.gx1.as_ref().map(|d| d as &dyn Driver),
             DeviceProtocol::Mip => self.mip.as_ref().map(|d| d as &dyn Driver),
+            DeviceProtocol::Vectornav => self.vectornav.as_ref().map(|d| d as &dyn Driver),
         }
     }
 
@@ -333,6 +340,7 @@ impl Driver for Device {
         let drivers = [
             self.gx1.as_ref().map(|d| d as &dyn Driver),
             self.mip.as_ref().map(|d| d as &dyn Driver),
+            self.vectornav.as_ref().map(|d| d as &dyn Driver),
             self.ros2.as_ref().map(|d| d as &dyn Driver),
         ];
         for s in drivers.into_iter().flatten().map(|d| d.stats()) {
@@ -356,6 +364,7 @@ impl Driver for Device {
         match self.protocol {
             DeviceProtocol::Gx1 => gx1::initial_session(&self.config),
             DeviceProtocol::Mip => mip::initial_session(&self.config),
+            DeviceProtocol::Vectornav => vectornav::initial_session(&self.config),
         }
     }
 }
@@ -375,6 +384,7 @@ fn fallback_gains(config: &DeviceConfig) -> Gains {
 pub fn status_protocol_name(code: u8) -> &'static str {
     match code {
         imu_bus::sample::device_protocol::MIP => DeviceProtocol::Mip.name(),
+        imu_bus::sample::device_protocol::VECTORNAV => DeviceProtocol::Vectornav.name(),
         imu_bus::sample::device_protocol::ROS2_INPUT => ros2_input::NAME,
         // 0: the GX1, and every v2 status, where the byte was reserved.
         _ => DeviceProtocol::Gx1.name(),
@@ -386,6 +396,7 @@ pub fn status_protocol_name(code: u8) -> &'static str {
 pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
     match config.protocol {
         Some(DeviceProtocol::Mip) => mip::config_problem(config),
+        Some(DeviceProtocol::Vectornav) => vectornav::config_problem(config),
         // Probed: the GX1's rules hold for either (a MIP unit streams whatever the mode).
         Some(DeviceProtocol::Gx1) | None => gx1::config_problem(config),
     }
@@ -422,5 +433,6 @@ pub fn offline_unit(
     Ok(match protocol {
         DeviceProtocol::Gx1 => Box::new(gx1::offline::Gx1Offline::new(core, config)),
         DeviceProtocol::Mip => Box::new(mip::offline::MipOffline::new(core, config)?),
+        DeviceProtocol::Vectornav => Box::new(vectornav::offline::VnOffline::new(core, config)?),
     })
 }

@@ -9,6 +9,9 @@
 //!    but the configured stream ever becomes a sample.
 //! 3. Ask the MIP question, "set to idle": only a MIP unit acknowledges it (and it stops one
 //!    that streams).
+//! 4. Ask the VectorNav question, a read of its model register (`$VNRRG,01`): only a
+//!    VectorNav unit answers it. (A VectorNav unit usually streams its power-up `$VNYPR`
+//!    output and is recognised in step 1.)
 //!
 //! Passive (`device.configure = false`), only step 1: the probe listens for up to the silence
 //! time-out (at least [`LISTEN`]) and asks nothing, so a unit that streams is recognised without
@@ -26,6 +29,7 @@ use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
 use imu_proto::decoder::{DecodeEvent, ReplyDecoder};
 use imu_proto::mip::{MipCommand, MipDecoder, MipEvent, MipReply};
+use imu_proto::vectornav::{Check, Register, VnCommand, VnDecoder, VnEvent, VnReply, reg};
 use tracing::info;
 
 use crate::config::DeviceConfig;
@@ -44,6 +48,8 @@ enum Stage {
     AskGx1,
     /// The MIP "set to idle" is out.
     AskMip,
+    /// The VectorNav model read is out.
+    AskVectornav,
     /// Decided (or failed): the result is waiting to be taken.
     Done,
 }
@@ -60,10 +66,13 @@ pub struct Probe {
     bytes: Vec<u8>,
     gx1: ReplyDecoder,
     mip: MipDecoder,
+    vectornav: VnDecoder,
     gx1_frames: u32,
     mip_packets: u32,
+    vectornav_frames: u32,
     gx1_firmware_reply: bool,
     mip_idle_ack: bool,
+    vectornav_model_reply: bool,
     transmit: Option<Vec<u8>>,
     result: Option<anyhow::Result<(DeviceProtocol, Vec<u8>)>>,
 }
@@ -87,10 +96,13 @@ impl Probe {
             bytes: Vec::new(),
             gx1: ReplyDecoder::default(),
             mip: MipDecoder::default(),
+            vectornav: VnDecoder::default(),
             gx1_frames: 0,
             mip_packets: 0,
+            vectornav_frames: 0,
             gx1_firmware_reply: false,
             mip_idle_ack: false,
+            vectornav_model_reply: false,
             transmit: None,
             result: None,
         }
@@ -110,6 +122,7 @@ impl Probe {
         self.bytes.extend_from_slice(bytes);
         self.gx1.push(bytes);
         self.mip.push(bytes);
+        self.vectornav.push(bytes);
         while let Some(ev) = self.gx1.next_event() {
             if let DecodeEvent::Frame { reply, .. } = ev {
                 self.gx1_frames += 1;
@@ -124,6 +137,19 @@ impl Probe {
                     .is_ok_and(|r| r.iter().any(|r| (r.descriptor_set, r.command) == idle));
             }
         }
+        while let Some(ev) = self.vectornav.next_event() {
+            match ev {
+                VnEvent::Binary { .. } => self.vectornav_frames += 1,
+                VnEvent::Ascii { sentence, .. } => {
+                    self.vectornav_frames += 1;
+                    self.vectornav_model_reply |= matches!(
+                        VnReply::decode(&sentence),
+                        Ok(VnReply::Read(Register::Model(_)))
+                    );
+                }
+                VnEvent::Rejected { .. } => {}
+            }
+        }
         match self.stage {
             Stage::Listen => {
                 if let Some(p) = self.streaming() {
@@ -136,19 +162,28 @@ impl Probe {
             Stage::AskMip if self.mip_idle_ack => {
                 self.decide(DeviceProtocol::Mip, "it acknowledges a MIP \"set to idle\"");
             }
+            Stage::AskVectornav if self.vectornav_model_reply => {
+                self.decide(
+                    DeviceProtocol::Vectornav,
+                    "it answers a VectorNav model register read",
+                );
+            }
             _ => {}
         }
     }
 
     /// The protocol of a unit that streams, if the evidence says it.
     fn streaming(&self) -> Option<DeviceProtocol> {
-        if self.mip_packets >= STREAM_EVIDENCE && self.mip_packets > self.gx1_frames {
-            Some(DeviceProtocol::Mip)
-        } else if self.gx1_frames >= STREAM_EVIDENCE && self.gx1_frames > self.mip_packets {
-            Some(DeviceProtocol::Gx1)
-        } else {
-            None
-        }
+        let counts = [
+            (DeviceProtocol::Gx1, self.gx1_frames),
+            (DeviceProtocol::Mip, self.mip_packets),
+            (DeviceProtocol::Vectornav, self.vectornav_frames),
+        ];
+        // The protocol with the most good frames, if it has enough and strictly more than
+        // every other.
+        counts.iter().find_map(|&(p, n)| {
+            (n >= STREAM_EVIDENCE && counts.iter().all(|&(q, m)| q == p || n > m)).then_some(p)
+        })
     }
 
     fn decide(&mut self, protocol: DeviceProtocol, why: &str) {
@@ -199,10 +234,21 @@ impl Probe {
                 self.deadline = now + self.reply_timeout;
             }
             Stage::AskMip => {
+                self.stage = Stage::AskVectornav;
+                self.transmit = Some(
+                    VnCommand::Read(reg::MODEL)
+                        .to_sentence(Check::Checksum8)
+                        .as_bytes()
+                        .to_vec(),
+                );
+                self.deadline = now + self.reply_timeout;
+            }
+            Stage::AskVectornav => {
                 self.stage = Stage::Done;
                 self.result = Some(Err(anyhow!(
-                    "the device answers neither the 3DM-GX1 firmware query nor a MIP \
-                     \"set to idle\" (set device.protocol to skip this probe)"
+                    "the device answers neither the 3DM-GX1 firmware query, a MIP \
+                     \"set to idle\" nor a VectorNav model read (set device.protocol to skip \
+                     this probe)"
                 )));
             }
             Stage::Done => {}

@@ -84,6 +84,10 @@ fn assert_same_device_time(
             // -1: the ns floor of a time just above a whole ns in f64.
             assert!((-1.0..16_001.0).contains(&d), "sample {i}: {d} ns");
         }
+        // Both hold the startup time in ns.
+        DeviceProtocol::Vectornav => {
+            assert_eq!(raw.t_device_ns, truth.ticks_unwrapped, "sample {i}")
+        }
     }
 }
 

@@ -202,6 +202,21 @@ fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
                 );
                 assert_eq!(r.accel_device_m_s2[2], a);
             }
+            DeviceProtocol::Vectornav => {
+                // No counts; the device reading is the uncompensated measurement in f32.
+                assert_eq!(r.flags & imu_bus::sample::raw_flags::NO_COUNTS, 16);
+                for k in 0..3 {
+                    for (got, want) in [
+                        (r.gyro_device_rad_s[k], t.measured_gyro_rad_s[k]),
+                        (r.accel_device_m_s2[k], t.measured_accel_m_s2[k]),
+                    ] {
+                        assert!(
+                            (got - want).abs() <= 1e-7 * want.abs() + 1e-30,
+                            "{got} {want}"
+                        );
+                    }
+                }
+            }
             DeviceProtocol::Mip => {
                 // No counts; the device reading is the measurement in f32.
                 assert_eq!(r.flags & imu_bus::sample::raw_flags::NO_COUNTS, 16);

@@ -174,7 +174,7 @@ fn deserialize_protocol<'de, D: serde::Deserializer<'de>>(
 #[derive(Debug, Clone, Deserialize)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
 pub struct DeviceSpec {
-    /// The protocol the device speaks: `"3dm-gx1"` (default) or `"mip"` (the command line's
+    /// The protocol the device speaks: `"3dm-gx1"` (default), `"mip"` or `"vectornav"` (the command line's
     /// `--protocol` overrides it).
     #[serde(deserialize_with = "deserialize_protocol")]
     pub protocol: DeviceProtocol,
@@ -203,6 +203,9 @@ pub struct DeviceSpec {
     /// its IMU stream resumed). The scenario clock starts at power-up (`imu-sim
     /// --power-up-streaming` sets it too).
     pub power_up_streaming: bool,
+    /// Model name a VectorNav unit reports in register 1 (empty: `VN-100T-CR`); a `VN-200...`
+    /// or `VN-300...` has GNSS and sends GPS time.
+    pub model: String,
 }
 
 impl Default for DeviceSpec {
@@ -219,6 +222,7 @@ impl Default for DeviceSpec {
             eeprom_read_fails: false,
             capture_bias_s: 3.0,
             power_up_streaming: false,
+            model: String::new(),
         }
     }
 }
