@@ -1,4 +1,4 @@
-//! Faults end to end: hot reload, garbage on the line, an unplug and kill -9 on both protocols;
+//! Faults end to end: hot reload, garbage on the line, an unplug and kill -9 on every protocol;
 //! bad configuration and calibration files as clear errors.
 
 use super::*;
@@ -11,6 +11,11 @@ fn hot_reload_garbage_unplug_and_kill_9() {
 #[test]
 fn mip_hot_reload_garbage_unplug_and_kill_9() {
     hot_reload_garbage_unplug_and_kill(DeviceProtocol::Mip);
+}
+
+#[test]
+fn vectornav_hot_reload_garbage_unplug_and_kill_9() {
+    hot_reload_garbage_unplug_and_kill(DeviceProtocol::Vectornav);
 }
 
 fn hot_reload_garbage_unplug_and_kill(protocol: DeviceProtocol) {

@@ -1,8 +1,8 @@
 //! End-to-end: imu-sim on a real pty -> the imud binary -> a real iceoryx2 subscriber and the MCAP
 //! file, checked against the simulator's truth: no frame lost, values correct, hot reload,
 //! reconnect after unplug, garbage skipped and counted, a readable file after kill -9. The
-//! streaming tests run over both protocols (the simulated unit speaking 3DM-GX1 or MIP; imud
-//! probes which), the offline one too.
+//! streaming tests run over every protocol (the simulated unit speaking 3DM-GX1, MIP or
+//! VectorNav; imud probes which), the offline one too.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -229,6 +229,11 @@ fn every_frame_reaches_log_and_subscriber_and_matches_truth() {
 #[test]
 fn every_mip_frame_reaches_log_and_subscriber_and_matches_truth() {
     every_frame_reaches_log_and_subscriber(DeviceProtocol::Mip);
+}
+
+#[test]
+fn every_vectornav_frame_reaches_log_and_subscriber_and_matches_truth() {
+    every_frame_reaches_log_and_subscriber(DeviceProtocol::Vectornav);
 }
 
 fn every_frame_reaches_log_and_subscriber(protocol: DeviceProtocol) {

@@ -146,6 +146,11 @@ fn offline_mip_recording_equals_the_truth_sample_for_sample() {
     offline_recording_equals_the_truth(DeviceProtocol::Mip);
 }
 
+#[test]
+fn offline_vectornav_recording_equals_the_truth_sample_for_sample() {
+    offline_recording_equals_the_truth(DeviceProtocol::Vectornav);
+}
+
 fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let scenario_path = dir.path().join("scenario.toml");
