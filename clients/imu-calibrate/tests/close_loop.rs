@@ -269,8 +269,15 @@ fn workbench_ladder_through_imud_over_mip() {
     workbench_ladder_through_imud(imu_proto::DeviceProtocol::Mip);
 }
 
+/// The same loop with the unit speaking VectorNav: its uncompensated readings are the raw
+/// reading the workbench reads and imud corrects (its compensated ones are recorded beside).
+#[test]
+fn workbench_ladder_through_imud_over_vectornav() {
+    workbench_ladder_through_imud(imu_proto::DeviceProtocol::Vectornav);
+}
+
 /// The scenario file for `protocol`: the shipped one, or a copy in `dir` whose device speaks
-/// MIP (its truth model is passed explicitly, so the copy's place does not matter).
+/// MIP or VectorNav (its truth model is passed explicitly, so the copy's place does not matter).
 fn scenario_for(dir: &Path, rel: &str, protocol: imu_proto::DeviceProtocol) -> PathBuf {
     let path = config_path(rel);
     if protocol == imu_proto::DeviceProtocol::Gx1 {

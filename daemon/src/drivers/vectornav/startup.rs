@@ -1,6 +1,9 @@
 //! A VectorNav unit's start-up as a state machine: its ASCII output off, identify (model,
 //! serial number, firmware registers), write binary output 1 (register 75) with the fields a
-//! calibration needs and the rate divisor, read it back and compare.
+//! calibration needs and the rate divisor but still off, read it back and compare, then turn
+//! it on. The output goes on last, like a MIP unit's resume, so every binary message after
+//! that reply is a sample and none before it is: a recording replayed passively gives the
+//! same samples.
 //!
 //! Register replies name the register they answer (`$VNRRG,03,...`, `$VNWRG,75,...`), so a
 //! reply to another command is simply not the one awaited; a `$VNERR` names nothing and is
@@ -132,6 +135,7 @@ enum Stage {
     Firmware,
     WriteOutput,
     ReadOutput,
+    EnableOutput,
 }
 
 /// What the start-up concluded.
@@ -229,9 +233,10 @@ impl Startup {
         Some(Outcome::Failed(e))
     }
 
-    fn wanted_output(&self) -> BinaryOutputConfig {
+    /// The output wanted, still off (`on` false) or on.
+    fn wanted_output(&self, on: bool) -> BinaryOutputConfig {
         BinaryOutputConfig {
-            async_mode: ASYNC_MODE_BOTH_PORTS,
+            async_mode: if on { ASYNC_MODE_BOTH_PORTS } else { 0 },
             rate_divisor: self.divisor,
             fields: preferred_fields(model_has_gnss(&self.model)),
         }
@@ -265,7 +270,7 @@ impl Startup {
                 self.firmware = f;
                 let write = Register::BinaryOutput {
                     index: 1,
-                    config: self.wanted_output(),
+                    config: self.wanted_output(false),
                 };
                 self.send(Stage::WriteOutput, VnCommand::Write(write), now);
             }
@@ -275,10 +280,22 @@ impl Startup {
                 now,
             ),
             (Stage::ReadOutput, Register::BinaryOutput { config, .. }) => {
-                if config != self.wanted_output() {
+                if config != self.wanted_output(false) {
                     return self.fail(anyhow!(
                         "the unit reads back another binary output than it acknowledged: \
                          {config:?}"
+                    ));
+                }
+                let on = Register::BinaryOutput {
+                    index: 1,
+                    config: self.wanted_output(true),
+                };
+                self.send(Stage::EnableOutput, VnCommand::Write(on), now);
+            }
+            (Stage::EnableOutput, Register::BinaryOutput { config, .. }) => {
+                if config != self.wanted_output(true) {
+                    return self.fail(anyhow!(
+                        "the unit turned on another binary output than asked: {config:?}"
                     ));
                 }
                 self.stage = None;
