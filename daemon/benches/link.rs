@@ -7,8 +7,10 @@
 //!    p99.9), both on CLOCK_MONOTONIC, with event wake-ups.
 //! 3. CPU use of the imud process at 100 Hz and at 1 kHz.
 //! 4. The same unit speaking MIP at 1 kHz (its base rate): every frame logged, and CPU.
+//! 5. The same unit speaking VectorNav at 800 Hz (its IMU rate, the highest it outputs):
+//!    every frame logged, and CPU.
 //!
-//! Run: `cargo bench -p imud --bench link` (`-- mip` for the MIP part alone). Numbers go to
+//! Run: `cargo bench -p imud --bench link` (`-- mip` or `-- vectornav` for one part alone). Numbers go to
 //! BENCHMARKS.md.
 
 #[path = "common/cpu_time.rs"]
@@ -213,9 +215,15 @@ fn cpu(rate_hz: f64, protocol: DeviceProtocol) {
 
 fn main() {
     let mip = DeviceProtocol::Mip;
+    let vectornav = DeviceProtocol::Vectornav;
     if std::env::args().skip(1).any(|a| a == "mip") {
         throughput(60_000, Some(1000.0), mip);
         cpu(1000.0, mip);
+        return;
+    }
+    if std::env::args().skip(1).any(|a| a == "vectornav") {
+        throughput(48_000, Some(800.0), vectornav);
+        cpu(800.0, vectornav);
         return;
     }
     let gx1 = DeviceProtocol::Gx1;
@@ -226,4 +234,6 @@ fn main() {
     cpu(1000.0, gx1);
     throughput(60_000, Some(1000.0), mip);
     cpu(1000.0, mip);
+    throughput(48_000, Some(800.0), vectornav);
+    cpu(800.0, vectornav);
 }
