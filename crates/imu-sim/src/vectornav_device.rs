@@ -5,7 +5,8 @@
 //! What a host can rely on:
 //! - The unit powers up streaming its ASCII asynchronous output, `$VNYPR` (register 6 = 1) at
 //!   40 Hz (register 7), with every binary output off, as a factory-fresh unit does; so the
-//!   scenario clock starts at power-up. With the scenario's `device.power-up-streaming` it
+//!   scenario clock starts at power-up. Binary output 1 holds the default fields at the
+//!   scenario's rate divisor (off), so a host keeping the unit's rate finds it there. With the scenario's `device.power-up-streaming` it
 //!   powers up with the ASCII output off and binary output 1 streaming its default fields
 //!   ([`default_fields`]) at the scenario's rate (a unit set up and saved so).
 //! - It answers reads of registers 1 (model: the scenario's `device.model`, default
@@ -112,12 +113,15 @@ impl VnDevice {
             d.model.clone()
         };
         let mut binary = [BinaryOutputConfig::default(); 3];
+        // Binary output 1 holds the default fields at the scenario's rate, on only when the
+        // unit was saved streaming.
+        binary[0] = BinaryOutputConfig {
+            async_mode: 0,
+            rate_divisor: divisor_for(core.scenario().rate_hz),
+            fields: default_fields(has_gnss(&model)),
+        };
         let async_type = if d.power_up_streaming {
-            binary[0] = BinaryOutputConfig {
-                async_mode: 1,
-                rate_divisor: divisor_for(core.scenario().rate_hz),
-                fields: default_fields(has_gnss(&model)),
-            };
+            binary[0].async_mode = 1;
             0
         } else {
             imu_proto::vectornav::ascii::ASYNC_YPR

@@ -69,8 +69,9 @@ pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
             "a VectorNav unit streams: \"polled\" is a 3DM-GX1 mode".into(),
         ));
     }
-    startup::rate_divisor(config.rate_hz)
-        .err()
+    config
+        .rate_hz
+        .and_then(|r| startup::rate_divisor(r).err())
         .map(|e| ("device.rate-hz", e.to_string()))
 }
 
@@ -238,7 +239,7 @@ impl Driver for VnDriver {
             self.learning = Some(now + Duration::from_secs_f64(self.config.silence_timeout_s));
             return;
         }
-        match startup::rate_divisor(self.config.rate_hz) {
+        match self.config.rate_hz.map(startup::rate_divisor).transpose() {
             Ok(divisor) => {
                 self.startup = Some(Startup::new(
                     Duration::from_secs_f64(self.config.reply_timeout_s),

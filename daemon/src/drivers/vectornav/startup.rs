@@ -50,9 +50,11 @@ pub fn model_has_gnss(model: &str) -> bool {
     model.starts_with("VN-2") || model.starts_with("VN-3")
 }
 
-/// The rate divisor for the wanted rate (none: 100 Hz).
-pub fn rate_divisor(wanted_rate_hz: Option<f64>) -> anyhow::Result<u16> {
-    let rate_hz = wanted_rate_hz.unwrap_or(100.0);
+/// The rate divisor when neither the configuration nor the unit names one: 100 Hz.
+pub const DEFAULT_DIVISOR: u16 = 8;
+
+/// The rate divisor for `rate_hz`.
+pub fn rate_divisor(rate_hz: f64) -> anyhow::Result<u16> {
     let divisor = f64::from(IMU_RATE_HZ) / rate_hz;
     if divisor < 1.0 || divisor > f64::from(u16::MAX) || (divisor - divisor.round()).abs() > 1e-6 {
         bail!(
@@ -133,6 +135,7 @@ enum Stage {
     Model,
     Serial,
     Firmware,
+    ReadCurrent,
     WriteOutput,
     ReadOutput,
     EnableOutput,
@@ -173,6 +176,8 @@ pub struct Startup {
     stage: Option<Stage>,
     ex: Exchange,
     timeout: Duration,
+    /// The divisor to configure (none: the unit's own, read before writing).
+    wanted_divisor: Option<u16>,
     divisor: u16,
     model: String,
     serial: u32,
@@ -182,8 +187,9 @@ pub struct Startup {
 }
 
 impl Startup {
-    /// A start-up begun at `now` (the ASCII output goes off at once).
-    pub fn new(timeout: Duration, divisor: u16, now: Instant) -> Self {
+    /// A start-up begun at `now` (the ASCII output goes off at once), configuring
+    /// `wanted_divisor` (none: keeping the unit's own, or [`DEFAULT_DIVISOR`] if it has none).
+    pub fn new(timeout: Duration, wanted_divisor: Option<u16>, now: Instant) -> Self {
         let mut tx = VecDeque::new();
         let ex = Exchange::new(
             VnCommand::Write(Register::AsyncOutputType(0)),
@@ -195,7 +201,8 @@ impl Startup {
             stage: Some(Stage::AsyncOff),
             ex,
             timeout,
-            divisor,
+            wanted_divisor,
+            divisor: wanted_divisor.unwrap_or(DEFAULT_DIVISOR),
             model: String::new(),
             serial: 0,
             firmware: String::new(),
@@ -268,6 +275,25 @@ impl Startup {
             }
             (Stage::Firmware, Register::Firmware(f)) => {
                 self.firmware = f;
+                if self.wanted_divisor.is_none() {
+                    // No rate configured: the unit's own, as its output register holds it.
+                    self.send(
+                        Stage::ReadCurrent,
+                        VnCommand::Read(reg::BINARY_OUTPUT_1),
+                        now,
+                    );
+                    return None;
+                }
+                let write = Register::BinaryOutput {
+                    index: 1,
+                    config: self.wanted_output(false),
+                };
+                self.send(Stage::WriteOutput, VnCommand::Write(write), now);
+            }
+            (Stage::ReadCurrent, Register::BinaryOutput { config, .. }) => {
+                if config.rate_divisor > 0 {
+                    self.divisor = config.rate_divisor;
+                }
                 let write = Register::BinaryOutput {
                     index: 1,
                     config: self.wanted_output(false),
