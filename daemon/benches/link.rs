@@ -9,9 +9,11 @@
 //! 4. The same unit speaking MIP at 1 kHz (its base rate): every frame logged, and CPU.
 //! 5. The same unit as an Xsens MTi at 2 kHz (an MTi-600's highest HR rate): every frame sent
 //!    after imud's start-up logged; CPU at 1 kHz.
+//! 6. The same unit speaking VectorNav at 800 Hz (its IMU rate, the highest it outputs):
+//!    every frame logged, and CPU.
 //!
-//! Run: `cargo bench -p imud --bench link` (`-- mip` or `-- xsens` for that part alone).
-//! Numbers go to BENCHMARKS.md.
+//! Run: `cargo bench -p imud --bench link` (`-- mip`, `-- xsens` or `-- vectornav` for that part
+//! alone). Numbers go to BENCHMARKS.md.
 
 #[path = "common/cpu_time.rs"]
 mod cpu_time;
@@ -133,7 +135,7 @@ fn throughput(n_frames: u64, rate_hz: Option<f64>, protocol: DeviceProtocol) {
     // MTi streams from power-up until imud's GoToConfig, and those samples are not imud's.
     let sent = match protocol {
         DeviceProtocol::Gx1 => report.data_replies - 1,
-        DeviceProtocol::Mip => report.data_replies,
+        DeviceProtocol::Mip | DeviceProtocol::Vectornav => report.data_replies,
         DeviceProtocol::Xsens => {
             report.data_replies - report.data_replies_before_first_command.unwrap_or(0)
         }
@@ -220,6 +222,7 @@ fn cpu(rate_hz: f64, protocol: DeviceProtocol) {
 fn main() {
     let mip = DeviceProtocol::Mip;
     let xsens = DeviceProtocol::Xsens;
+    let vectornav = DeviceProtocol::Vectornav;
     if std::env::args().skip(1).any(|a| a == "mip") {
         throughput(60_000, Some(1000.0), mip);
         cpu(1000.0, mip);
@@ -228,6 +231,11 @@ fn main() {
     if std::env::args().skip(1).any(|a| a == "xsens") {
         throughput(120_000, Some(2000.0), xsens);
         cpu(1000.0, xsens);
+        return;
+    }
+    if std::env::args().skip(1).any(|a| a == "vectornav") {
+        throughput(48_000, Some(800.0), vectornav);
+        cpu(800.0, vectornav);
         return;
     }
     let gx1 = DeviceProtocol::Gx1;
@@ -240,4 +248,6 @@ fn main() {
     cpu(1000.0, mip);
     throughput(120_000, Some(2000.0), xsens);
     cpu(1000.0, xsens);
+    throughput(48_000, Some(800.0), vectornav);
+    cpu(800.0, vectornav);
 }

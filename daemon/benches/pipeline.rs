@@ -1,8 +1,10 @@
 //! Per-frame cost of imud's data path: decode + calibrate + publish (iceoryx2) + log enqueue
 //! (MCAP writer thread), on pre-encoded 3DM-GX1 raw-bits frames, on MIP IMU packets (the
-//! fields imud configures: scaled accel, gyro, mag, temperature, reference time) and on Xsens
+//! fields imud configures: scaled accel, gyro, mag, temperature, reference time), on Xsens
 //! MTData2 messages (the outputs imud configures: counter, SampleTimeFine, UTC time,
-//! temperature, HR and compensated acceleration and rate of turn, magnetic field). Prints the
+//! temperature, HR and compensated acceleration and rate of turn, magnetic field) and on
+//! VectorNav binary messages (startup time, uncompensated and compensated accel, gyro, mag,
+//! temperature). Prints the
 //! median and tail of the per-frame time over batches, for each stage combination and protocol.
 //! Run: `cargo bench -p imud --bench pipeline`.
 
@@ -19,6 +21,7 @@ use imu_proto::xsens::{Format, MtData2, UtcTime};
 use imud::config::DeviceConfig;
 use imud::drivers::gx1::{self, Gx1Driver};
 use imud::drivers::mip::{self, MipDriver, MipTimebase};
+use imud::drivers::vectornav::{self, VnDriver};
 use imud::drivers::xsens::{self, XsensDriver};
 use imud::drivers::{Driver, DriverEvent, FrameSlot};
 use imud::pipeline::{
@@ -105,7 +108,33 @@ fn frames(protocol: DeviceProtocol) -> (Vec<Vec<u8>>, u64) {
                 .collect();
             (frames, 1_000_000)
         }
+        DeviceProtocol::Vectornav => {
+            let frames = (0..BATCH)
+                .map(|i| vectornav_message(i as u64 * 1_250_000, |k| f32::from(w(i, k)) * 1e-4))
+                .collect();
+            (frames, 1_250_000)
+        }
     }
+}
+
+/// The binary message imud configures, at startup time `t_ns`, values from `f`.
+fn vectornav_message(t_ns: u64, f: impl Fn(usize) -> f32) -> Vec<u8> {
+    use imu_proto::vectornav::{BinaryData, BinaryMessage};
+    let data = BinaryData {
+        startup_ns: Some(t_ns),
+        uncomp_accel_m_s2: Some([f(0), f(1), -9.8 + f(2)]),
+        uncomp_gyro_rad_s: Some([f(3), f(4), f(5)]),
+        uncomp_mag_gauss: Some([0.2 + f(6), f(7), 0.4]),
+        temp_c: Some(24.5),
+        accel_m_s2: Some([f(1), f(0), -9.8]),
+        angular_rate_rad_s: Some([f(4), f(3), f(5)]),
+        mag_gauss: Some([0.2, f(6), 0.4]),
+        ..BinaryData::default()
+    };
+    BinaryMessage::encode(vectornav::startup::preferred_fields(false), &data)
+        .expect("the preferred fields are filled")
+        .as_bytes()
+        .to_vec()
 }
 
 fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: bool, health: bool) {
@@ -139,6 +168,7 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
             mip::session(MipTimebase::ReferenceTime),
         ),
         DeviceProtocol::Xsens => (Box::new(XsensDriver::with_session(&cfg)), xsens::session()),
+        DeviceProtocol::Vectornav => (Box::new(VnDriver::with_session(&cfg)), vectornav::session()),
     };
     let mut pipeline = Pipeline::new(session, cal);
     // The daemon watches its calibration's health by default (imud::health).
@@ -154,6 +184,9 @@ fn run(protocol: DeviceProtocol, label: &str, sinks: &mut Sinks, calibrated: boo
             DeviceProtocol::Gx1 => stream.clone(),
             DeviceProtocol::Mip => shifted_mip(&stream, (b * BATCH) as u64 * spacing_ns),
             DeviceProtocol::Xsens => shifted_xsens(&stream, (b * BATCH) as u64 * spacing_ns),
+            DeviceProtocol::Vectornav => {
+                shifted_vectornav(&stream, (b * BATCH) as u64 * spacing_ns)
+            }
         };
         let start = Instant::now();
         for (k, frame) in batch.iter().enumerate() {
@@ -234,10 +267,27 @@ fn shifted_xsens(stream: &[Vec<u8>], offset_ns: u64) -> Vec<Vec<u8>> {
         .collect()
 }
 
+/// The VectorNav messages with their startup time moved on by `offset_ns` (re-encoded,
+/// untimed).
+fn shifted_vectornav(stream: &[Vec<u8>], offset_ns: u64) -> Vec<Vec<u8>> {
+    stream
+        .iter()
+        .map(|bytes| {
+            let m = imu_proto::vectornav::BinaryMessage::parse(bytes).expect("message");
+            let mut data = m.data().clone();
+            data.startup_ns = data.startup_ns.map(|t| t + offset_ns);
+            imu_proto::vectornav::BinaryMessage::encode(m.fields(), &data)
+                .expect("same fields")
+                .as_bytes()
+                .to_vec()
+        })
+        .collect()
+}
+
 fn main() {
     let protocol = match std::env::args()
         .skip(1)
-        .find(|a| a == "mip" || a == "3dm-gx1" || a == "xsens")
+        .find(|a| a == "mip" || a == "3dm-gx1" || a == "xsens" || a == "vectornav")
     {
         Some(p) => p.parse().expect("protocol"),
         None => {

@@ -41,8 +41,8 @@ struct Args {
     /// Serial device path (overrides device.path).
     #[arg(long, value_name = "PATH")]
     device: Option<PathBuf>,
-    /// The device's protocol, `3dm-gx1`, `mip` or `xsens` (default: probed; with --sim, the simulated
-    /// device's protocol too).
+    /// The device's protocol, `3dm-gx1`, `mip`, `xsens` or `vectornav` (default: probed; with
+    /// --sim, the simulated device's protocol too).
     #[arg(long, value_name = "PROTOCOL")]
     protocol: Option<imu_proto::DeviceProtocol>,
     /// Baud rate (overrides device.baud).

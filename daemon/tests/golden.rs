@@ -18,6 +18,7 @@ use imu_proto::mip::{DescriptorRate, MessageFormat, MipCommand, PacketBuilder, S
 use imu_proto::xsens::data::id;
 use imu_proto::xsens::{DataId, Format, OutputConfiguration, OutputSetting, XsensCommand};
 use imu_sim::mip_device::MipDevice;
+use imu_sim::vectornav_device::VnDevice;
 use imu_sim::xsens_device::XsensDevice;
 use imu_sim::{DeviceCore, Scenario};
 use imud::config::Config;
@@ -40,7 +41,7 @@ struct Case {
     make: fn() -> Vec<u8>,
 }
 
-const CASES: [Case; 8] = [
+const CASES: [Case; 9] = [
     Case {
         name: "gx1-raw-faults",
         protocol: DeviceProtocol::Gx1,
@@ -80,6 +81,11 @@ const CASES: [Case; 8] = [
         name: "xsens-power-up-default",
         protocol: DeviceProtocol::Xsens,
         make: xsens_power_up_default,
+    },
+    Case {
+        name: "vectornav-gnss-faults",
+        protocol: DeviceProtocol::Vectornav,
+        make: vectornav_gnss_faults,
     },
 ];
 
@@ -253,6 +259,57 @@ fn xsens_hr_faults() -> Vec<u8> {
             _ => {}
         }
         out.extend_from_slice(&msg);
+    }
+    out
+}
+
+/// A VN-200 streaming the binary output imud configures (startup time, GPS time and status,
+/// uncompensated and compensated readings, temperature) at 100 Hz for 1.5 s with its power-up
+/// `$VNYPR` output still on at 40 Hz between the messages, and faults: two messages lost, a
+/// corrupted byte, garbage, a truncated message.
+fn vectornav_gnss_faults() -> Vec<u8> {
+    use imu_proto::vectornav::{BinaryOutputConfig, Check, Register, VnCommand};
+    let mut scenario = Scenario::from_toml_str(SCENARIO, "demo").unwrap();
+    scenario
+        .set_protocol(DeviceProtocol::Vectornav, "golden")
+        .unwrap();
+    scenario.device.model = "VN-200T-CR".into();
+    let truth = imu_model::Calibration::from_toml_str(TRUTH, "truth").unwrap();
+    let mut d = VnDevice::new(DeviceCore::new(scenario, truth, 11));
+    let output = Register::BinaryOutput {
+        index: 1,
+        config: BinaryOutputConfig {
+            async_mode: 3,
+            rate_divisor: 8,
+            fields: imud::drivers::vectornav::startup::preferred_fields(true),
+        },
+    };
+    d.push(
+        VnCommand::Write(output)
+            .to_sentence(Check::Checksum8)
+            .as_bytes(),
+    );
+    while let Some(Ok(r)) = d.next_request() {
+        let _ = d.handle(r);
+    }
+    let mut out = Vec::new();
+    for k in 0..150u64 {
+        let mut frame = Vec::new();
+        d.stream_sample(k as f64 * 0.01, &mut frame);
+        match k {
+            30 | 31 => continue,
+            60 => {
+                let last = frame.len() - 5;
+                frame[last] ^= 0x01;
+            }
+            90 => out.extend_from_slice(&[0xFA, 0x00, 0x24, 0x56, 0x13]),
+            120 => {
+                let n = frame.len() - 40;
+                frame.truncate(n);
+            }
+            _ => {}
+        }
+        out.extend_from_slice(&frame);
     }
     out
 }

@@ -1,5 +1,5 @@
 //! `imud replay` against live runs: a recording of `imud --sim` (a real pty, real time)
-//! replayed reproduces its `/imu/data` and `/imu/raw` bit for bit, for either protocol, and so
+//! replayed reproduces its `/imu/data` and `/imu/raw` bit for bit, for every protocol, and so
 //! does the recording of a live run whose device was unplugged and reconnected (two device
 //! sessions); its bytes as a raw capture (`.bin`) and as a hex dump give the same device
 //! readings; a new calibration re-corrects the stream without changing the raw samples.
@@ -98,7 +98,7 @@ fn replay(dir: &Path, file: &Path, out: &str, args: &[&str]) -> Recording {
 
 #[test]
 fn a_replayed_recording_reproduces_its_imu_data_bit_for_bit() {
-    for protocol in ["3dm-gx1", "mip", "xsens"] {
+    for protocol in ["3dm-gx1", "mip", "xsens", "vectornav"] {
         let dir = tempfile::tempdir().unwrap();
         let file = live(dir.path(), protocol);
         let original = read_recording(&file).unwrap();
@@ -304,6 +304,7 @@ fn a_recording_that_spans_a_reconnect_replays_as_two_sessions_bit_for_bit() {
         DeviceProtocol::Gx1,
         DeviceProtocol::Mip,
         DeviceProtocol::Xsens,
+        DeviceProtocol::Vectornav,
     ] {
         let dir = tempfile::tempdir().unwrap();
         let file = live_with_reconnect(dir.path(), protocol);

@@ -277,6 +277,13 @@ fn workbench_ladder_through_imud_over_xsens() {
     workbench_ladder_through_imud(imu_proto::DeviceProtocol::Xsens);
 }
 
+/// The same loop with the unit speaking VectorNav: its uncompensated readings are the raw
+/// reading the workbench reads and imud corrects (its compensated ones are recorded beside).
+#[test]
+fn workbench_ladder_through_imud_over_vectornav() {
+    workbench_ladder_through_imud(imu_proto::DeviceProtocol::Vectornav);
+}
+
 /// The scenario file for `protocol`: the shipped one, or a copy in `dir` whose device speaks
 /// `protocol` (its truth model is passed explicitly, so the copy's place does not matter).
 fn scenario_for(dir: &Path, rel: &str, protocol: imu_proto::DeviceProtocol) -> PathBuf {

@@ -192,6 +192,7 @@ impl Echo for DaemonStatus {
         out.push(Cell::Text(health_state::name(self.health_gyro)));
         out.push(Cell::Text(match self.protocol {
             device_protocol::MIP => "mip",
+            device_protocol::VECTORNAV => "vectornav",
             device_protocol::ROS2_INPUT => "ros2-input",
             device_protocol::XSENS => "xsens",
             _ => "3dm-gx1",

@@ -44,6 +44,7 @@ pub static ALL: &[&Target] = &[
     &targets::command::TARGET,
     &targets::mip::TARGET,
     &targets::xsens::TARGET,
+    &targets::vectornav::TARGET,
     &targets::ros2_frame::TARGET,
     &targets::cdr::TARGET,
     &targets::ros1_message::TARGET,

@@ -10,6 +10,11 @@ use imu_proto::Command;
 use imu_proto::checksum::checksum;
 use imu_proto::mip::{PacketBuilder, descriptor_set};
 use imu_proto::reply::{KNOWN_REPLY_CODES, reply_len_for_code};
+use imu_proto::vectornav::binary::{common, group, imu, time};
+use imu_proto::vectornav::{
+    BinaryData, BinaryMessage, BinaryOutputConfig, Check, DeltaTheta, OutputFields, Register,
+    TimeStatus, VnCommand, VnReply,
+};
 use imu_proto::xsens::{Message, mid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -51,6 +56,14 @@ pub(crate) fn mip_decoder() -> Vec<Vec<u8>> {
 pub(crate) fn xsens_decoder() -> Vec<Vec<u8>> {
     let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
     let frames = xsens_frames(&mut rng);
+    stream_seeds(&frames, &mut rng, |_, _| Vec::new())
+}
+
+/// Seeds of `vectornav_decoder`: binary messages of a VN-100 and a VN-200, the register
+/// sentences of a start-up, an error and the power-up YPR output.
+pub(crate) fn vectornav_decoder() -> Vec<Vec<u8>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed);
+    let frames = vectornav_frames(&mut rng);
     stream_seeds(&frames, &mut rng, |_, _| Vec::new())
 }
 
@@ -348,4 +361,76 @@ fn xsens_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
         .filter_map(Result::ok)
         .map(|m| m.as_bytes().to_vec())
         .collect()
+}
+
+fn vectornav_frames(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
+    let mut v3 = || -> [f32; 3] { [rng.random(), rng.random(), rng.random()] };
+    let data = BinaryData {
+        startup_ns: Some(123_456_789),
+        gps_ns: Some(1_400_000_000_000_000_000),
+        time_status: Some(TimeStatus(7)),
+        uncomp_mag_gauss: Some(v3()),
+        uncomp_accel_m_s2: Some(v3()),
+        uncomp_gyro_rad_s: Some(v3()),
+        temp_c: Some(25.0),
+        pres_kpa: Some(101.0),
+        delta_theta: Some(DeltaTheta {
+            dt_s: 0.00125,
+            theta_deg: v3(),
+        }),
+        delta_vel_m_s: Some(v3()),
+        mag_gauss: Some(v3()),
+        accel_m_s2: Some(v3()),
+        angular_rate_rad_s: Some(v3()),
+        ..BinaryData::default()
+    };
+    // Binary messages as a unit streams them (a VN-100's IMU fields, a VN-200's with GPS time),
+    // then the register sentences of a start-up, an error and the power-up YPR output.
+    let layouts: [(u16, u16, u16); 3] = [
+        (common::TIME_STARTUP, 0, 0x070E),
+        (
+            common::TIME_STARTUP,
+            time::TIME_GPS | time::TIME_STATUS,
+            0x07FE,
+        ),
+        (
+            common::IMU | common::DELTA_THETA_VEL | common::MAG_PRES,
+            0,
+            0,
+        ),
+    ];
+    let mut frames: Vec<Vec<u8>> = layouts
+        .iter()
+        .filter_map(|&(c, t, i)| {
+            let mut f = OutputFields::default();
+            f.words[group::COMMON] = c;
+            f.words[group::TIME] = t;
+            f.words[group::IMU] = i;
+            BinaryMessage::encode(f, &data)
+                .ok()
+                .map(|m| m.as_bytes().to_vec())
+        })
+        .collect();
+    let mut fields = OutputFields::default();
+    fields.words[group::IMU] = imu::UNCOMP_ACCEL | imu::UNCOMP_GYRO;
+    let binary_output = Register::BinaryOutput {
+        index: 1,
+        config: BinaryOutputConfig {
+            async_mode: 1,
+            rate_divisor: 4,
+            fields,
+        },
+    };
+    let sentences = [
+        VnCommand::Read(1).to_sentence(Check::Checksum8),
+        VnCommand::Write(Register::AsyncOutputType(0)).to_sentence(Check::Crc16),
+        VnCommand::Write(binary_output.clone()).to_sentence(Check::Wildcard),
+        VnReply::Read(Register::Model("VN-100T-CR".into())).to_sentence(Check::Checksum8),
+        VnReply::Read(Register::SerialNumber(100_012_345)).to_sentence(Check::Checksum8),
+        VnReply::Written(binary_output).to_sentence(Check::Checksum8),
+        VnReply::Error(8).to_sentence(Check::Checksum8),
+        VnReply::Ypr([10.5, -0.25, 3.0]).to_sentence(Check::Checksum8),
+    ];
+    frames.extend(sentences.iter().map(|s| s.as_bytes().to_vec()));
+    frames
 }

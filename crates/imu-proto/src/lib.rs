@@ -69,6 +69,7 @@ pub mod reply;
 pub mod ros2_frame;
 pub mod scale;
 pub mod ticks;
+pub mod vectornav;
 pub mod xsens;
 
 pub use command::Command;

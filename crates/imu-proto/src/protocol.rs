@@ -15,14 +15,18 @@ pub enum DeviceProtocol {
     Mip,
     /// Xsens Xbus messages, as spoken by the MTi-1/10/100/600 series ([`crate::xsens`]).
     Xsens,
+    /// VectorNav's ASCII registers and binary outputs, as spoken by the VN-100/200/300
+    /// ([`crate::vectornav`]).
+    Vectornav,
 }
 
 impl DeviceProtocol {
     /// Every protocol, in the order they are listed to users.
-    pub const ALL: [DeviceProtocol; 3] = [
+    pub const ALL: [DeviceProtocol; 4] = [
         DeviceProtocol::Gx1,
         DeviceProtocol::Mip,
         DeviceProtocol::Xsens,
+        DeviceProtocol::Vectornav,
     ];
 
     /// The name used in configuration files and on the command line.
@@ -31,6 +35,7 @@ impl DeviceProtocol {
             DeviceProtocol::Gx1 => "3dm-gx1",
             DeviceProtocol::Mip => "mip",
             DeviceProtocol::Xsens => "xsens",
+            DeviceProtocol::Vectornav => "vectornav",
         }
     }
 }
@@ -43,7 +48,7 @@ impl fmt::Display for DeviceProtocol {
 
 /// The name is not one of [`DeviceProtocol::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown device protocol {0:?}: expected \"3dm-gx1\", \"mip\" or \"xsens\"")]
+#[error("unknown device protocol {0:?}: expected \"3dm-gx1\", \"mip\", \"xsens\" or \"vectornav\"")]
 pub struct UnknownProtocol(pub String);
 
 impl FromStr for DeviceProtocol {

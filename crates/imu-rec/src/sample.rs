@@ -373,6 +373,8 @@ pub mod device_protocol {
     pub const ROS2_INPUT: u8 = 2;
     /// An Xsens MTi.
     pub const XSENS: u8 = 3;
+    /// A VectorNav VN-100/200/300.
+    pub const VECTORNAV: u8 = 4;
 }
 
 /// The health of one triad's calibration ([`CalibrationHealth`] `accel_state` / `gyro_state`).

@@ -259,7 +259,7 @@ impl DeviceCore {
         (m.accel_m_s2, m.gyro_rad_s, m.mag_gauss)
     }
 
-    fn ned_from_sensor(&self, state: &MotionState) -> UnitQuaternion<f64> {
+    pub(crate) fn ned_from_sensor(&self, state: &MotionState) -> UnitQuaternion<f64> {
         enu_from_ned().inverse() * state.enu_from_sensor
     }
 

@@ -5,6 +5,7 @@
 //! - [`motion`]: exact analytic motion (orientation, rates, specific force) over time.
 //! - [`device`]: the sans-IO device: commands in, replies and truth out (3DM-GX1), and the
 //!   physics and truth every protocol shares; [`mip_device`]: the same device speaking MIP;
+//!   [`vectornav_device`]: the same device speaking VectorNav's protocol;
 //!   [`virtual_device`]: the enum over the protocols that the link runs.
 //! - [`link`]: the pty and the loop that paces replies in real time or as fast as the host reads.
 //!
@@ -18,6 +19,7 @@ pub mod mip_device;
 pub mod motion;
 pub mod scenario;
 pub mod tremor;
+pub mod vectornav_device;
 pub mod virtual_device;
 pub mod xsens_device;
 

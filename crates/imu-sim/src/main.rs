@@ -58,15 +58,16 @@ struct Args {
     /// Seconds to wait at the end of the scenario for the host to read the last bytes.
     #[arg(long, value_name = "S", default_value_t = 5.0, value_parser = imu_cli::finite_f64)]
     linger_s: f64,
-    /// The protocol the device speaks: 3dm-gx1, mip or xsens (default: the scenario's
-    /// `device.protocol`, else 3dm-gx1). A MIP device powers up idle with streaming enabled;
-    /// `resume` (base command 0x06) starts the stream, see imu_sim::mip_device. An Xsens MTi
-    /// powers up streaming its default outputs, see imu_sim::xsens_device.
+    /// The protocol the device speaks: 3dm-gx1, mip, xsens or vectornav (default: the
+    /// scenario's `device.protocol`, else 3dm-gx1). A MIP device powers up idle with streaming
+    /// enabled; `resume` (base command 0x06) starts the stream, see imu_sim::mip_device. An Xsens
+    /// MTi powers up streaming its default outputs, see imu_sim::xsens_device; a VectorNav unit
+    /// streaming `$VNYPR` at 40 Hz, see imu_sim::vectornav_device.
     #[arg(long, value_name = "PROTOCOL")]
     protocol: Option<DeviceProtocol>,
     /// The device powers up streaming, without any command, as a unit set up and saved with the
     /// vendor's tool: a 3DM-GX1 in continuous mode (raw sensor bits, 0x01), a MIP unit with its
-    /// IMU stream resumed; the scenario clock starts at once (scenario key
+    /// IMU stream resumed, a VectorNav unit with binary output 1 on; the scenario clock starts at once (scenario key
     /// `device.power-up-streaming`).
     #[arg(long)]
     power_up_streaming: bool,

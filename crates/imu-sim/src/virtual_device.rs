@@ -1,7 +1,7 @@
 //! The device the link runs, by protocol: one enum over the 3DM-GX1 ([`DeviceCore`] with its
-//! command decoder), the MIP unit ([`MipDevice`]) and the Xsens MTi ([`XsensDevice`]), so the
-//! pty loop in [`crate::link`] knows no protocol. Another protocol is another variant here and
-//! a device file beside these.
+//! command decoder), the MIP unit ([`MipDevice`]), the Xsens MTi ([`XsensDevice`]) and the
+//! VectorNav unit ([`VnDevice`]), so the pty loop in [`crate::link`] knows no protocol. Another
+//! protocol is another variant here and a device file beside these.
 
 use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
@@ -10,6 +10,7 @@ use imu_rec::truth::TruthSample;
 
 use crate::device::DeviceCore;
 use crate::mip_device::{MipDevice, MipRequest};
+use crate::vectornav_device::{VnDevice, VnRequest};
 use crate::xsens_device::{XsensDevice, XsensRequest};
 
 /// A running virtual device of either protocol.
@@ -25,6 +26,8 @@ pub enum VirtualDevice {
     Mip(MipDevice),
     /// An Xsens MTi.
     Xsens(XsensDevice),
+    /// A VectorNav unit.
+    Vectornav(VnDevice),
 }
 
 /// One command from the host, in its protocol's terms.
@@ -36,6 +39,8 @@ pub enum Request {
     Mip(MipRequest),
     /// An Xsens message.
     Xsens(XsensRequest),
+    /// A VectorNav sentence.
+    Vectornav(VnRequest),
 }
 
 impl Request {
@@ -44,7 +49,7 @@ impl Request {
     pub fn is_data(&self) -> bool {
         match self {
             Request::Gx1(c) => c.is_data(),
-            Request::Mip(_) | Request::Xsens(_) => false,
+            Request::Mip(_) | Request::Xsens(_) | Request::Vectornav(_) => false,
         }
     }
 }
@@ -70,6 +75,7 @@ impl VirtualDevice {
             },
             DeviceProtocol::Mip => VirtualDevice::Mip(MipDevice::new(core)),
             DeviceProtocol::Xsens => VirtualDevice::Xsens(XsensDevice::new(core)),
+            DeviceProtocol::Vectornav => VirtualDevice::Vectornav(VnDevice::new(core)),
         }
     }
 
@@ -79,6 +85,7 @@ impl VirtualDevice {
             VirtualDevice::Gx1 { core, .. } => core,
             VirtualDevice::Mip(d) => d.core(),
             VirtualDevice::Xsens(d) => d.core(),
+            VirtualDevice::Vectornav(d) => d.core(),
         }
     }
 
@@ -88,6 +95,7 @@ impl VirtualDevice {
             VirtualDevice::Gx1 { decoder, .. } => decoder.push(bytes),
             VirtualDevice::Mip(d) => d.push(bytes),
             VirtualDevice::Xsens(d) => d.push(bytes),
+            VirtualDevice::Vectornav(d) => d.push(bytes),
         }
     }
 
@@ -97,6 +105,7 @@ impl VirtualDevice {
             VirtualDevice::Gx1 { decoder, .. } => decoder.pending_len(),
             VirtualDevice::Mip(d) => d.pending_len(),
             VirtualDevice::Xsens(d) => d.pending_len(),
+            VirtualDevice::Vectornav(d) => d.pending_len(),
         }
     }
 
@@ -116,6 +125,10 @@ impl VirtualDevice {
                 d.expire_partial();
                 0
             }
+            VirtualDevice::Vectornav(d) => {
+                d.expire_partial();
+                0
+            }
         }
     }
 
@@ -125,6 +138,7 @@ impl VirtualDevice {
             VirtualDevice::Gx1 { decoder, .. } => *decoder = CommandDecoder::new(),
             VirtualDevice::Mip(d) => d.reset_link(),
             VirtualDevice::Xsens(d) => d.reset_link(),
+            VirtualDevice::Vectornav(d) => d.reset_link(),
         }
     }
 
@@ -137,6 +151,7 @@ impl VirtualDevice {
             }),
             VirtualDevice::Mip(d) => Some(d.next_request()?.map(Request::Mip)),
             VirtualDevice::Xsens(d) => Some(d.next_request()?.map(Request::Xsens)),
+            VirtualDevice::Vectornav(d) => Some(d.next_request()?.map(Request::Vectornav)),
         }
     }
 
@@ -164,6 +179,11 @@ impl VirtualDevice {
                 truth: None,
                 delay_s: 0.0,
             },
+            (VirtualDevice::Vectornav(d), Request::Vectornav(req)) => Answer {
+                bytes: d.handle(req),
+                truth: None,
+                delay_s: 0.0,
+            },
             // A request comes from the same device's decoder, so the protocols always match.
             _ => Answer::default(),
         }
@@ -175,6 +195,7 @@ impl VirtualDevice {
             VirtualDevice::Gx1 { core, .. } => core.streaming().is_some(),
             VirtualDevice::Mip(d) => d.is_streaming(),
             VirtualDevice::Xsens(d) => d.is_streaming(),
+            VirtualDevice::Vectornav(d) => d.is_streaming(),
         }
     }
 
@@ -204,15 +225,16 @@ impl VirtualDevice {
                 out.extend_from_slice(msg.as_bytes());
                 Some(truth)
             }
+            VirtualDevice::Vectornav(d) => d.stream_sample(t_s, out),
         }
     }
 
-    /// The line rate the link is paced to in real time, bits/s; `None`: not paced (a MIP unit
-    /// or an MTi on a USB virtual serial port).
+    /// The line rate the link is paced to in real time, bits/s; `None`: not paced (a MIP,
+    /// Xsens or VectorNav unit on a USB virtual serial port).
     pub fn baud(&self) -> Option<u32> {
         match self {
             VirtualDevice::Gx1 { core, .. } => Some(core.scenario().device.baud),
-            VirtualDevice::Mip(_) | VirtualDevice::Xsens(_) => None,
+            VirtualDevice::Mip(_) | VirtualDevice::Xsens(_) | VirtualDevice::Vectornav(_) => None,
         }
     }
 }

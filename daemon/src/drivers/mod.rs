@@ -25,6 +25,7 @@ pub mod ros2_input;
 mod scripted;
 #[cfg(test)]
 mod tests;
+pub mod vectornav;
 pub mod xsens;
 
 use std::collections::VecDeque;
@@ -175,6 +176,7 @@ pub struct Device {
     gx1: Option<gx1::Gx1Driver>,
     mip: Option<mip::MipDriver>,
     xsens: Option<xsens::XsensDriver>,
+    vectornav: Option<vectornav::VnDriver>,
     /// The ROS 2 input, when one is configured (`input.ros2-topic`): then the only driver.
     ros2: Option<ros2_input::Ros2InputDriver>,
     /// The protocol of the session (the configured one, or the last one probed).
@@ -192,6 +194,7 @@ impl Device {
             gx1: None,
             mip: None,
             xsens: None,
+            vectornav: None,
             ros2: config
                 .input
                 .ros2_topic
@@ -217,6 +220,9 @@ impl Device {
             DeviceProtocol::Xsens => self
                 .xsens
                 .get_or_insert_with(|| xsens::XsensDriver::new(&self.config)),
+            DeviceProtocol::Vectornav => self
+                .vectornav
+                .get_or_insert_with(|| vectornav::VnDriver::new(&self.config)),
         }
     }
 
@@ -228,6 +234,7 @@ impl Device {
             DeviceProtocol::Gx1 => self.gx1.as_ref().map(|d| d as &dyn Driver),
             DeviceProtocol::Mip => self.mip.as_ref().map(|d| d as &dyn Driver),
             DeviceProtocol::Xsens => self.xsens.as_ref().map(|d| d as &dyn Driver),
+            DeviceProtocol::Vectornav => self.vectornav.as_ref().map(|d| d as &dyn Driver),
         }
     }
 
@@ -341,6 +348,7 @@ impl Driver for Device {
             self.gx1.as_ref().map(|d| d as &dyn Driver),
             self.mip.as_ref().map(|d| d as &dyn Driver),
             self.xsens.as_ref().map(|d| d as &dyn Driver),
+            self.vectornav.as_ref().map(|d| d as &dyn Driver),
             self.ros2.as_ref().map(|d| d as &dyn Driver),
         ];
         for s in drivers.into_iter().flatten().map(|d| d.stats()) {
@@ -365,6 +373,7 @@ impl Driver for Device {
             DeviceProtocol::Gx1 => gx1::initial_session(&self.config),
             DeviceProtocol::Mip => mip::initial_session(&self.config),
             DeviceProtocol::Xsens => xsens::initial_session(&self.config),
+            DeviceProtocol::Vectornav => vectornav::initial_session(&self.config),
         }
     }
 }
@@ -384,6 +393,7 @@ fn fallback_gains(config: &DeviceConfig) -> Gains {
 pub fn status_protocol_name(code: u8) -> &'static str {
     match code {
         imu_bus::sample::device_protocol::MIP => DeviceProtocol::Mip.name(),
+        imu_bus::sample::device_protocol::VECTORNAV => DeviceProtocol::Vectornav.name(),
         imu_bus::sample::device_protocol::ROS2_INPUT => ros2_input::NAME,
         imu_bus::sample::device_protocol::XSENS => DeviceProtocol::Xsens.name(),
         // 0: the GX1, and every v2 status, where the byte was reserved.
@@ -397,6 +407,7 @@ pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
     match config.protocol {
         Some(DeviceProtocol::Mip) => mip::config_problem(config),
         Some(DeviceProtocol::Xsens) => xsens::config_problem(config),
+        Some(DeviceProtocol::Vectornav) => vectornav::config_problem(config),
         // Probed: the GX1's rules hold for either (a MIP unit streams whatever the mode).
         Some(DeviceProtocol::Gx1) | None => gx1::config_problem(config),
     }
@@ -434,5 +445,6 @@ pub fn offline_unit(
         DeviceProtocol::Gx1 => Box::new(gx1::offline::Gx1Offline::new(core, config)),
         DeviceProtocol::Mip => Box::new(mip::offline::MipOffline::new(core, config)?),
         DeviceProtocol::Xsens => Box::new(xsens::offline::XsensOffline::new(core, config)?),
+        DeviceProtocol::Vectornav => Box::new(vectornav::offline::VnOffline::new(core, config)?),
     })
 }

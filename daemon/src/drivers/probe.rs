@@ -12,6 +12,9 @@
 //!    that streams).
 //! 4. Ask the Xsens question, `GoToConfig`: only an MTi acknowledges it (and it stops its
 //!    stream).
+//! 5. Ask the VectorNav question, a read of its model register (`$VNRRG,01`): only a
+//!    VectorNav unit answers it. (A VectorNav unit usually streams its power-up `$VNYPR`
+//!    output and is recognised in step 1.)
 //!
 //! Passive (`device.configure = false`), only step 1: the probe listens for up to the silence
 //! time-out (at least [`LISTEN`]) and asks nothing, so a unit that streams is recognised without
@@ -29,6 +32,7 @@ use imu_proto::DeviceProtocol;
 use imu_proto::command::Command;
 use imu_proto::decoder::{DecodeEvent, ReplyDecoder};
 use imu_proto::mip::{MipCommand, MipDecoder, MipEvent, MipReply};
+use imu_proto::vectornav::{Check, Register, VnCommand, VnDecoder, VnEvent, VnReply, reg};
 use imu_proto::xsens::{XsensCommand, XsensDecoder, XsensEvent, mid};
 use tracing::info;
 
@@ -50,6 +54,8 @@ enum Stage {
     AskMip,
     /// The Xsens `GoToConfig` is out.
     AskXsens,
+    /// The VectorNav model read is out.
+    AskVectornav,
     /// Decided (or failed): the result is waiting to be taken.
     Done,
 }
@@ -73,6 +79,9 @@ pub struct Probe {
     gx1_firmware_reply: bool,
     mip_idle_ack: bool,
     xsens_config_ack: bool,
+    vectornav: VnDecoder,
+    vectornav_frames: u32,
+    vectornav_model_reply: bool,
     transmit: Option<Vec<u8>>,
     result: Option<anyhow::Result<(DeviceProtocol, Vec<u8>)>>,
 }
@@ -103,6 +112,9 @@ impl Probe {
             gx1_firmware_reply: false,
             mip_idle_ack: false,
             xsens_config_ack: false,
+            vectornav: VnDecoder::default(),
+            vectornav_frames: 0,
+            vectornav_model_reply: false,
             transmit: None,
             result: None,
         }
@@ -123,6 +135,7 @@ impl Probe {
         self.gx1.push(bytes);
         self.mip.push(bytes);
         self.xsens.push(bytes);
+        self.vectornav.push(bytes);
         while let Some(ev) = self.gx1.next_event() {
             if let DecodeEvent::Frame { reply, .. } = ev {
                 self.gx1_frames += 1;
@@ -143,6 +156,19 @@ impl Probe {
                 self.xsens_config_ack |= packet.mid() == mid::GO_TO_CONFIG_ACK;
             }
         }
+        while let Some(ev) = self.vectornav.next_event() {
+            match ev {
+                VnEvent::Binary { .. } => self.vectornav_frames += 1,
+                VnEvent::Ascii { sentence, .. } => {
+                    self.vectornav_frames += 1;
+                    self.vectornav_model_reply |= matches!(
+                        VnReply::decode(&sentence),
+                        Ok(VnReply::Read(Register::Model(_)))
+                    );
+                }
+                VnEvent::Rejected { .. } => {}
+            }
+        }
         match self.stage {
             Stage::Listen => {
                 if let Some(p) = self.streaming() {
@@ -158,6 +184,12 @@ impl Probe {
             Stage::AskXsens if self.xsens_config_ack => {
                 self.decide(DeviceProtocol::Xsens, "it acknowledges an Xsens GoToConfig");
             }
+            Stage::AskVectornav if self.vectornav_model_reply => {
+                self.decide(
+                    DeviceProtocol::Vectornav,
+                    "it answers a VectorNav model register read",
+                );
+            }
             _ => {}
         }
     }
@@ -168,10 +200,12 @@ impl Probe {
             (DeviceProtocol::Gx1, self.gx1_frames),
             (DeviceProtocol::Mip, self.mip_packets),
             (DeviceProtocol::Xsens, self.xsens_messages),
+            (DeviceProtocol::Vectornav, self.vectornav_frames),
         ];
+        // The protocol with the most good frames, if it has enough and strictly more than
+        // every other.
         counts.iter().find_map(|&(p, n)| {
-            let most = counts.iter().all(|&(q, m)| q == p || n > m);
-            (n >= STREAM_EVIDENCE && most).then_some(p)
+            (n >= STREAM_EVIDENCE && counts.iter().all(|&(q, m)| q == p || n > m)).then_some(p)
         })
     }
 
@@ -228,10 +262,21 @@ impl Probe {
                 self.deadline = now + self.reply_timeout;
             }
             Stage::AskXsens => {
+                self.stage = Stage::AskVectornav;
+                self.transmit = Some(
+                    VnCommand::Read(reg::MODEL)
+                        .to_sentence(Check::Checksum8)
+                        .as_bytes()
+                        .to_vec(),
+                );
+                self.deadline = now + self.reply_timeout;
+            }
+            Stage::AskVectornav => {
                 self.stage = Stage::Done;
                 self.result = Some(Err(anyhow!(
                     "the device answers neither the 3DM-GX1 firmware query, a MIP \
-                     \"set to idle\" nor an Xsens GoToConfig (set device.protocol to skip \
+                     \"set to idle\", an Xsens GoToConfig nor a VectorNav model read (set \
+                     device.protocol to skip \
                      this probe)"
                 )));
             }

@@ -105,6 +105,27 @@ fn an_idle_mip_unit_acknowledges_set_to_idle() {
 }
 
 #[test]
+fn a_vectornav_unit_is_recognised_by_its_power_up_output_and_configured() {
+    let mut h = probing(AcquisitionMode::Continuous, |o| {
+        Peer::clean(DeviceProtocol::Vectornav, o)
+    });
+    h.start_up();
+    let id = h
+        .seen
+        .ready
+        .clone()
+        .unwrap_or_else(|| panic!("{:?}", h.seen.failed));
+    assert_eq!(id.protocol, "vectornav");
+    // Its $VNYPR output decided while listening: the first bytes written are the start-up's
+    // "ASCII output off".
+    assert!(h.written[0].1.starts_with(b"$VNWRG,06,0*"));
+    assert_eq!(configuration_unverified(&h), 0);
+    h.run_until(Duration::from_secs(2), |_| false);
+    assert!(h.pipeline.counters().samples >= 190);
+    assert_eq!(h.pipeline.counters().samples_lost, 0);
+}
+
+#[test]
 fn a_silent_port_fails_the_probe_and_a_corrupt_answer_is_asked_again_next_session() {
     let mut h = probing(AcquisitionMode::Continuous, |o| {
         let mut first = true;
@@ -179,6 +200,8 @@ fn a_passive_streaming_unit_is_published_sample_for_sample_and_never_sent_a_byte
         (DeviceProtocol::Mip, Some(DeviceProtocol::Mip)),
         (DeviceProtocol::Xsens, None),
         (DeviceProtocol::Xsens, Some(DeviceProtocol::Xsens)),
+        (DeviceProtocol::Vectornav, None),
+        (DeviceProtocol::Vectornav, Some(DeviceProtocol::Vectornav)),
     ] {
         let mut h = passive(configured, |o| streaming_peer(protocol, o));
         h.start_up();

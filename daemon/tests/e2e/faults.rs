@@ -18,6 +18,11 @@ fn xsens_hot_reload_garbage_unplug_and_kill_9() {
     hot_reload_garbage_unplug_and_kill(DeviceProtocol::Xsens);
 }
 
+#[test]
+fn vectornav_hot_reload_garbage_unplug_and_kill_9() {
+    hot_reload_garbage_unplug_and_kill(DeviceProtocol::Vectornav);
+}
+
 fn hot_reload_garbage_unplug_and_kill(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let cal_path = dir.path().join("calibration.toml");

@@ -1,9 +1,9 @@
 //! End-to-end: imu-sim on a real pty -> the imud binary -> a real iceoryx2 subscriber and the MCAP
 //! file, checked against the simulator's truth: no frame lost, values correct, hot reload,
 //! reconnect after unplug, garbage skipped and counted, a readable file after kill -9. The
-//! streaming tests run over every protocol (the simulated unit speaking 3DM-GX1, MIP or Xsens;
-//! imud probes which), the offline one too; `time_sync.rs` the time sources against a unit's GNSS
-//! time.
+//! streaming tests run over every protocol (the simulated unit speaking 3DM-GX1, MIP, Xsens or
+//! VectorNav; imud probes which), the offline one too; `time_sync.rs` the time sources against a
+//! unit's GNSS time.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -94,6 +94,10 @@ fn assert_same_device_time(
                 "sample {i}"
             );
         }
+        // Both hold the startup time in ns.
+        DeviceProtocol::Vectornav => {
+            assert_eq!(raw.t_device_ns, truth.ticks_unwrapped, "sample {i}")
+        }
     }
 }
 
@@ -106,7 +110,8 @@ fn imuds_truth<'a>(
 ) -> Vec<&'a imu_bus::truth::TruthSample> {
     let skip = match protocol {
         DeviceProtocol::Xsens => report.data_replies_before_first_command.unwrap_or(0) as usize,
-        DeviceProtocol::Gx1 | DeviceProtocol::Mip => 0,
+        // A VectorNav unit's power-up output is `$VNYPR`, which carries no truth record.
+        DeviceProtocol::Gx1 | DeviceProtocol::Mip | DeviceProtocol::Vectornav => 0,
     };
     data.into_iter().skip(skip).collect()
 }
@@ -254,6 +259,11 @@ fn every_mip_frame_reaches_log_and_subscriber_and_matches_truth() {
 #[test]
 fn every_xsens_frame_reaches_log_and_subscriber_and_matches_truth() {
     every_frame_reaches_log_and_subscriber(DeviceProtocol::Xsens);
+}
+
+#[test]
+fn every_vectornav_frame_reaches_log_and_subscriber_and_matches_truth() {
+    every_frame_reaches_log_and_subscriber(DeviceProtocol::Vectornav);
 }
 
 fn every_frame_reaches_log_and_subscriber(protocol: DeviceProtocol) {

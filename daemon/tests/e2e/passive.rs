@@ -18,6 +18,11 @@ fn a_passive_xsens_unit_is_recorded_sample_for_sample() {
     a_passive_unit_is_recorded_sample_for_sample(DeviceProtocol::Xsens);
 }
 
+#[test]
+fn a_passive_vectornav_unit_powered_up_streaming_is_recorded_sample_for_sample() {
+    a_passive_unit_is_recorded_sample_for_sample(DeviceProtocol::Vectornav);
+}
+
 /// A unit set up and saved with the vendor's tool (the simulator's
 /// `device.power-up-streaming`) and a passive imud with the protocol unset: imud sends
 /// nothing, recognises the stream, and publishes and records every sample the unit sent, with

@@ -151,6 +151,11 @@ fn offline_xsens_recording_equals_the_truth_sample_for_sample() {
     offline_recording_equals_the_truth(DeviceProtocol::Xsens);
 }
 
+#[test]
+fn offline_vectornav_recording_equals_the_truth_sample_for_sample() {
+    offline_recording_equals_the_truth(DeviceProtocol::Vectornav);
+}
+
 fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
     let dir = tempfile::tempdir().unwrap();
     let scenario_path = dir.path().join("scenario.toml");
@@ -206,6 +211,21 @@ fn offline_recording_equals_the_truth(protocol: DeviceProtocol) {
                         <= 0.5 * 7000.0 / 32_768_000.0 * 9.80665 + 1e-12
                 );
                 assert_eq!(r.accel_device_m_s2[2], a);
+            }
+            DeviceProtocol::Vectornav => {
+                // No counts; the device reading is the uncompensated measurement in f32.
+                assert_eq!(r.flags & imu_bus::sample::raw_flags::NO_COUNTS, 16);
+                for k in 0..3 {
+                    for (got, want) in [
+                        (r.gyro_device_rad_s[k], t.measured_gyro_rad_s[k]),
+                        (r.accel_device_m_s2[k], t.measured_accel_m_s2[k]),
+                    ] {
+                        assert!(
+                            (got - want).abs() <= 1e-7 * want.abs() + 1e-30,
+                            "{got} {want}"
+                        );
+                    }
+                }
             }
             DeviceProtocol::Mip | DeviceProtocol::Xsens => {
                 // No counts; the device reading is the measurement in f32.

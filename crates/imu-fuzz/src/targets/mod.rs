@@ -15,6 +15,7 @@ pub(crate) mod ros1_bag;
 pub(crate) mod ros1_message;
 pub(crate) mod ros2_db3;
 pub(crate) mod ros2_frame;
+pub(crate) mod vectornav;
 pub(crate) mod xsens;
 
 pub(crate) use files::with_cut;

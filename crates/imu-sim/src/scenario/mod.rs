@@ -178,8 +178,8 @@ fn deserialize_protocol<'de, D: serde::Deserializer<'de>>(
 #[derive(Debug, Clone, Deserialize)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
 pub struct DeviceSpec {
-    /// The protocol the device speaks: `"3dm-gx1"` (default), `"mip"` or `"xsens"` (the
-    /// command line's `--protocol` overrides it).
+    /// The protocol the device speaks: `"3dm-gx1"` (default), `"mip"`, `"xsens"` or
+    /// `"vectornav"` (the command line's `--protocol` overrides it).
     #[serde(deserialize_with = "deserialize_protocol")]
     pub protocol: DeviceProtocol,
     /// Serial number reported by command 0xF1.
@@ -217,6 +217,9 @@ pub struct DeviceSpec {
     pub gnss_epoch_utc_s: f64,
     /// Windows of scenario time with no valid GNSS time.
     pub gnss_outage: Vec<GnssOutage>,
+    /// Model name a VectorNav unit reports in register 1 (empty: `VN-100T-CR`); a `VN-200...`
+    /// or `VN-300...` has GNSS and sends GPS time.
+    pub model: String,
 }
 
 /// A window of scenario time during which the unit's GNSS time is invalid.
@@ -257,6 +260,7 @@ impl Default for DeviceSpec {
             gnss_time: false,
             gnss_epoch_utc_s: 1_767_225_600.0,
             gnss_outage: Vec::new(),
+            model: String::new(),
         }
     }
 }

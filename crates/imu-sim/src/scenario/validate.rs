@@ -97,7 +97,8 @@ impl Scenario {
         Ok(())
     }
 
-    /// The device's clock, GainScales and, for MIP, a rate its base rate divides into.
+    /// The device's clock, GainScales and, for MIP and VectorNav, a rate its base rate divides
+    /// into.
     fn validate_device(&self, invalid: Invalid<'_>) -> Result<(), ScenarioError> {
         if !positive(self.device.tick_period_s) {
             return Err(invalid(
@@ -160,6 +161,33 @@ impl Scenario {
                          so the rate must be {} Hz divided by a whole number",
                         self.rate_hz, MIP_IMU_BASE_RATE_HZ, MIP_IMU_BASE_RATE_HZ
                     ),
+                ));
+            }
+        }
+        if self.device.protocol == DeviceProtocol::Vectornav {
+            let imu_hz = f64::from(imu_proto::vectornav::IMU_RATE_HZ);
+            let divisor = imu_hz / self.rate_hz;
+            if self.rate_hz > imu_hz || (divisor - divisor.round()).abs() > 1e-9 {
+                return Err(invalid(
+                    "rate-hz".into(),
+                    format!(
+                        "{} Hz is not a VectorNav output rate: the unit's IMU rate is {imu_hz} Hz, \
+                         so the rate must be {imu_hz} Hz divided by a whole number",
+                        self.rate_hz
+                    ),
+                ));
+            }
+            let m = &self.device.model;
+            if !m.is_empty()
+                && !m
+                    .bytes()
+                    .all(|b| b.is_ascii_graphic() && !b",*$".contains(&b))
+            {
+                return Err(invalid(
+                    "device.model".into(),
+                    "a model name is printable ASCII without ',', '*' or '$' (it is sent in \
+                     a register reply)"
+                        .into(),
                 ));
             }
         }

@@ -1,0 +1,56 @@
+//! The two checks VectorNav messages carry: the 8-bit XOR checksum of ASCII sentences and the
+//! CRC-16-CCITT of binary messages (also accepted on ASCII sentences as a 4-hex-digit check).
+
+/// XOR of every byte: the ASCII sentence checksum over the bytes between `$` and `*`.
+///
+/// ```
+/// use imu_proto::vectornav::checksum::checksum8;
+/// // "$VNRRG,11*73", the read of register 11 that VectorNav's manuals use as their example.
+/// assert_eq!(checksum8(b"VNRRG,11"), 0x73);
+/// ```
+pub fn checksum8(bytes: &[u8]) -> u8 {
+    bytes.iter().fold(0, |acc, &b| acc ^ b)
+}
+
+/// CRC-16-CCITT, initial value 0, polynomial 0x1021, no reflection, no final XOR (the variant
+/// also called CRC-16/XMODEM). A binary message carries it big-endian after its payload, so the
+/// CRC over everything after the sync byte, CRC included, is 0 for a good message.
+///
+/// ```
+/// use imu_proto::vectornav::checksum::crc16;
+/// // The catalogue check value of CRC-16/XMODEM.
+/// assert_eq!(crc16(b"123456789"), 0x31C3);
+/// ```
+pub fn crc16(bytes: &[u8]) -> u16 {
+    bytes.iter().fold(0u16, |crc, &b| {
+        let mut crc = crc ^ (u16::from(b) << 8);
+        for _ in 0..8 {
+            crc = if crc & 0x8000 != 0 {
+                (crc << 1) ^ 0x1021
+            } else {
+                crc << 1
+            };
+        }
+        crc
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc_over_message_and_its_crc_is_zero() {
+        let body = b"\x01\x02\x00any payload";
+        let crc = crc16(body);
+        let mut msg = body.to_vec();
+        msg.extend_from_slice(&crc.to_be_bytes());
+        assert_eq!(crc16(&msg), 0);
+    }
+
+    #[test]
+    fn empty_input_checks_to_zero() {
+        assert_eq!(checksum8(&[]), 0);
+        assert_eq!(crc16(&[]), 0);
+    }
+}
