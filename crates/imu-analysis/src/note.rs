@@ -727,6 +727,150 @@ mod tests {
         assert_eq!(v["notes"][0], Note::Gauge.to_string());
     }
 
+    /// One note of every kind but `SegmentSkipped` (which needs a detected segment).
+    fn one_of_each() -> Vec<Note> {
+        let held = Unobservable {
+            name: "bias.x".into(),
+            reason: imu_stats::lsq::NotFitted::ZeroJacobian,
+        };
+        vec![
+            Note::GyroRestRate {
+                rest_deg_s: [1.0, 2.0, 3.0],
+            },
+            Note::QuietRunsDropped {
+                seen: 3,
+                used: 2,
+                dropped: Vec::new(),
+                options: Box::default(),
+            },
+            Note::GainsNeedPlateaus {
+                effects: vec![EffectKind::Scale],
+            },
+            Note::GainsFromMoves {
+                effects: vec![EffectKind::Scale],
+            },
+            Note::JointBiases {
+                recordings: 2,
+                accel_turn_on_m_s2: None,
+                gyro_turn_on_rad_s: None,
+            },
+            Note::PlanGravity {
+                file: "p.toml".into(),
+                gravity_source: "9.8 m/s^2 (given)".into(),
+            },
+            Note::EarthRateUnknown {
+                unknown: 1,
+                segments: 2,
+                max_std_rad_s: [1e-5; 3],
+                g_sensitivity_bound_rad_s_per_m_s2: 1e-6,
+            },
+            Note::NoTemperature {
+                assumed_c: 25.0,
+                source: TempAssumed::Log,
+            },
+            Note::LogClock {
+                file: "l.csv".into(),
+                offset_s: 0.5,
+                correlation: None,
+            },
+            Note::TableAxes {
+                file: "l.csv".into(),
+                axes: vec![(4, [0.0, 0.0, 1.0])],
+                gravity_source: None,
+            },
+            Note::TableEarthRate { latitude_deg: None },
+            Note::FerrarisSummary {
+                file: "f.toml".into(),
+                faces: 6,
+                distinct: vec!["+x".into()],
+                turns: 3,
+                gravity_m_s2: 9.8,
+            },
+            Note::MissingFaces { seen: 5 },
+            Note::TooFewTurns { turns: 2 },
+            Note::NoLatitude,
+            Note::LocalGravity {
+                g_m_s2: 9.8,
+                source: GravitySource::Standard,
+            },
+            Note::PlateausIgnored { count: 1 },
+            Note::AccelStartEllipsoid {
+                offset_m_s2: [0.0; 3],
+                scale_error: [0.0; 3],
+            },
+            Note::Gauge,
+            Note::GyroBiasEarthRate {
+                latitude_deg: Some(40.0),
+            },
+            Note::MoveOffsetsVary {
+                effects: vec![EffectKind::GSensitivity],
+            },
+            Note::MovesSkipped { count: 1 },
+            Note::FittedAsExcited {
+                effects: vec![EffectKind::TempBias],
+            },
+            Note::GyroGainsMethod,
+            Note::NotFitted {
+                triad: Triad::Accel,
+                unobservable: held.clone(),
+            },
+            Note::RefitHeld {
+                triad: Triad::Gyro,
+                unobservable: held,
+            },
+            Note::RefitFailed {
+                triad: Triad::Gyro,
+                error: "no points".into(),
+            },
+            Note::FinalCalibrationFailed {
+                error: "too few poses".into(),
+            },
+            Note::AccelMagnitude,
+            Note::EarthRateAtPoses {
+                latitude_deg: Some(40.0),
+            },
+            Note::GyroMoves,
+        ]
+    }
+
+    #[test]
+    fn every_kind_of_note_has_its_own_code_and_a_sentence() {
+        let notes = one_of_each();
+        let mut codes: Vec<&str> = notes.iter().map(Note::code).collect();
+        codes.push(
+            Note::SegmentSkipped(SkippedSegment {
+                number: 1,
+                by: String::new(),
+                segment: crate::segment::Segment {
+                    kind: crate::segment::SegmentKind::Static,
+                    start_s: 0.0,
+                    end_s: 1.0,
+                    first_sample: 0,
+                    n: 1,
+                    mean_accel_m_s2: [0.0; 3],
+                    mean_gyro_rad_s: [0.0; 3],
+                    std_accel_m_s2: [0.0; 3],
+                    std_gyro_rad_s: [0.0; 3],
+                },
+            })
+            .code(),
+        );
+        let n = codes.len();
+        codes.sort_unstable();
+        codes.dedup();
+        assert_eq!(codes.len(), n, "a code used twice: {codes:?}");
+        for note in &notes {
+            let code = note.code();
+            assert!(
+                !code.is_empty() && code.bytes().all(|b| b.is_ascii_lowercase() || b == b'_'),
+                "{code}"
+            );
+            assert!(note.to_string().len() > 10, "{code}: {note}");
+            // A note on one of several recordings keeps its code.
+            assert_eq!(note.clone().in_recording(2, "b.mcap").code(), code);
+        }
+    }
+
     #[test]
     fn a_joint_fit_without_turn_on_repeatability_says_how_to_give_it() {
         let n = Note::JointBiases {
