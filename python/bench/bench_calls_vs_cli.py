@@ -100,8 +100,11 @@ def main():
         cmd = [exe, *sub, rec, "--reference-free", "--latitude-deg", str(lat), "--json"]
         if what == "ladder":
             cmd += ["-o", os.devnull]
-        cli = [timed(cmd)[:2] for _ in range(a.repeat)]
-        py = [python_call(what, rec, lat) for _ in range(a.repeat)]
+        # Interleaved, so that a change of the machine's load falls on both alike.
+        cli, py = [], []
+        for _ in range(a.repeat):
+            cli.append(timed(cmd)[:2])
+            py.append(python_call(what, rec, lat))
         cli_s, cli_kib = min(c[0] for c in cli), min(c[1] for c in cli)
         call_s, proc_s = min(p[0] for p in py), min(p[1] for p in py)
         base_kib, proc_kib = min(p[2] for p in py), min(p[3] for p in py)
