@@ -127,13 +127,15 @@ class TriadFit(_Doc):
 @dataclass(repr=False)
 class CalibrationResult(_Doc):
     """A calibration fit (``imu-calibrate --json``'s ``fit``): the accel and gyro parameter fits,
-    notes, and the fitted :class:`imud.Calibration` (``calibration.save(path)`` writes the file
+    notes (``notes``: sentences for people; ``note_codes``: one stable code per note, in the
+    same order, for programs), and the fitted :class:`imud.Calibration` (``calibration.save(path)`` writes the file
     imud loads)."""
 
     procedure: str = ""
     accel: Optional[TriadFit] = None
     gyro: Optional[TriadFit] = None
     notes: List[str] = field(default_factory=list)
+    note_codes: List[str] = field(default_factory=list)
     calibration: Any = None
     fit: Dict[str, Any] = field(default_factory=dict)
     extra: Dict[str, Any] = field(default_factory=dict)
@@ -168,10 +170,12 @@ class TriadDiagnosis(_Doc):
 
 @dataclass(repr=False)
 class Diagnosis(_Doc):
-    """``imu-diagnose``'s result: the notes, the effects added, and one
+    """``imu-diagnose``'s result: the notes (sentences, and ``note_codes`` for programs), the
+    effects added, and one
     :class:`TriadDiagnosis` for accel and one for gyro."""
 
     notes: List[str] = field(default_factory=list)
+    note_codes: List[str] = field(default_factory=list)
     added: List[Any] = field(default_factory=list)
     verdict: Dict[str, str] = field(default_factory=dict)
     accel: Optional[TriadDiagnosis] = None
@@ -202,6 +206,7 @@ class LadderResult(_Doc):
     :class:`imud.Calibration`."""
 
     notes: List[str] = field(default_factory=list)
+    note_codes: List[str] = field(default_factory=list)
     added: List[Any] = field(default_factory=list)
     steps: List[LadderStep] = field(default_factory=list)
     verdict: Dict[str, str] = field(default_factory=dict)
@@ -228,6 +233,7 @@ def calibration_result(doc: dict, calibration: Any) -> CalibrationResult:
         accel=TriadFit._from(fit["accel"]),
         gyro=TriadFit._from(fit["gyro"]),
         notes=list(fit.get("notes", [])),
+        note_codes=list(fit.get("note_codes", [])),
         calibration=calibration,
     )
 

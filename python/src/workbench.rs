@@ -86,7 +86,7 @@ fn with_workbench<T>(
 }
 
 /// Diagnoses the model against `series` (raw stream), the GIL released while it runs: JSON
-/// `{"notes", "added", "verdict", "diagnoses": [accel, gyro]}`.
+/// `{"notes", "note_codes", "added", "verdict", "diagnoses": [accel, gyro]}`.
 #[pyfunction]
 pub fn diagnose_json(py: Python<'_>, series: &Series, args: WorkbenchArgs) -> PyResult<String> {
     let inner = series.inner.clone();
@@ -97,7 +97,8 @@ pub fn diagnose_json(py: Python<'_>, series: &Series, args: WorkbenchArgs) -> Py
             let accel = wb.diagnose(Triad::Accel, &model.accel)?;
             let gyro = wb.diagnose(Triad::Gyro, &model.gyro)?;
             Ok(json!({
-                "notes": wb.notes,
+                "notes": wb.notes.0,
+                "note_codes": wb.notes.codes(),
                 "added": added,
                 "verdict": {"accel": accel.verdict, "gyro": gyro.verdict},
                 "diagnoses": [accel, gyro],
@@ -109,7 +110,7 @@ pub fn diagnose_json(py: Python<'_>, series: &Series, args: WorkbenchArgs) -> Py
 }
 
 /// Runs the ladder from the base model (`model`), the GIL released while it runs: JSON
-/// `{"notes", "added", "steps", "verdict", "final_diagnoses"}` and the final calibration.
+/// `{"notes", "note_codes", "added", "steps", "verdict", "final_diagnoses"}` and the final calibration.
 #[pyfunction]
 pub fn ladder_json(
     py: Python<'_>,
@@ -134,7 +135,8 @@ pub fn ladder_json(
                 } = wb.ladder(&base)?;
                 let added: Vec<_> = steps.iter().filter_map(|s| s.added).collect();
                 let j = json!({
-                    "notes": notes,
+                    "notes": notes.0,
+                    "note_codes": notes.codes(),
                     "added": added,
                     "steps": steps,
                     "verdict": {

@@ -53,6 +53,9 @@ def test_a_plan_fit_equals_the_cli_and_recovers_the_truth(index_table, index_mod
     doc = cli("imu-calibrate", rec, "--plan", PLAN, "--model", index_model, "-o", out)
     assert res.procedure == "reference"
     assert_close(res.fit, doc["fit"])
+    # A note per code, the plan's gravity first (the codes are for programs, the notes for people).
+    assert res.note_codes == doc["fit"]["note_codes"]
+    assert res.note_codes[0] == "plan_gravity" and len(res.notes) == len(res.note_codes)
     # The calibration: the same model as the CLI's file (provenance apart).
     mine = imud.Calibration.from_toml(res.calibration.to_toml())
     theirs = imud.Calibration.load(out)
@@ -88,6 +91,7 @@ def test_reference_free_equals_the_cli(multi_pose, cli):
     doc = cli("imu-calibrate", rec, "--reference-free", "--latitude-deg", "40")
     assert res.procedure == "reference-free"
     assert_close(res.fit, doc["fit"])
+    assert "local_gravity" in res.note_codes and "gyro_gains_method" in res.note_codes
 
 
 def test_calibration_files_round_trip(index_table, index_model, tmp_path):

@@ -50,7 +50,7 @@ def test_the_ladder_equals_the_cli_and_adds_the_hidden_effect(workbench_demo, cl
     res = imud.ladder(rec, reference=truth, base=BASE)
     out = tmp_path / "ladder.toml"
     doc = cli("imu-diagnose", "ladder", rec, "--reference", truth, "--base", BASE, "-o", out)
-    for k in ("notes", "added", "steps", "verdict"):
+    for k in ("notes", "note_codes", "added", "steps", "verdict"):
         assert_close(res.to_dict()[k], doc[k])
     assert ["gyro", "g-sensitivity"] in res.added
     assert res.gyro.consistent
@@ -65,6 +65,13 @@ def test_reference_free_diagnose_equals_the_cli(multi_pose, cli):
     rec, _ = multi_pose
     res = imud.diagnose(rec, reference_free=True, latitude_deg=40.0)
     doc = cli("imu-diagnose", rec, "--reference-free", "--latitude-deg", "40")
-    for k in ("notes", "added", "verdict", "diagnoses"):
+    for k in ("notes", "note_codes", "added", "verdict", "diagnoses"):
         assert_close(res.to_dict()[k], doc[k])
-    assert res.notes, "reference-free conventions are noted"
+    # The reference-free conventions are noted, each with its code, in the same order.
+    assert res.note_codes == [
+        "local_gravity",
+        "accel_magnitude",
+        "earth_rate_at_poses",
+        "gyro_moves",
+    ]
+    assert len(res.notes) == len(res.note_codes)

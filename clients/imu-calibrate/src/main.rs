@@ -429,7 +429,7 @@ fn options(cli: &Cli, duration_s: f64) -> Result<CalibrateOptions> {
 fn stamp(
     cal: &mut Calibration,
     (inputs, series): (Hashing, &[&imu_analysis::ImuSeries]),
-    notes: &[String],
+    notes: &imu_analysis::note::Notes,
     held: Vec<String>,
 ) -> Result<()> {
     cal.provenance.temperature_range_c = series
@@ -445,7 +445,7 @@ fn stamp(
         .join()
         .map_err(|_| anyhow::anyhow!("the input hashing thread panicked"))??;
     if !notes.is_empty() || !held.is_empty() {
-        let mut text = notes.join("; ");
+        let mut text = notes.sentences().join("; ");
         if !held.is_empty() {
             if !text.is_empty() {
                 text.push_str("; ");

@@ -321,6 +321,13 @@ fn calibrates_real_hardware_style_with_a_plan_or_a_reference_log() {
     ]));
     assert!(ok, "{err}");
     let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(
+        j["fit"]["note_codes"]
+            .as_array()
+            .is_some_and(|c| c.iter().any(|c| c == "log_clock")),
+        "{}",
+        j["fit"]["note_codes"]
+    );
     let notes = j["fit"]["notes"].to_string();
     assert!(
         notes.contains("log clock = recording clock +12.5"),

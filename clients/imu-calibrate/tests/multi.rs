@@ -158,6 +158,13 @@ fn an_index_table_and_a_rate_table_session_fit_jointly_within_their_standard_err
     assert_eq!(recs[0]["accel_points"], 24);
     assert_eq!(recs[1]["gyro_points"], 9 + 42);
     assert!(joint.get("recording").is_none(), "{joint}");
+    // `--json` has each note's code beside its sentence, in the same order.
+    let codes = joint["fit"]["note_codes"].as_array().expect("note_codes");
+    assert_eq!(
+        codes.len(),
+        joint["fit"]["notes"].as_array().expect("notes").len()
+    );
+    assert!(codes.iter().any(|c| c == "joint_biases"), "{codes:?}");
     let notes = joint["fit"]["notes"].to_string();
     assert!(
         notes.contains("2 recordings fitted together")

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args, Parser, Subcommand};
 use imu_analysis::Source;
+use imu_analysis::note::Notes;
 use imu_analysis::reference::Reference;
 use imu_analysis::render::html::{
     Section, diagnose_section, diagnose_section_with_base, inline_svgs, ladder_section, page,
@@ -237,8 +238,10 @@ struct DiagnoseJson<'a> {
     recording: String,
     reference: String,
     model: Option<String>,
-    /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
-    notes: &'a [String],
+    /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains): `notes`
+    /// (sentences) and `note_codes`.
+    #[serde(flatten)]
+    notes: &'a Notes,
     added: Vec<(Triad, EffectKind)>,
     verdict: Verdicts,
     candidates: Vec<CandidateRow>,
@@ -256,8 +259,10 @@ struct LadderJson<'a> {
     recording: String,
     reference: String,
     base: Option<String>,
-    /// Conventions and decisions behind the calibration.
-    notes: &'a [String],
+    /// Conventions and decisions behind the calibration: `notes` (sentences) and
+    /// `note_codes`.
+    #[serde(flatten)]
+    notes: &'a Notes,
     output: Option<String>,
     report: Option<String>,
     added: Vec<(Triad, EffectKind)>,
@@ -634,7 +639,7 @@ fn print_ladder_text(
     a: &LadderArgs,
     steps: &[LadderStep],
     final_diagnoses: &[TriadDiagnosis; 2],
-    notes: &[String],
+    notes: &Notes,
 ) -> Result<()> {
     print_ladder(out, steps)?;
     writeln!(out)?;

@@ -3,29 +3,25 @@
 //! axis, as a table (or `--json`), SVG figures, a self-contained HTML report and a
 //! Kalibr-compatible imu.yaml.
 //!
-//! Files: `taus.rs` (the `--taus` argument), `table.rs` (the text output), `plots.rs` (the
+//! The analysis is `imu_analysis::characterize::noise` (shared with Python's `imud.noise`).
+//! Files: `table.rs` (the text output), `plots.rs` (the
 //! figures, as SVG files and as the HTML report; drawn by `imu_analysis::render::allan`).
 
 mod plots;
 mod table;
-mod taus;
 
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
+use imu_analysis::Source;
+use imu_analysis::characterize::noise::{self, AxisReport, NoiseRequest, TauArg, dedup_kinds};
 use imu_analysis::input::{AccelUnit, GyroUnit};
-use imu_analysis::render::allan::DisplayTerms;
-use imu_analysis::{ImuSeries, Source};
 use imu_cli::progress::read_input;
 use imu_model::Triad;
-use imu_stats::allan::{self, DevPoint, EdfMethod, Kind, NoiseType, Options, TauSet};
-use imu_stats::noise_terms::{
-    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_with, slope_readoffs,
-};
-use serde::Serialize;
-use taus::TauArg;
+use imu_stats::allan::{EdfMethod, Kind};
+use imu_stats::noise_terms::NoiseTerms;
 
 /// Command line.
 #[derive(Debug, Parser)]
@@ -115,161 +111,7 @@ fn confidence_level(s: &str) -> Result<f64, String> {
     }
 }
 
-/// One deviation curve of one axis, every point with the noise type its bounds assumed.
-#[derive(Debug, Serialize)]
-struct KindReport {
-    kind: Kind,
-    /// Unit of `dev`, `dev_lo`, `dev_hi` (TDEV: the rate unit times seconds).
-    unit: String,
-    edf_method: EdfMethod,
-    confidence: f64,
-    points: Vec<PointReport>,
-}
-
-#[derive(Debug, Serialize)]
-struct PointReport {
-    #[serde(flatten)]
-    point: DevPoint,
-    /// Power-law noise type the EDF assumed, and its exponent alpha (S_y ~ f^alpha).
-    noise: NoiseType,
-    alpha: i32,
-}
-
-/// Result for one sensor axis.
-#[derive(Debug, Serialize)]
-struct AxisReport {
-    sensor: Triad,
-    axis: &'static str,
-    /// Unit of the rate data (U) that the `*_u*` fields are expressed in.
-    unit: &'static str,
-    sample_rate_hz: f64,
-    fit: NoiseTerms,
-    slope_readoffs: SlopeReadoffs,
-    /// Discrete per-sample white-noise sigma, N sqrt(rate), U.
-    white_per_sample_u: f64,
-    /// Discrete per-sample random-walk step, K / sqrt(rate), U.
-    random_walk_step_per_sample_u: f64,
-    /// Display units: N, B, K in deg/sqrt(h), deg/h, deg/h/sqrt(h) (gyro) or
-    /// micro-g/sqrt(Hz), micro-g, micro-g*sqrt(Hz) (accel).
-    display: DisplayTerms,
-    /// The OADEV curve the terms were fitted to.
-    curve: allan::DevCurve,
-    /// Every `--kind` asked for.
-    deviations: Vec<KindReport>,
-    /// Present when the recording was read without its footer (a killed writer): how far the
-    /// read got (the same facts as the warning on stderr).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    input_unfinished: Option<serde_json::Value>,
-    /// The files read (in time order), the IMU topic, the gaps between files.
-    input: imu_analysis::input::InputInfo,
-}
-
-/// What to compute, from the command line.
-struct Request {
-    kinds: Vec<Kind>,
-    taus: TauArg,
-    edf: EdfMethod,
-    confidence: f64,
-}
-
-fn analyse(series: &ImuSeries, req: &Request) -> Result<Vec<AxisReport>> {
-    let rate_hz = series.sample_rate_hz();
-    anyhow::ensure!(
-        rate_hz.is_finite() && rate_hz > 0.0,
-        "cannot determine the sample rate of {} ({} samples)",
-        series.origin,
-        series.len()
-    );
-    let opts = Options {
-        taus: req.taus.resolve(rate_hz)?,
-        edf: req.edf,
-        confidence: req.confidence,
-        noise: None,
-    };
-    let fit_opts = Options {
-        taus: match &req.taus {
-            TauArg::Set(set) => set.clone(),
-            TauArg::Seconds(_) => TauSet::PerDecade(8),
-        },
-        ..opts.clone()
-    };
-    let progress = std::io::stderr().is_terminal();
-    let mut out = Vec::new();
-    for (sensor, data) in [
-        (Triad::Accel, &series.accel_m_s2),
-        (Triad::Gyro, &series.gyro_rad_s),
-    ] {
-        let unit = sensor.unit();
-        for (i, axis) in ["x", "y", "z"].into_iter().enumerate() {
-            if progress {
-                eprint!("\ranalysing {sensor} {axis} ({} samples)...", data.len());
-            }
-            let y: Vec<f64> = data.iter().map(|v| v[i]).collect();
-            let context = || format!("Allan deviation of {sensor} {axis}");
-            let curve = allan::deviation(Kind::Oadev, &y, 1.0 / rate_hz, &fit_opts)
-                .with_context(context)?;
-            let deviations = req
-                .kinds
-                .iter()
-                .map(|&kind| kind_report(kind, unit, &y, rate_hz, &opts))
-                .collect::<Result<Vec<_>>>()
-                .with_context(context)?;
-            let fit = fit_terms_with(&curve, &FitOptions::default())
-                .with_context(|| format!("noise terms of {sensor} {axis}"))?;
-            out.push(AxisReport {
-                sensor,
-                axis,
-                unit,
-                sample_rate_hz: rate_hz,
-                slope_readoffs: slope_readoffs(&curve),
-                white_per_sample_u: fit.white_per_sample_u(rate_hz),
-                random_walk_step_per_sample_u: fit.random_walk_step_per_sample_u(rate_hz),
-                display: DisplayTerms::of(sensor, &fit),
-                fit,
-                curve,
-                deviations,
-                input_unfinished: None,
-                input: series.input.clone(),
-            });
-        }
-    }
-    if progress {
-        eprintln!("\r{:60}\r", "");
-    }
-    Ok(out)
-}
-
-fn kind_report(
-    kind: Kind,
-    unit: &str,
-    y: &[f64],
-    rate_hz: f64,
-    opts: &Options,
-) -> Result<KindReport> {
-    let (curve, noise) = allan::deviation_with_noise(kind, y, 1.0 / rate_hz, opts)
-        .with_context(|| kind.name().to_uppercase())?;
-    Ok(KindReport {
-        kind,
-        unit: if kind == Kind::Tdev {
-            format!("{unit}*s")
-        } else {
-            unit.to_string()
-        },
-        edf_method: opts.edf,
-        confidence: opts.confidence,
-        points: curve
-            .points
-            .into_iter()
-            .zip(noise)
-            .map(|(point, noise)| PointReport {
-                point,
-                noise,
-                alpha: noise.alpha(),
-            })
-            .collect(),
-    })
-}
-
+/// Kalibr's imu.yaml from the noise terms (`rostopic` the IMU topic).
 fn kalibr_yaml(reports: &[AxisReport], rostopic: &str) -> String {
     // Kalibr wants one value per sensor: take the worst (largest) axis.
     let worst = |sensor: Triad, f: &dyn Fn(&NoiseTerms) -> f64| {
@@ -328,13 +170,21 @@ fn run(cli: &Cli) -> Result<()> {
     if let Some(w) = series.motion_warning() {
         eprintln!("imu-noise: warning: {shown}: {w}");
     }
-    let request = Request {
+    let request = NoiseRequest {
         kinds: dedup_kinds(&cli.kind),
         taus: cli.taus.clone(),
         edf: cli.edf.into(),
         confidence: cli.confidence,
     };
-    let mut reports = analyse(&series, &request)?;
+    let progress = std::io::stderr().is_terminal();
+    let mut reports = noise::analyse(&series, &request, |sensor, axis, n| {
+        if progress {
+            eprint!("\ranalysing {sensor} {axis} ({n} samples)...");
+        }
+    })?;
+    if progress {
+        eprintln!("\r{:60}\r", "");
+    }
     for r in &mut reports {
         r.input_unfinished.clone_from(&unfinished);
     }
@@ -357,17 +207,6 @@ fn run(cli: &Cli) -> Result<()> {
     }
     out.flush()?;
     Ok(())
-}
-
-/// The kinds in the order given, each once.
-fn dedup_kinds(kinds: &[Kind]) -> Vec<Kind> {
-    let mut out: Vec<Kind> = Vec::new();
-    for &k in kinds {
-        if !out.contains(&k) {
-            out.push(k);
-        }
-    }
-    out
 }
 
 fn main() -> std::process::ExitCode {

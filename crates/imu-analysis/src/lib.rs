@@ -18,6 +18,7 @@
 pub mod calibrate;
 pub mod characterize;
 pub mod input;
+pub mod note;
 pub mod provenance;
 pub mod reference;
 pub mod render;

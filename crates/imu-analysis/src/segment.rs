@@ -262,30 +262,24 @@ impl Segmentation {
 
     /// What detection saw and estimated, for a fit's notes: the gyro's reading at rest when it
     /// is not negligible (plateaus are measured from it), and each quiet run dropped and why.
-    pub fn notes(&self) -> Vec<String> {
+    pub fn notes(&self) -> Vec<crate::note::Note> {
+        use crate::note::Note;
         let mut notes = Vec::new();
         if let Some(rest) = self.rest_rate_rad_s.map(Vec3::from)
             && rest.norm().to_degrees() >= 0.5
         {
             let deg = rest.map(f64::to_degrees);
-            notes.push(format!(
-                "the gyro reads [{:.2}, {:.2}, {:.2}] deg/s at rest (estimated from the still \
-                 segments): static and plateau segments are told apart relative to it",
-                deg[0], deg[1], deg[2]
-            ));
+            notes.push(Note::GyroRestRate {
+                rest_deg_s: [deg[0], deg[1], deg[2]],
+            });
         }
         if !self.dropped.is_empty() {
-            let seen = self.segments.len() + self.skipped.len() + self.dropped.len();
-            notes.push(format!(
-                "{seen} quiet interval(s) seen, {} used, {} dropped: {}",
-                self.segments.len(),
-                self.dropped.len(),
-                self.dropped
-                    .iter()
-                    .map(|d| d.describe(&self.options))
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            ));
+            notes.push(Note::QuietRunsDropped {
+                seen: self.segments.len() + self.skipped.len() + self.dropped.len(),
+                used: self.segments.len(),
+                dropped: self.dropped.clone(),
+                options: Box::new(self.options.clone()),
+            });
         }
         notes
     }
@@ -716,7 +710,17 @@ mod tests {
         assert_eq!(kinds, [Static, Static, Plateau, Static], "{seg:#?}");
         let est = Vec3::from(seg.rest_rate_rad_s.unwrap());
         assert!((est - Vec3::from(rest)).norm() < 1e-3, "{est:?}");
-        let notes = seg.notes().join("\n");
+        let typed = seg.notes();
+        let notes = typed
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(
+            matches!(typed[0], crate::note::Note::GyroRestRate { rest_deg_s }
+                if (rest_deg_s[0] - 4.0).abs() < 0.01 && (rest_deg_s[1] + 6.0).abs() < 0.01),
+            "{typed:?}"
+        );
         assert!(notes.contains("reads [4.00, -6.00, "), "{notes}");
         // The 2 s steady move is reported as dropped, not silently lost.
         assert_eq!(seg.dropped.len(), 1, "{:?}", seg.dropped);
@@ -775,7 +779,20 @@ mod tests {
         );
         // The 1.5 s pose is dropped, and the notes say so and why.
         assert_eq!(seg.dropped.len(), 1, "{:?}", seg.dropped);
-        let notes = seg.notes().join("\n");
+        let typed = seg.notes();
+        assert!(
+            typed
+                .iter()
+                .any(|n| matches!(n, crate::note::Note::QuietRunsDropped {
+                seen: 5, used: 4, dropped, ..
+            } if dropped.len() == 1)),
+            "{typed:?}"
+        );
+        let notes = typed
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>()
+            .join("\n");
         assert!(
             notes.contains("5 quiet interval(s) seen, 4 used, 1 dropped"),
             "{notes}"

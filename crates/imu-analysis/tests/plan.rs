@@ -13,6 +13,7 @@ use imu_analysis::calibrate::{
     CalibrateOptions, CalibrationFit, FitResult, bias_drift_from_noise, calibrate,
 };
 use imu_analysis::input::{Source, read_mcap};
+use imu_analysis::note::Note;
 use imu_analysis::reference::Reference;
 use imu_analysis::reference::log::ReferenceLog;
 use imu_analysis::reference::plan::Plan;
@@ -172,7 +173,16 @@ fn index_table_plan_recovers_the_accel_model_like_the_truth() {
     let note = by_plan
         .notes
         .iter()
-        .find(|n| n.contains("Earth's rate is not fully known in 24 of 24"))
+        .find(|n| {
+            matches!(
+                n,
+                Note::EarthRateUnknown {
+                    unknown: 24,
+                    segments: 24,
+                    ..
+                }
+            )
+        })
         .unwrap_or_else(|| panic!("{:?}", by_plan.notes));
     eprintln!("{note}");
     let h = EARTH_RATE_RAD_S * 40f64.to_radians().cos();
@@ -239,7 +249,16 @@ fn a_skip_step_drops_its_segment_and_the_rest_fits_the_truth() {
          bumped: skip]: not fitted",
         all[4].start_s, all[4].end_s
     );
-    assert!(by_skip.notes.contains(&want), "{want}\n{:?}", by_skip.notes);
+    let sentences = by_skip.notes.sentences();
+    assert!(sentences.contains(&want), "{want}\n{sentences:?}");
+    assert!(
+        by_skip
+            .notes
+            .iter()
+            .any(|n| matches!(n, Note::SegmentSkipped(k) if k.number == 5)),
+        "{:?}",
+        by_skip.notes
+    );
     // The other 23 segments still fit the truth; the segment truth is the full plan's without
     // the fifth.
     let n = assert_within_3_se("accel", &by_skip.accel, &run.truth_model.accel);
@@ -277,7 +296,7 @@ fn earth_rate_plan_gives_table_1_inputs_and_the_g_dependent_bias() {
         assert!(df.norm() < 1e-9, "position {}: {df:?}", k + 1);
     }
     assert!(
-        !by_plan.notes.iter().any(|n| n.contains("Earth's rate")),
+        !by_plan.notes.has("earth_rate_unknown"),
         "{:?}",
         by_plan.notes
     );
@@ -410,10 +429,9 @@ fn rate_table_log_is_aligned_in_time_and_fits_like_the_truth() {
     let by_log = fit(run, &reference, &opts);
     let by_truth = fit(run, &Reference::Truth(run.truth.clone()), &opts);
     assert!(
-        by_log
-            .notes
-            .iter()
-            .any(|n| n.contains("log clock = recording clock +0.7")),
+        by_log.notes.iter().any(
+            |n| matches!(n, Note::LogClock { offset_s, .. } if (0.6995..0.7995).contains(offset_s))
+        ),
         "{:?}",
         by_log.notes
     );
@@ -521,7 +539,12 @@ fn a_rate_tables_one_column_log_gives_the_gyro_gains_of_the_truth() {
         let dw = Vec3::from(a.angular_rate_rad_s) - Vec3::from(b.angular_rate_rad_s);
         assert!(dw.norm() <= h * 1.01, "{dw:?}");
     }
-    let notes = by_table.notes.join("\n");
+    let codes = by_table.notes.codes();
+    assert!(
+        codes.contains(&"table_axes") && codes.contains(&"table_earth_rate"),
+        "{codes:?}"
+    );
+    let notes = by_table.notes.sentences().join("\n");
     assert!(
         notes.contains("a rate table's rate about its axis (+z from line 4, +x from line")
             && notes.contains("the table axis is taken as vertical: specific force 9.80665")

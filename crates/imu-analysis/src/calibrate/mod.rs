@@ -134,8 +134,10 @@ pub struct CalibrationFit {
     /// The fitted calibration (accel and gyro; no provenance yet).
     #[serde(skip)]
     pub calibration: imu_model::Calibration,
-    /// Decisions taken (held parameters, ...).
-    pub notes: Vec<String>,
+    /// Decisions taken (held parameters, ...); `--json` has the sentences (`notes`) and codes
+    /// (`note_codes`).
+    #[serde(flatten)]
+    pub notes: crate::note::Notes,
 }
 
 impl CalibrationFit {
@@ -224,7 +226,11 @@ pub fn calibrate_recordings(
         gyro_bias_std_rad_s,
     } = observe_recordings(recordings, opts)?;
     if recordings.len() > 1 {
-        notes.push(bias_note(recordings.len(), opts));
+        notes.push(crate::note::Note::JointBiases {
+            recordings: recordings.len(),
+            accel_turn_on_m_s2: opts.accel_turn_on_bias_m_s2,
+            gyro_turn_on_rad_s: opts.gyro_turn_on_bias_rad_s,
+        });
     }
     let caveats = crate::reference::ReferenceCaveats {
         gyro_bias_std_rad_s,
@@ -306,7 +312,7 @@ fn observe_recordings(
     opts: &CalibrateOptions,
 ) -> Result<Observed, CalibrateError> {
     let several = recordings.len() > 1;
-    let mut notes = Vec::new();
+    let mut notes = crate::note::Notes::default();
     let mut obs = Vec::with_capacity(recordings.len());
     let mut gyro_bias_std_rad_s: Option<[f64; 3]> = None;
     for (i, (series, reference)) in recordings.iter().enumerate() {
@@ -315,19 +321,20 @@ fn observe_recordings(
         let caveats = reference
             .caveats(series, &o.segmentation.segments)
             .map_err(|e| in_recording(recordings, i, e.into()))?;
-        let prefix = if several {
-            format!("recording {} ({}): ", i + 1, series.origin)
-        } else {
-            String::new()
+        let tag = |n: crate::note::Note| {
+            if several {
+                n.in_recording(i + 1, &series.origin)
+            } else {
+                n
+            }
         };
-        notes.extend(caveats.notes.iter().map(|n| format!("{prefix}{n}")));
-        let detected = o.segmentation.notes();
-        notes.extend(detected.iter().map(|n| format!("{prefix}{n}")));
+        notes.extend(caveats.notes.iter().cloned().map(tag));
+        notes.extend(o.segmentation.notes().into_iter().map(tag));
         notes.extend(
             o.segmentation
                 .skipped
                 .iter()
-                .map(|k| format!("{prefix}{} skipped by {}: not fitted", k.describe(), k.by)),
+                .map(|k| tag(crate::note::Note::SegmentSkipped(k.clone()))),
         );
         // Each reference's unknown is common to its own segments; the largest bounds what it
         // can do to the bias fitted from all of them.
@@ -351,7 +358,7 @@ struct Observed {
     /// Fit points per recording.
     obs: Vec<Observations>,
     /// Notes of the references and segmentations.
-    notes: Vec<String>,
+    notes: crate::note::Notes,
     /// The largest unknown gyro bias of the references (rad/s, 1 sigma per axis).
     gyro_bias_std_rad_s: Option<[f64; 3]>,
 }
@@ -399,36 +406,6 @@ fn recording_fits(
             r
         })
         .collect()
-}
-
-/// What a joint fit assumes of the biases of its `n` recordings.
-fn bias_note(n: usize, opts: &CalibrateOptions) -> String {
-    let fmt = |v: [f64; 3]| format!("[{:.1e}, {:.1e}, {:.1e}]", v[0], v[1], v[2]);
-    let triad = |name: &str, unit: &str, turn_on: Option<[f64; 3]>| match turn_on {
-        None => format!(
-            "the {name} bias is taken as the same in all {n} recordings (no change between \
-             power-ons)"
-        ),
-        Some(b) => format!(
-            "the {name} bias is the mean over the {n} power-ons, each recording's own bias \
-             allowed to differ from it by {} {unit} (1 sigma, turn-on repeatability)",
-            fmt(b)
-        ),
-    };
-    let mut note = format!(
-        "{} recordings fitted together: {}; {}; bias wander is independent between recordings",
-        n,
-        triad("accel", "m/s^2", opts.accel_turn_on_bias_m_s2),
-        triad("gyro", "rad/s", opts.gyro_turn_on_bias_rad_s)
-    );
-    if opts.accel_turn_on_bias_m_s2.is_none() || opts.gyro_turn_on_bias_rad_s.is_none() {
-        note.push_str(
-            "; a MEMS bias usually changes from one power-on to the next: give its turn-on \
-             repeatability (imu-calibrate --accel-turn-on-bias-m-s2, \
-             --gyro-turn-on-bias-rad-s) to fit the mean bias with that spread",
-        );
-    }
-    note
 }
 
 #[cfg(test)]

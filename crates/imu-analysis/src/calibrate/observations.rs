@@ -122,7 +122,7 @@ impl Observations {
 
     /// `model` without the gyro gain effects when the recording has no rate plateaus (Earth
     /// rate is too small to excite them), and the note saying so (None if nothing was held).
-    pub fn gyro_model_for(&self, model: &TriadModel) -> (TriadModel, Option<String>) {
+    pub fn gyro_model_for(&self, model: &TriadModel) -> (TriadModel, Option<crate::note::Note>) {
         use crate::segment::SegmentKind;
         gyro_model_with_plateaus(model, self.segmentation.count(SegmentKind::Plateau) > 0)
     }
@@ -133,7 +133,7 @@ impl Observations {
 pub(super) fn gyro_model_with_plateaus(
     model: &TriadModel,
     plateaus: bool,
-) -> (TriadModel, Option<String>) {
+) -> (TriadModel, Option<crate::note::Note>) {
     if plateaus {
         return (model.clone(), None);
     }
@@ -146,12 +146,10 @@ pub(super) fn gyro_model_with_plateaus(
     for k in &held {
         m.remove(*k);
     }
-    let note = format!(
-        "no rate plateaus found: gyro {} not fitted (Earth rate cannot excite them; record a \
-         rate-table run)",
-        held.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
-    );
-    (m, Some(note))
+    (
+        m,
+        Some(crate::note::Note::GainsNeedPlateaus { effects: held }),
+    )
 }
 
 /// Error unless the recordings together hold `needed` segments of `kind` (the first

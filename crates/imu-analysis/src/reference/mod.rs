@@ -125,7 +125,7 @@ pub struct ReferenceCaveats {
     /// quadrature to the gyro bias standard errors ([`crate::calibrate::FitOptions::bias_input_uncertainty`]).
     pub gyro_bias_std_rad_s: Option<[f64; 3]>,
     /// Remarks (gravity used, time offset found, assumptions).
-    pub notes: Vec<String>,
+    pub notes: Vec<crate::note::Note>,
 }
 
 impl Reference {

@@ -268,7 +268,7 @@ impl<'a> Workbench<'a> {
             opts: self.opts.clone(),
             spectral: self.spectral.clone(),
             mode,
-            notes: Vec::new(),
+            notes: crate::note::Notes::default(),
         }
     }
 

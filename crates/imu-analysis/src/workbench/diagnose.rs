@@ -282,7 +282,10 @@ impl<'a> Workbench<'a> {
             return Some(unobservable_candidate(
                 k,
                 triad,
-                held.unwrap_or_else(|| "not fittable on this recording".into()),
+                held.map_or_else(
+                    || "not fittable on this recording".into(),
+                    |n| n.to_string(),
+                ),
             ));
         }
         let prof = self.fit_candidate(triad, &m, k, c.family)?;

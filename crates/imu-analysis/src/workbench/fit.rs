@@ -132,7 +132,11 @@ impl<'a> Workbench<'a> {
 
     /// The model actually fittable on this recording for `triad` (gyro gains held without
     /// plateaus), and a note when something was held.
-    pub fn fittable(&self, triad: Triad, model: &TriadModel) -> (TriadModel, Option<String>) {
+    pub fn fittable(
+        &self,
+        triad: Triad,
+        model: &TriadModel,
+    ) -> (TriadModel, Option<crate::note::Note>) {
         if triad == Triad::Gyro && self.reference_free_magnitude().is_some() {
             let gains: Vec<EffectKind> =
                 model.kinds().into_iter().filter(|k| k.is_gain()).collect();
@@ -143,12 +147,10 @@ impl<'a> Workbench<'a> {
             for k in &gains {
                 m.remove(*k);
             }
-            let note = format!(
-                "gyro {} come from the moves between poses (imu-calibrate --reference-free), not \
-                 from the still poses held against the model here",
-                gains.iter().map(|k| k.id()).collect::<Vec<_>>().join(", ")
+            return (
+                m,
+                Some(crate::note::Note::GainsFromMoves { effects: gains }),
             );
-            return (m, Some(note));
         }
         if triad == Triad::Gyro {
             self.obs.gyro_model_for(model)

@@ -74,7 +74,8 @@ impl<'a> Workbench<'a> {
         &self,
         base: &imu_model::Calibration,
         diags: &[TriadDiagnosis; 2],
-    ) -> (imu_model::Calibration, Vec<String>) {
+    ) -> (imu_model::Calibration, crate::note::Notes) {
+        use crate::note::Note;
         let mut notes = self.notes.clone();
         let mut cal = base.clone();
         cal.accel = diags[0].fit.model.clone();
@@ -96,14 +97,16 @@ impl<'a> Workbench<'a> {
                     &self.fit_opts(t),
                 ) {
                     Ok(r) => {
-                        notes.extend(
-                            r.unobservable
-                                .iter()
-                                .map(|u| format!("{t} {}: {}", u.name, u.reason)),
-                        );
+                        notes.extend(r.unobservable.iter().map(|u| Note::RefitHeld {
+                            triad: t,
+                            unobservable: u.clone(),
+                        }));
                         *cal.triad_mut(t) = r.model;
                     }
-                    Err(e) => notes.push(format!("{t}: {e}")),
+                    Err(e) => notes.push(Note::RefitFailed {
+                        triad: t,
+                        error: e.to_string(),
+                    }),
                 }
             }
         }
@@ -129,11 +132,9 @@ impl<'a> Workbench<'a> {
                         }
                     }
                 }
-                Err(e) => notes.push(format!(
-                    "the reference-free calibration of the final model failed ({e}): the \
-                     calibration holds the workbench's accel and gyro offset fits and the base \
-                     model's gyro gains as given"
-                )),
+                Err(e) => notes.push(Note::FinalCalibrationFailed {
+                    error: e.to_string(),
+                }),
             }
         }
         (cal, notes)

@@ -450,7 +450,7 @@ pub struct Workbench<'a> {
     /// What the model is held against.
     mode: Mode,
     /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
-    pub notes: Vec<String>,
+    pub notes: crate::note::Notes,
 }
 
 /// Effects whose time constant or shape a neutral start cannot find: fitted from several
@@ -534,8 +534,10 @@ pub struct Ladder {
     /// The final model as a calibration.
     #[serde(skip)]
     pub calibration: imu_model::Calibration,
-    /// Conventions and decisions behind it (reference-free: gravity, Earth rate, gyro gains).
-    pub notes: Vec<String>,
+    /// Conventions and decisions behind it (reference-free: gravity, Earth rate, gyro gains);
+    /// `--json` has the sentences (`notes`) and codes (`note_codes`).
+    #[serde(flatten)]
+    pub notes: crate::note::Notes,
 }
 
 #[cfg(test)]

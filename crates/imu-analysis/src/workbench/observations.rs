@@ -37,7 +37,7 @@ impl<'a> Workbench<'a> {
             opts,
             spectral,
             mode: Mode::Reference,
-            notes: Vec::new(),
+            notes: crate::note::Notes::default(),
         })
     }
 
@@ -66,7 +66,7 @@ impl<'a> Workbench<'a> {
         let segmentation =
             crate::segment::detect(series, &opts.segment).map_err(CalibrateError::from)?;
         let (g_m_s2, gravity_note) = local_gravity(gravity_m_s2, latitude_deg);
-        let (vertical_rad_s, earth_note) = earth_rate_truth(latitude_deg);
+        let vertical_rad_s = earth_rate_truth(latitude_deg);
         let poses: Vec<usize> = (0..segmentation.segments.len())
             .filter(|&i| segmentation.segments[i].kind == SegmentKind::Static)
             .collect();
@@ -112,12 +112,12 @@ impl<'a> Workbench<'a> {
                 moves: Vec::new(),
                 moves_skipped: 0,
             },
-            notes: vec![
+            notes: crate::note::Notes(vec![
                 gravity_note,
-                ACCEL_MAGNITUDE_NOTE.into(),
-                earth_note,
-                GYRO_MOVES_NOTE.into(),
-            ],
+                crate::note::Note::AccelMagnitude,
+                crate::note::Note::EarthRateAtPoses { latitude_deg },
+                crate::note::Note::GyroMoves,
+            ]),
         };
         let (up, accel) = wb.calibrated_up(dirs);
         wb.set_up(&mut obs, &up, &truth);
@@ -240,42 +240,10 @@ impl MovesSetup {
     }
 }
 
-/// How the accel is held without a reference, for the workbench's notes.
-const ACCEL_MAGNITUDE_NOTE: &str = "accel: held against the gravity magnitude at each still pose; misalignment xy, \
-     xz, yz held at 0 (the magnitude cannot see a rotation of the whole frame: the \
-     accelerometer axes define the frame)";
-
-/// How the gyro is held without a reference, for the workbench's notes.
-const GYRO_MOVES_NOTE: &str = "gyro gains (scale, misalignment, asymmetry, nonlinearity, temperature scale) \
-     are held against the rotations integrated over the moves between poses, the \
-     gyro offsets against the still poses";
-
-/// The true rate along up at a still pose (Earth's vertical rate at `latitude_deg`, 0
-/// without it), rad/s, with the note on how the rest of Earth's rate is counted.
-fn earth_rate_truth(latitude_deg: Option<f64>) -> (f64, String) {
-    use imu_model::units::EARTH_RATE_RAD_S;
-    match latitude_deg {
-        Some(lat) => {
-            let (vertical, horizontal) = imu_model::earth::earth_rate_split_rad_s(lat);
-            (
-                vertical,
-                format!(
-                    "gyro: Earth's vertical rate at latitude {lat} deg is the true rate along \
-                     the calibrated up direction of each pose; its horizontal part \
-                     ({horizontal:.1e} rad/s, heading unknown) is counted as noise of each pose \
-                     mean"
-                ),
-            )
-        }
-        None => (
-            0.0,
-            format!(
-                "gyro: Earth's rate ({EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
-                 frame without latitude and heading) is counted as noise of each pose mean; \
-                 give the latitude to remove its vertical part"
-            ),
-        ),
-    }
+/// The true rate along up at a still pose: Earth's vertical rate at `latitude_deg`, 0
+/// without it (the rest of Earth's rate is counted as noise of each pose mean), rad/s.
+fn earth_rate_truth(latitude_deg: Option<f64>) -> f64 {
+    latitude_deg.map_or(0.0, |lat| imu_model::earth::earth_rate_split_rad_s(lat).0)
 }
 
 /// Adds to each gyro point's standard error the variance of the unknown part of Earth's rate

@@ -8,7 +8,7 @@ pub(super) struct AccelOutcome {
     pub(super) up: Vec<Vec3>,
     pub(super) magnitude_error_m_s2: Vec<f64>,
     /// Where the fit started, when not from the model as given.
-    pub(super) start_note: Option<String>,
+    pub(super) start_note: Option<Note>,
 }
 
 /// Moves the free bias and scale parameters of `p0` to the closed-form ellipsoid through the
@@ -21,7 +21,7 @@ fn start_from_ellipsoid(
     g_m_s2: f64,
     p0: &mut [f64],
     residual: &mut impl FnMut(&[f64]) -> DVector<f64>,
-) -> Option<String> {
+) -> Option<Note> {
     use imu_model::ParamRole;
     let start = ellipsoid::ellipsoid_start(measured, g_m_s2)?;
     let mut candidate = p0.to_vec();
@@ -42,11 +42,10 @@ fn start_from_ellipsoid(
     }
     p0.copy_from_slice(&candidate);
     let (b, s) = (start.bias_m_s2, start.scale);
-    Some(format!(
-        "accel fit started from the ellipsoid through the poses: offset [{:.4}, {:.4}, {:.4}] \
-         m/s^2, scale error [{:.4}, {:.4}, {:.4}]",
-        b.x, b.y, b.z, s.x, s.y, s.z
-    ))
+    Some(Note::AccelStartEllipsoid {
+        offset_m_s2: [b.x, b.y, b.z],
+        scale_error: [s.x, s.y, s.z],
+    })
 }
 
 /// Fits the accel model of `opts` to the gravity magnitude `g_m_s2` at the still `poses`,

@@ -42,6 +42,7 @@ use crate::calibrate::{
     Evidence, FitError, FitOptions, FitPoint, FitResult, FitWarning, FitWarningKind, NotFitted,
     Unobservable, WarningScope, Warnings, fit_triad,
 };
+use crate::note::{Note, Notes};
 use crate::segment::{Segment, SegmentError, SegmentKind, SegmentOptions, Segmentation};
 use imu_stats::lsq::{LsqError, LsqOptions, LsqSolution, least_squares, refit_holding};
 
@@ -80,28 +81,17 @@ pub(crate) fn gauge(ids: &[imu_model::ParamId]) -> Vec<usize> {
 
 /// Local gravity for a reference-free fit, m/s^2, and the note saying where it came from: the
 /// given value, else WGS-84 normal gravity at the latitude, else standard gravity.
-pub fn local_gravity(gravity_m_s2: Option<f64>, latitude_deg: Option<f64>) -> (f64, String) {
-    match (gravity_m_s2, latitude_deg) {
-        (Some(g), _) => (g, format!("local gravity {g:.6} m/s^2 (given)")),
-        (None, Some(lat)) => {
-            let g = normal_gravity_m_s2(lat, 0.0);
-            (
-                g,
-                format!(
-                    "local gravity {g:.6} m/s^2: WGS-84 normal gravity at latitude {lat} deg, \
-                     height 0 (about -3.1e-6 m/s^2 per metre above the ellipsoid)"
-                ),
-            )
-        }
-        (None, None) => (
-            STANDARD_GRAVITY_M_S2,
-            format!(
-                "local gravity {STANDARD_GRAVITY_M_S2} m/s^2 (standard; give --gravity-m-s2 or \
-                 --latitude-deg: gravity varies by 0.5 % over the Earth, and every accel scale \
-                 factor absorbs the relative error of g)"
-            ),
-        ),
-    }
+pub fn local_gravity(
+    gravity_m_s2: Option<f64>,
+    latitude_deg: Option<f64>,
+) -> (f64, crate::note::Note) {
+    use crate::note::GravitySource;
+    let (g_m_s2, source) = match (gravity_m_s2, latitude_deg) {
+        (Some(g), _) => (g, GravitySource::Given),
+        (None, Some(lat)) => (normal_gravity_m_s2(lat, 0.0), GravitySource::Latitude(lat)),
+        (None, None) => (STANDARD_GRAVITY_M_S2, GravitySource::Standard),
+    };
+    (g_m_s2, crate::note::Note::LocalGravity { g_m_s2, source })
 }
 
 /// What [`calibrate_reference_free`] fits and how.
@@ -254,8 +244,10 @@ pub struct ReferenceFreeFit {
     /// The fitted calibration (accel and gyro; provenance procedure set).
     #[serde(skip)]
     pub calibration: Calibration,
-    /// Decisions and conventions (gauge, gravity, Earth rate, what was not fitted).
-    pub notes: Vec<String>,
+    /// Decisions and conventions (gauge, gravity, Earth rate, what was not fitted);
+    /// `--json` has the sentences (`notes`) and codes (`note_codes`).
+    #[serde(flatten)]
+    pub notes: Notes,
 }
 
 /// Failures of [`calibrate_reference_free`].
@@ -401,8 +393,10 @@ pub fn calibrate_reference_free(
         },
     )?;
     for (t, _, _, u) in held {
-        fit.notes
-            .push(format!("{t} {} not fitted: {}", u.name, u.reason));
+        fit.notes.push(Note::NotFitted {
+            triad: t,
+            unobservable: u.clone(),
+        });
         let f = if t == Triad::Gyro {
             &mut fit.gyro
         } else {
@@ -420,7 +414,7 @@ fn calibrate_reference_free_once(
 ) -> Result<ReferenceFreeFit, ReferenceFreeError> {
     check_holds(opts)?;
     let segmentation = crate::segment::detect(series, &opts.segment)?;
-    let mut notes = segmentation.notes();
+    let mut notes = Notes(segmentation.notes());
     let (g_m_s2, gravity_note) = local_gravity(opts.gravity_m_s2, opts.latitude_deg);
     notes.push(gravity_note);
     let seg_opts = &segmentation.options;
@@ -433,17 +427,15 @@ fn calibrate_reference_free_once(
         .map(|&i| &segmentation.segments[i])
         .collect();
     if segmentation.count(SegmentKind::Plateau) > 0 {
-        notes.push(format!(
-            "{} rate plateau(s) ignored: this procedure uses still poses and the moves between \
-             them",
-            segmentation.count(SegmentKind::Plateau)
-        ));
+        notes.push(Note::PlateausIgnored {
+            count: segmentation.count(SegmentKind::Plateau),
+        });
     }
 
     let accel = fit_accel(series, &poses, opts, g_m_s2, still_s)?;
     notes.extend(accel.start_note.clone());
     if accel.fit.model.has(EffectKind::Misalignment) {
-        notes.push(GAUGE_NOTE.into());
+        notes.push(Note::Gauge);
     }
     let GyroOutcome {
         gyro,
@@ -484,7 +476,7 @@ fn fit_gyro(
     accel: &AccelOutcome,
     opts: &ReferenceFreeOptions,
     g_m_s2: f64,
-    notes: &mut Vec<String>,
+    notes: &mut Notes,
 ) -> Result<GyroOutcome, ReferenceFreeError> {
     let conditions: Vec<Conditions> = poses.iter().map(|s| pose_conditions(series, s)).collect();
 
@@ -504,7 +496,9 @@ fn fit_gyro(
     } else {
         None
     };
-    notes.push(gyro_bias_note(opts.latitude_deg));
+    notes.push(Note::GyroBiasEarthRate {
+        latitude_deg: opts.latitude_deg,
+    });
 
     let inputs = MoveInputs {
         series,
@@ -522,9 +516,7 @@ fn fit_gyro(
     notes.extend(offsets.and_then(|o| o.note()));
     let (moves, skipped) = prepare_moves(&inputs, offsets);
     if skipped > 0 {
-        notes.push(format!(
-            "{skipped} move(s) skipped: lost samples (the rate over a gap is unknown)"
-        ));
+        notes.push(Note::MovesSkipped { count: skipped });
     }
     let gain_fit = fit_move_gains(&moves, skipped, &mut gains, opts)?;
     let move_out = moves_out(&moves, &gains);
@@ -545,12 +537,6 @@ fn fit_gyro(
         moves: move_out,
     })
 }
-
-/// Why the accel misalignment is held: the gauge of the body frame.
-const GAUGE_NOTE: &str = "gauge: accel misalignment xy, xz, yz held at 0 (the gravity magnitude \
-                          cannot see a rotation of the whole frame): the accelerometer axes \
-                          define the body frame (accel x = body x, accel y in the body x-y \
-                          plane) and the gyro is calibrated into that frame";
 
 /// Each still pose's summary: its segment, time, up direction and magnitude error.
 fn poses_out(poses: &[&Segment], pose_index: &[usize], accel: &AccelOutcome) -> Vec<Pose> {
@@ -607,23 +593,6 @@ fn split_gyro_model(gyro_model: &TriadModel) -> (TriadModel, TriadModel) {
     (offsets, gains)
 }
 
-/// The note on how Earth's rate enters the gyro bias, with or without the latitude.
-fn gyro_bias_note(latitude_deg: Option<f64>) -> String {
-    match latitude_deg {
-        Some(lat) => format!(
-            "gyro bias: Earth's vertical rate at latitude {lat} deg removed at each pose; the \
-             horizontal part ({:.1e} rad/s, direction unknown without a heading) is carried in \
-             the bias standard errors",
-            imu_model::earth::earth_rate_split_rad_s(lat).1
-        ),
-        None => format!(
-            "gyro bias: Earth's rate (up to {EARTH_RATE_RAD_S:.2e} rad/s, unknown in the sensor \
-             frame without latitude and heading) is carried in the bias standard errors; give \
-             --latitude-deg to remove its vertical part"
-        ),
-    }
-}
-
 /// Fits the gain model `gains` to the moves (setting its values); `None` when it has no
 /// parameters, an error when there are too few moves for them.
 fn fit_move_gains(
@@ -678,8 +647,8 @@ fn moves_out(moves: &[MoveData], gains: &TriadModel) -> Vec<Move> {
 
 /// Notes on the gyro fit: temperature and warm-up effects fitted only as far as excited, and
 /// how the gains are found.
-fn push_gyro_notes(gyro_model: &TriadModel, notes: &mut Vec<String>) {
-    let not_fitted: Vec<&str> = gyro_model
+fn push_gyro_notes(gyro_model: &TriadModel, notes: &mut Notes) {
+    let not_fitted: Vec<EffectKind> = gyro_model
         .kinds()
         .into_iter()
         .filter(|k| {
@@ -688,20 +657,13 @@ fn push_gyro_notes(gyro_model: &TriadModel, notes: &mut Vec<String>) {
                 EffectKind::TempScale | EffectKind::TempBias | EffectKind::Warmup
             )
         })
-        .map(|k| k.id())
         .collect();
     if !not_fitted.is_empty() {
-        notes.push(format!(
-            "gyro {}: fitted only as far as this recording's temperatures and times excite them",
-            not_fitted.join(", ")
-        ));
+        notes.push(Note::FittedAsExcited {
+            effects: not_fitted,
+        });
     }
-    notes.push(
-        "gyro gains: the rate is corrected by the interpolated rate of the still poses around \
-         each move and integrated over straight-line-fitted sample times; the accel fit's own \
-         uncertainty is not propagated into them"
-            .into(),
-    );
+    notes.push(Note::GyroGainsMethod);
 }
 
 /// The calibration of the fitted accel and gyro models, described by its poses and moves.

@@ -216,16 +216,9 @@ impl MoveOffsets<'_> {
     }
 
     /// How the offsets enter the moves, for the notes (None when they do not vary).
-    pub(crate) fn note(&self) -> Option<String> {
-        let ids: Vec<&str> = varying_offsets(self.gyro).iter().map(|k| k.id()).collect();
-        (!ids.is_empty()).then(|| {
-            format!(
-                "gyro gains: the {} fitted to the still poses is evaluated at every sample of \
-                 each move (specific force, temperature, time) and removed from the rate beyond \
-                 its interpolation between the poses",
-                ids.join(", ")
-            )
-        })
+    pub(crate) fn note(&self) -> Option<crate::note::Note> {
+        let effects = varying_offsets(self.gyro);
+        (!effects.is_empty()).then_some(crate::note::Note::MoveOffsetsVary { effects })
     }
 
     /// The gyro offset at conditions `c`, rad/s: the model applied to a zero rate (the gains,

@@ -203,7 +203,11 @@ fn recovers_a_synthetic_sensor_in_its_accel_frame() {
         "{:?}",
         fit.accel.unobservable
     );
-    assert!(fit.notes.iter().any(|n| n.contains("gauge")));
+    assert!(
+        fit.notes.contains(&crate::note::Note::Gauge),
+        "{:?}",
+        fit.notes
+    );
     assert!(fit.accel.warnings.is_empty(), "{:?}", fit.accel.warnings);
     // The calibration file carries its procedure and loads back.
     let text = fit.calibration.to_toml_string();
@@ -336,7 +340,8 @@ fn raw_offsets_and_short_poses_need_no_preprocessing() {
             );
         }
     }
-    let notes = fit.notes.join("\n");
+    assert!(fit.notes.has("gyro_rest_rate"), "{:?}", fit.notes.codes());
+    let notes = fit.notes.sentences().join("\n");
     assert!(notes.contains("deg/s at rest"), "{notes}");
 }
 

@@ -23,7 +23,7 @@ use imu_model::Vec3;
 use imu_model::earth::{
     earth_rate_split_rad_s, normal_gravity_m_s2, unknown_heading_variance_rad2_s2,
 };
-use imu_model::units::{EARTH_RATE_RAD_S, STANDARD_GRAVITY_M_S2};
+use imu_model::units::STANDARD_GRAVITY_M_S2;
 
 use super::segment_truth::recording_conditions;
 use super::{ReferenceCaveats, SegmentTruth};
@@ -392,6 +392,7 @@ impl Ferraris {
 
     /// What the procedure leaves unknown (Earth's rate a heading would fix) and notes.
     pub fn caveats(&self, segments: &[Segment]) -> ReferenceCaveats {
+        use crate::note::Note;
         let faces: Vec<String> = segments
             .iter()
             .filter(|s| s.kind == SegmentKind::Static)
@@ -404,35 +405,24 @@ impl Ferraris {
             .iter()
             .filter(|s| s.kind == SegmentKind::Plateau)
             .count();
-        let mut notes = vec![format!(
-            "Ferraris procedure ({}): {} still faces ({} distinct: {}) and {turns} full turn(s); \
-             local gravity {:.6} m/s^2",
-            self.file,
-            faces.len(),
-            distinct.len(),
-            distinct.join(", "),
-            self.gravity_m_s2()
-        )];
-        if distinct.len() < 6 {
-            notes.push(format!(
-                "only {} of the six faces were seen: rest the unit on every face",
-                distinct.len()
-            ));
+        let seen = distinct.len();
+        let mut notes = vec![Note::FerrarisSummary {
+            file: self.file.clone(),
+            faces: faces.len(),
+            distinct,
+            turns,
+            gravity_m_s2: self.gravity_m_s2(),
+        }];
+        if seen < 6 {
+            notes.push(Note::MissingFaces { seen });
         }
         if turns < 3 {
-            notes.push(format!(
-                "{turns} full turn(s) found (one about each axis is needed for the gyro scale \
-                 and misalignment): turn the unit once through 360 deg about each axis between \
-                 two still rests"
-            ));
+            notes.push(Note::TooFewTurns { turns });
         }
         // Each axis is up on some face and horizontal on others: the worst case is horizontal.
         let std = unknown_heading_variance_rad2_s2(self.latitude_deg, 0.0).sqrt();
         if self.latitude_deg.is_none() {
-            notes.push(format!(
-                "no latitude: Earth's rate ({EARTH_RATE_RAD_S:.3e} rad/s) is carried as a gyro \
-                 bias uncertainty"
-            ));
+            notes.push(Note::NoLatitude);
         }
         ReferenceCaveats {
             gyro_bias_std_rad_s: Some([std; 3]),

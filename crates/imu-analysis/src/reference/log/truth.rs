@@ -128,57 +128,36 @@ impl AlignedLog {
 
     /// Remarks for the report: the offset and how it was found, and for a table log its axes,
     /// gravity and Earth's rate.
-    pub fn notes(&self, series: &ImuSeries) -> Vec<String> {
-        let mut notes = vec![match self.correlation {
-            Some(r) => format!(
-                "reference log {}: log clock = recording clock {:+.3} s (found by \
-                 cross-correlating rate magnitudes, correlation {r:.3})",
-                self.log.file, self.offset_s
-            ),
-            None => format!(
-                "reference log {}: log clock = recording clock {:+.3} s (given)",
-                self.log.file, self.offset_s
-            ),
+    pub fn notes(&self, series: &ImuSeries) -> Vec<crate::note::Note> {
+        use crate::note::{Note, TempAssumed};
+        let mut notes = vec![Note::LogClock {
+            file: self.log.file.clone(),
+            offset_s: self.offset_s,
+            correlation: self.correlation,
         }];
         if let Some(t) = &self.log.table {
-            let axes: Vec<String> = t
-                .axis_lines
-                .iter()
-                .map(|(line, _, a)| {
-                    format!("{} from line {line}", format_direction(&Vec3::from(*a)))
-                })
-                .collect();
-            notes.push(format!(
-                "reference log {}: a rate table's rate about its axis ({}); {}",
-                self.log.file,
-                axes.join(", "),
-                if self.log.specific_force_m_s2.is_some() {
-                    "specific force from the log".to_string()
-                } else {
-                    format!(
-                        "the table axis is taken as vertical: specific force {} along it, \
-                         pointing up the way the measured accel says",
-                        t.gravity_source
-                    )
-                }
-            ));
-            notes.push(match t.latitude_deg {
-                Some(lat) => format!(
-                    "Earth's rate: its vertical part at latitude {lat} deg is added to the \
-                     table's rate; the horizontal part, which the log cannot know, is carried \
-                     as gyro bias uncertainty"
-                ),
-                None => "Earth's rate is not in a table's log and no `# latitude-deg` is \
-                         given: all of it (7.3e-5 rad/s) is carried as gyro bias uncertainty"
-                    .to_string(),
+            notes.push(Note::TableAxes {
+                file: self.log.file.clone(),
+                axes: t
+                    .axis_lines
+                    .iter()
+                    .map(|(line, _, a)| (*line, *a))
+                    .collect(),
+                gravity_source: self
+                    .log
+                    .specific_force_m_s2
+                    .is_none()
+                    .then(|| t.gravity_source.clone()),
+            });
+            notes.push(Note::TableEarthRate {
+                latitude_deg: t.latitude_deg,
             });
         }
         if series.temp.is_empty() {
-            notes.push(format!(
-                "the recording has no temperature readings: {} deg C assumed; temperature \
-                 effects cannot be fitted",
-                imu_model::units::REFERENCE_TEMP_C
-            ));
+            notes.push(Note::NoTemperature {
+                assumed_c: imu_model::units::REFERENCE_TEMP_C,
+                source: TempAssumed::Log,
+            });
         }
         notes
     }

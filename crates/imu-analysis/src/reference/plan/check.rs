@@ -3,6 +3,7 @@
 //! true input (gravity, rates, Earth's rate and what the plan leaves unknown of it).
 
 use super::*;
+use crate::note::{Note, TempAssumed};
 
 impl Plan {
     /// True when the plan gives every segment's time range by hand.
@@ -97,10 +98,10 @@ impl Plan {
         segments: &[Segment],
     ) -> Result<PlanCaveats, PlanMismatch> {
         let resolved = self.resolve(series, segments)?;
-        let mut notes = vec![format!(
-            "plan {}: gravity {}",
-            self.file, self.gravity_source
-        )];
+        let mut notes = vec![Note::PlanGravity {
+            file: self.file.clone(),
+            gravity_source: self.gravity_source.clone(),
+        }];
         let mut sd = [0.0f64; 3];
         let mut n_unknown = 0;
         for r in &resolved {
@@ -113,31 +114,24 @@ impl Plan {
         }
         let gyro_bias_std_rad_s = (n_unknown > 0).then_some(sd);
         if n_unknown > 0 {
-            notes.push(format!(
-                "Earth's rate is not fully known in {n_unknown} of {} segments (no north in the \
-                 plan, a table stopped at an unlogged angle, no latitude, or a plateau's \
-                 partial turn): up to [{:.1e}, {:.1e}, {:.1e}] rad/s per axis, carried as a \
-                 systematic gyro bias uncertainty; a g-sensitivity fitted from these segments \
-                 can be off by up to {:.1e} (rad/s)/(m/s^2) more than its standard error says \
-                 (give north in the plan where it matters)",
-                resolved.len(),
-                sd[0],
-                sd[1],
-                sd[2],
-                EARTH_RATE_RAD_S * self.latitude_deg.map_or(1.0, |l| l.to_radians().cos())
-                    / self.gravity_m_s2
-            ));
+            notes.push(Note::EarthRateUnknown {
+                unknown: n_unknown,
+                segments: resolved.len(),
+                max_std_rad_s: sd,
+                g_sensitivity_bound_rad_s_per_m_s2: EARTH_RATE_RAD_S
+                    * self.latitude_deg.map_or(1.0, |l| l.to_radians().cos())
+                    / self.gravity_m_s2,
+            });
         }
         if series.temp.is_empty() {
-            notes.push(format!(
-                "the recording has no temperature readings: {} deg C assumed{}",
-                self.temp_c.unwrap_or(REFERENCE_TEMP_C),
-                if self.temp_c.is_some() {
-                    " (plan temp-c)"
+            notes.push(Note::NoTemperature {
+                assumed_c: self.temp_c.unwrap_or(REFERENCE_TEMP_C),
+                source: if self.temp_c.is_some() {
+                    TempAssumed::PlanTempC
                 } else {
-                    " (give temp-c in the plan); temperature effects cannot be fitted"
-                }
-            ));
+                    TempAssumed::PlanDefault
+                },
+            });
         }
         Ok(PlanCaveats {
             gyro_bias_std_rad_s,

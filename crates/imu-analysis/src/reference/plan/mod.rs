@@ -225,7 +225,7 @@ pub struct PlanCaveats {
     /// errors. `None` if the plan determines the input completely.
     pub gyro_bias_std_rad_s: Option<[f64; 3]>,
     /// Remarks for the report (gravity used, unknown Earth rate, assumed temperature).
-    pub notes: Vec<String>,
+    pub notes: Vec<crate::note::Note>,
 }
 
 #[cfg(test)]
