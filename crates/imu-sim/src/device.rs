@@ -23,6 +23,7 @@ use imu_model::nalgebra::{UnitQuaternion, Vector3};
 use imu_model::{Calibration, Conditions, NoiseGenerator, TrueMotion};
 use imu_proto::command::Command;
 use imu_proto::device::{ACCEL_GAIN_SCALE_ADDR, GYRO_GAIN_SCALE_ADDR, MAG_GAIN_SCALE_ADDR};
+use imu_proto::gnss_time::GnssTime;
 use imu_proto::reply::{Filter, Reply};
 use imu_proto::scale;
 use imu_rec::truth::TruthSample;
@@ -155,6 +156,40 @@ impl DeviceCore {
     pub fn device_time_s(&self, t_s: f64) -> f64 {
         let d = &self.scenario.device;
         (t_s + self.scenario.power_on_before_s) * (1.0 + d.clock_drift_ppm * 1e-6)
+    }
+
+    /// The unit's GNSS time at scenario time `t_s` when the scenario gives it one
+    /// (`device.gnss-time`), the same for every protocol that carries one: the true UTC
+    /// (`gnss-epoch-utc-s` + `t_s`), valid, outside the `gnss-outage` windows; inside one, the
+    /// unit's own propagation on its drifting clock from the outage's start (its last fix),
+    /// not valid. `None` without `device.gnss-time`: each protocol then sends what such a unit
+    /// sends.
+    pub fn gnss_time(&self, t_s: f64) -> Option<GnssTime> {
+        let d = &self.scenario.device;
+        if !d.gnss_time {
+            return None;
+        }
+        let epoch_ns = (d.gnss_epoch_utc_s * 1e9).round() as i64;
+        let at = |t_s: f64| epoch_ns + (t_s * 1e9).round() as i64;
+        if d.gnss_valid_at(t_s) {
+            return Some(GnssTime {
+                utc_ns: at(t_s),
+                valid: true,
+            });
+        }
+        // The last fix: the start of the outage this time is in (scenario time 0 at the
+        // latest, before which the unit had none).
+        let fix_s = d
+            .gnss_outage
+            .iter()
+            .filter(|o| (o.start_s..o.end_s).contains(&t_s))
+            .map(|o| o.start_s.max(0.0))
+            .fold(t_s, f64::min);
+        let since_s = self.device_time_s(t_s) - self.device_time_s(fix_s);
+        Some(GnssTime {
+            utc_ns: at(fix_s) + (since_s * 1e9).round() as i64,
+            valid: false,
+        })
     }
 
     fn ticks(&self, t_s: f64) -> u16 {

@@ -17,7 +17,7 @@
 //!   power-on, its valid flags clear (no GNSS), unless the scenario's `device.gnss-time` is
 //!   set: then it is the sample's true UTC time as GPS week and time of week, time-of-week and
 //!   week valid, and during a `device.gnss-outage` the flags drop and the time is the unit's
-//!   own propagation on its drifting clock from the last valid one. Such a unit powers up with
+//!   own propagation on its drifting clock from the last fix (`DeviceCore::gnss_time`). Such a unit powers up with
 //!   the GPS timestamp in its IMU message format.
 //! - Timestamps follow the device's own oscillator (the scenario's clock drift): the reference
 //!   time (0xD5) in ns since power-on, the internal timestamp (0x0E) in counts of
@@ -91,8 +91,6 @@ pub struct MipDevice {
     stream_enabled: bool,
     idle: bool,
     temperature: Option<(TemperatureStats, u64)>,
-    /// Scenario time and device time of the last sample with valid GNSS time.
-    gnss_anchor: Option<(f64, f64)>,
 }
 
 impl MipDevice {
@@ -108,7 +106,6 @@ impl MipDevice {
             stream_enabled: true,
             idle,
             temperature: None,
-            gnss_anchor: None,
             core,
         }
     }
@@ -338,33 +335,20 @@ impl MipDevice {
     }
 
     /// The GPS timestamp of a sample at scenario time `t_s`, device time `device_time_s`.
-    fn gps_time(&mut self, t_s: f64, device_time_s: f64) -> GpsTime {
-        let spec = &self.core.scenario().device;
-        if !spec.gnss_time {
+    fn gps_time(&self, t_s: f64, device_time_s: f64) -> GpsTime {
+        let Some(g) = self.core.gnss_time(t_s) else {
             return GpsTime {
                 tow_s: device_time_s % GPS_WEEK_S,
                 week: (device_time_s / GPS_WEEK_S) as u16,
                 valid_flags: 0,
             };
-        }
-        let valid = spec.gnss_valid_at(t_s);
-        if valid {
-            self.gnss_anchor = Some((t_s, device_time_s));
-        }
-        // Valid: the true time. Not: propagated on the device's clock from the last valid one
-        // (or from scenario time 0 on the device clock, before any).
-        let (t0_s, d0_s) = self
-            .gnss_anchor
-            .unwrap_or((0.0, self.core.device_time_s(0.0)));
-        let since_s = if valid { 0.0 } else { device_time_s - d0_s };
-        let utc_ns =
-            (spec.gnss_epoch_utc_s * 1e9).round() as i64 + ((t0_s + since_s) * 1e9).round() as i64;
-        let gps_ns = gnss_time::unix_ns_to_gps_ns(utc_ns);
+        };
+        let gps_ns = gnss_time::unix_ns_to_gps_ns(g.utc_ns);
         let week_ns = gnss_time::SECONDS_PER_WEEK as u64 * 1_000_000_000;
         GpsTime {
             tow_s: (gps_ns % week_ns) as f64 * 1e-9,
             week: (gps_ns / week_ns) as u16,
-            valid_flags: if valid { GPS_TOW_AND_WEEK_VALID } else { 0 },
+            valid_flags: if g.valid { GPS_TOW_AND_WEEK_VALID } else { 0 },
         }
     }
 
@@ -476,13 +460,13 @@ mod tests {
         };
         // Valid: the true time, to the ns.
         assert_eq!(gnss_at(0.5), (500_000_000, GPS_TOW_AND_WEEK_VALID));
-        // In the outage: not valid, propagated on the 200 ppm fast clock from the last valid
-        // time (0.99 s): 2 s later it is 400 us ahead.
+        // In the outage: not valid, propagated on the 200 ppm fast clock from the last fix
+        // (the outage's start, 1 s): 1.99 s later it is 398 us ahead.
         let (ns, flags) = gnss_at(0.99);
         assert_eq!((ns, flags), (990_000_000, GPS_TOW_AND_WEEK_VALID));
         let (ns, flags) = gnss_at(2.99);
         assert_eq!(flags, 0);
-        assert!((ns - 2_990_400_000).abs() <= 1, "{ns}");
+        assert!((ns - 2_990_398_000).abs() <= 1, "{ns}");
         assert_eq!(gnss_at(3.0), (3_000_000_000, GPS_TOW_AND_WEEK_VALID));
     }
 

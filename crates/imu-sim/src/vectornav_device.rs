@@ -23,8 +23,10 @@
 //!   calibration corrects), the compensated ones (the truth with the same noise: the unit's
 //!   factory compensation modelled as removing the truth model's errors exactly), temperature,
 //!   pressure (101.325 kPa), delta theta (degrees) and delta velocity over the sample period.
-//!   A VN-200/300 model also sends GPS time (true time from [`GPS_START_UNIX_NS`], time status
-//!   valid); a VN-100 asked for GPS time sends 0 with the time status clear.
+//!   A VN-200/300 model also sends GPS time: the scenario's GNSS time when it gives the unit
+//!   one (`device.gnss-time`: time status valid outside its outages, propagated on the
+//!   drifting clock inside them), else the true time from [`GPS_START_UNIX_NS`], valid; a
+//!   VN-100 asked for GPS time sends 0 with the time status clear.
 //! - The truth record's `ticks_unwrapped` is the startup time in ns and its `command` 0xFA.
 
 use std::collections::VecDeque;
@@ -315,12 +317,23 @@ impl VnDevice {
         let f32s = |v: imu_model::nalgebra::Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
         let s = &m.state;
         let gnss = has_gnss(&self.model);
-        let gps_ns =
-            gnss.then(|| unix_ns_to_gps_ns(GPS_START_UNIX_NS + (t_s * 1e9).round() as i64));
+        // A VN-200/300's GPS time: the scenario's (`DeviceCore::gnss_time`, valid outside its
+        // outages) if it gives the unit one, else the true time, valid.
+        let gps = gnss.then(|| {
+            let (utc_ns, valid) = self.core.gnss_time(t_s).map_or(
+                (GPS_START_UNIX_NS + (t_s * 1e9).round() as i64, true),
+                |g| (g.utc_ns, g.valid),
+            );
+            (unix_ns_to_gps_ns(utc_ns), valid)
+        });
         let data = BinaryData {
             startup_ns: Some(startup_ns),
-            gps_ns: Some(gps_ns.unwrap_or(0)),
-            time_status: Some(TimeStatus(if gnss { 0b111 } else { 0 })),
+            gps_ns: Some(gps.map_or(0, |(ns, _)| ns)),
+            time_status: Some(TimeStatus(if gps.is_some_and(|(_, valid)| valid) {
+                0b111
+            } else {
+                0
+            })),
             time_utc: None,
             imu_status: Some(0),
             uncomp_mag_gauss: Some(f32s(m.mag_gauss)),

@@ -22,8 +22,10 @@
 //!   the raw reading a calibration corrects; `Acceleration`/`RateOfTurn`/`MagneticField` are
 //!   the unit's own compensation, modelled as the truth model inverted exactly (what is left
 //!   is the noise); delta v and delta q are the measured acceleration and rate over one sample
-//!   period; the temperature is the true one; the UTC time is the true time
-//!   [`SIM_UTC_EPOCH_NS`] + scenario time, flagged valid (the unit's GNSS receiver has a fix).
+//!   period; the temperature is the true one; the UTC time is the scenario's GNSS time when it
+//!   gives the unit one (`device.gnss-time`: valid outside its outages, propagated on the
+//!   drifting clock inside them), else the true time [`SIM_UTC_EPOCH_NS`] + scenario time,
+//!   flagged valid (the unit's GNSS receiver has a fix).
 //! - `SampleTimeFine` follows the device's own oscillator (the scenario's clock drift): 10 kHz
 //!   counts since power-on, u32 on the wire. The truth record's `ticks_unwrapped` is that
 //!   count unwrapped and its `command` is the MTData2 message id, 0x36.
@@ -283,7 +285,7 @@ impl XsensDevice {
             match DataId(s.data_id).base() {
                 id::PACKET_COUNTER => d.packet_counter = Some(self.packet_counter),
                 id::SAMPLE_TIME_FINE => d.sample_time_fine = Some(ticks as u32),
-                id::UTC_TIME => d.utc = Some(utc_at(t_s)),
+                id::UTC_TIME => d.utc = Some(utc_time_at(&self.core, t_s)),
                 id::TEMPERATURE => d.temperature_c = Some(m.conditions.temp_c),
                 id::DELTA_V => d.delta_v_m_s = Some(arr(m.accel_m_s2 * period_s)),
                 id::ACCELERATION => d.acceleration_m_s2 = Some(arr(compensated.accel_m_s2)),
@@ -321,9 +323,15 @@ impl XsensDevice {
     }
 }
 
-/// The true UTC time at scenario time `t_s`, flagged valid.
-fn utc_at(t_s: f64) -> UtcTime {
-    let utc_ns = SIM_UTC_EPOCH_NS + (t_s * 1e9).round() as i64;
+/// The UTC time field at scenario time `t_s`: the scenario's GNSS time
+/// (`DeviceCore::gnss_time`: valid outside its outages) if it gives the unit one, else the true
+/// time from [`SIM_UTC_EPOCH_NS`], valid.
+fn utc_time_at(core: &DeviceCore, t_s: f64) -> UtcTime {
+    let (utc_ns, valid) = core
+        .gnss_time(t_s)
+        .map_or((SIM_UTC_EPOCH_NS + (t_s * 1e9).round() as i64, true), |g| {
+            (g.utc_ns, g.valid)
+        });
     let (year, month, day, hour, minute, second, ns) = unix_ns_to_utc_fields(utc_ns);
     UtcTime {
         ns,
@@ -333,7 +341,7 @@ fn utc_at(t_s: f64) -> UtcTime {
         hour,
         minute,
         second,
-        flags: UTC_VALID,
+        flags: if valid { UTC_VALID } else { 0 },
     }
 }
 

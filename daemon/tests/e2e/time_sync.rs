@@ -1,5 +1,6 @@
-//! `device.time-source` end to end: a simulated MIP unit whose clock runs 150 ppm fast and whose
-//! GNSS time comes and goes, through a real pty and the imud binary; the recorded stamps
+//! `device.time-source` end to end: a simulated unit (MIP, Xsens MTi, VectorNav VN-200) whose
+//! clock runs 150 ppm fast and whose GNSS time comes and goes, through a real pty and the imud
+//! binary; the recorded stamps
 //! against the true GNSS time of each sample (the truth's `t_s` plus the scenario's GNSS
 //! epoch), and the status's time-sync state in the MCAP.
 
@@ -9,9 +10,10 @@ use imu_bus::recording::{Recording, read_recording};
 use imu_bus::sample::{time_source, time_sync};
 use imu_bus::truth::{TruthSample, is_data_command, read_truth};
 use imu_model::Calibration;
+use imu_proto::DeviceProtocol;
 use imu_sim::{Pacing, Scenario, SimOptions};
 
-use super::{Imud, TRUTH, recordings, unique};
+use super::{Imud, TRUTH, imuds_truth, recordings, unique};
 
 /// The device clock's error, ppm (fast).
 const DRIFT_PPM: f64 = 150.0;
@@ -20,7 +22,7 @@ const EPOCH_UTC_S: f64 = 1_767_225_600.0;
 /// The GNSS outage, s of scenario time.
 const OUTAGE_S: (f64, f64) = (7.0, 11.0);
 
-fn scenario(duration_s: f64, gnss: bool) -> String {
+fn scenario(duration_s: f64, gnss: bool, protocol: DeviceProtocol) -> String {
     let gnss = if gnss {
         format!(
             "gnss-time = true\ngnss-epoch-utc-s = {EPOCH_UTC_S}\n\
@@ -30,8 +32,14 @@ fn scenario(duration_s: f64, gnss: bool) -> String {
     } else {
         String::new()
     };
+    // A VectorNav unit with GNSS is a VN-200.
+    let model = if protocol == DeviceProtocol::Vectornav {
+        "model = \"VN-200T-CR\"\n"
+    } else {
+        ""
+    };
     format!(
-        "name = \"time-sync\"\nrate-hz = 100.0\n[device]\nprotocol = \"mip\"\n\
+        "name = \"time-sync\"\nrate-hz = 100.0\n[device]\nprotocol = \"{protocol}\"\n{model}\
          clock-drift-ppm = {DRIFT_PPM}\n{gnss}\
          [[segment]]\nkind = \"static\"\norientation = {{ x = \"north\", z = \"up\" }}\n\
          duration-s = {duration_s}\n"
@@ -40,11 +48,17 @@ fn scenario(duration_s: f64, gnss: bool) -> String {
 
 /// Runs the scenario through imud with `--time-source source`; returns the recording and the
 /// truth's data samples (one for one: the link is lossless).
-fn run(name: &str, source: &str, duration_s: f64, gnss: bool) -> (Recording, Vec<TruthSample>) {
+fn run(
+    name: &str,
+    source: &str,
+    duration_s: f64,
+    gnss: bool,
+    protocol: DeviceProtocol,
+) -> (Recording, Vec<TruthSample>) {
     let dir = tempfile::tempdir().unwrap();
     let cal_path = dir.path().join("calibration.toml");
     std::fs::write(&cal_path, TRUTH).unwrap();
-    let text = scenario(duration_s, gnss);
+    let text = scenario(duration_s, gnss, protocol);
     let opts = SimOptions {
         scenario: Scenario::from_toml_str(&text, "time-sync scenario").unwrap(),
         scenario_text: text,
@@ -60,7 +74,7 @@ fn run(name: &str, source: &str, duration_s: f64, gnss: bool) -> (Recording, Vec
         &unique(name),
         &dir.path().join("imu0"),
         &cal_path,
-        &["--protocol", "mip", "--time-source", source],
+        &["--protocol", protocol.name(), "--time-source", source],
     );
     let sim = imu_sim::spawn(opts).unwrap();
     let deadline = Instant::now() + Duration::from_secs(duration_s as u64 + 60);
@@ -75,11 +89,18 @@ fn run(name: &str, source: &str, duration_s: f64, gnss: bool) -> (Recording, Vec
     // The truth file says when scenario time 0 was in UTC.
     let epoch_utc_s: f64 = truth.run["gnss-epoch-utc-s"].parse().unwrap();
     assert_eq!(epoch_utc_s, EPOCH_UTC_S);
-    let truth_data: Vec<TruthSample> = truth
-        .samples
-        .into_iter()
-        .filter(|s| is_data_command(s.command))
-        .collect();
+    let truth_data: Vec<TruthSample> = imuds_truth(
+        protocol,
+        &report,
+        truth
+            .samples
+            .iter()
+            .filter(|s| is_data_command(s.command))
+            .collect(),
+    )
+    .into_iter()
+    .cloned()
+    .collect();
     let files = recordings(dir.path());
     assert_eq!(files.len(), 1, "{files:?}");
     let rec = read_recording(&files[0]).unwrap();
@@ -94,11 +115,13 @@ fn run(name: &str, source: &str, duration_s: f64, gnss: bool) -> (Recording, Vec
             "{source}: stamps strictly increasing"
         );
     }
-    let device = rec.metadata.get("imud.device").expect("device metadata");
-    assert_eq!(
-        device.get("gps-timestamp").map(String::as_str),
-        Some("true")
-    );
+    if protocol == DeviceProtocol::Mip {
+        let device = rec.metadata.get("imud.device").expect("device metadata");
+        assert_eq!(
+            device.get("gps-timestamp").map(String::as_str),
+            Some("true")
+        );
+    }
     (rec, truth_data)
 }
 
@@ -115,16 +138,33 @@ fn sync_states(rec: &Recording) -> Vec<u8> {
 }
 
 #[test]
-fn gnss_stamps_follow_the_units_gnss_time_through_an_outage() {
-    let (rec, truth) = run("gnss", "gnss", 15.0, true);
+fn gnss_stamps_follow_a_mip_units_gnss_time_through_an_outage() {
+    gnss_stamps_follow_the_units_gnss_time_through_an_outage(DeviceProtocol::Mip, 1e-9);
+}
+
+/// An MTi's device clock is `SampleTimeFine`, 100 us counts.
+#[test]
+fn gnss_stamps_follow_an_xsens_units_utc_time_through_an_outage() {
+    gnss_stamps_follow_the_units_gnss_time_through_an_outage(DeviceProtocol::Xsens, 100e-6);
+}
+
+/// A VN-200's device clock is its startup time, ns.
+#[test]
+fn gnss_stamps_follow_a_vectornav_units_gps_time_through_an_outage() {
+    gnss_stamps_follow_the_units_gnss_time_through_an_outage(DeviceProtocol::Vectornav, 1e-9);
+}
+
+/// `tick_s`: the resolution of the unit's device clock.
+fn gnss_stamps_follow_the_units_gnss_time_through_an_outage(protocol: DeviceProtocol, tick_s: f64) {
+    let (rec, truth) = run(&format!("gnss-{protocol}"), "gnss", 15.0, true, protocol);
     let first_s = truth[0].t_s;
     // Locked: from 3 s after the first sample (the rate is fitted over 2 s of GNSS points;
     // before, an offset alone lags the 150 ppm by up to 150 us) to the outage, and after it.
-    // The GNSS field is exact to the ns and the device's reference time is the ns floor, so
-    // the fit's stamps equal the true times within 20 us.
-    const LOCKED_BOUND_S: f64 = 20e-6;
+    // The GNSS field is exact to the ns and the stamps follow the device clock, so the fit's
+    // stamps equal the true times within 20 us plus that clock's resolution.
+    let locked_bound_s = 20e-6 + tick_s;
     // Held over on the fitted rate: bounded by drift x outage (600 us), far less in fact.
-    let holdover_bound_s = DRIFT_PPM * 1e-6 * (OUTAGE_S.1 - OUTAGE_S.0);
+    let holdover_bound_s = DRIFT_PPM * 1e-6 * (OUTAGE_S.1 - OUTAGE_S.0) + tick_s;
     let (mut locked, mut held, mut worst_locked_s, mut worst_held_s) = (0, 0, 0.0f64, 0.0f64);
     for (m, t) in rec.imu.iter().zip(&truth) {
         let err_s = (m.header.stamp.to_ns() as i64 - true_gnss_ns(t)) as f64 * 1e-9;
@@ -138,7 +178,7 @@ fn gnss_stamps_follow_the_units_gnss_time_through_an_outage() {
             worst_held_s = worst_held_s.max(err_s.abs());
         } else if t.t_s >= first_s + 3.0 {
             assert!(
-                err_s.abs() <= LOCKED_BOUND_S,
+                err_s.abs() <= locked_bound_s,
                 "locked at {} s: {err_s} s",
                 t.t_s
             );
@@ -147,7 +187,7 @@ fn gnss_stamps_follow_the_units_gnss_time_through_an_outage() {
         }
     }
     eprintln!(
-        "GNSS stamps: {locked} locked within {worst_locked_s:e} s, {held} held over within \
+        "{protocol} GNSS stamps: {locked} locked within {worst_locked_s:e} s, {held} held over within \
          {worst_held_s:e} s"
     );
     assert!(locked > 500 && held > 350, "{locked} locked, {held} held");
@@ -181,7 +221,7 @@ fn gnss_stamps_follow_the_units_gnss_time_through_an_outage() {
 
 #[test]
 fn host_stamps_are_the_receive_times_and_device_stamps_the_fit() {
-    let (rec, _) = run("host", "host", 4.0, false);
+    let (rec, _) = run("host", "host", 4.0, false, DeviceProtocol::Mip);
     for r in &rec.raw {
         // The receive time, only kept apart from the previous frame's (read together).
         let d = r.t_sample_ns - r.t_host_monotonic_ns;
@@ -193,7 +233,7 @@ fn host_stamps_are_the_receive_times_and_device_stamps_the_fit() {
             .all(|(_, s)| { s.time_source == time_source::HOST && s.time_sync == time_sync::NONE })
     );
 
-    let (rec, truth) = run("device", "device", 6.0, false);
+    let (rec, truth) = run("device", "device", 6.0, false, DeviceProtocol::Mip);
     assert!(
         rec.statuses
             .iter()

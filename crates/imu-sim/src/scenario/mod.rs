@@ -207,11 +207,13 @@ pub struct DeviceSpec {
     /// its IMU stream resumed). The scenario clock starts at power-up (`imu-sim
     /// --power-up-streaming` sets it too).
     pub power_up_streaming: bool,
-    /// A MIP unit with GNSS time: its GPS timestamp field (0x12) carries the true UTC time of
-    /// each sample (`gnss-epoch-utc-s` + scenario time), valid (time of week and week valid
-    /// flags) except during the `gnss-outage` windows, when its flags drop and it carries the
-    /// unit's own propagation on its drifting clock. Without it the field carries device time
-    /// since power-on, never valid.
+    /// A unit with GNSS time (`DeviceCore::gnss_time`): a MIP unit's GPS timestamp field
+    /// (0x12), an Xsens MTi's UtcTime and a VN-200/300's GPS time carry the true UTC time of
+    /// each sample (`gnss-epoch-utc-s` + scenario time), valid except during the `gnss-outage`
+    /// windows, when their validity drops and they carry the unit's own propagation on its
+    /// drifting clock. Without it a MIP unit's field carries device time since power-on, never
+    /// valid, an MTi's UtcTime the true time from 2026-01-01 (valid) and a VN-200/300's GPS
+    /// time the true time (valid).
     pub gnss_time: bool,
     /// UTC of scenario time 0, s since the Unix epoch (default 2026-01-01T00:00:00Z).
     pub gnss_epoch_utc_s: f64,
