@@ -35,6 +35,9 @@ const EVERY_SAMPLE: u16 = 0xFFFF;
 pub struct OutputChoice {
     /// Which outputs are the raw reading.
     pub raw: RawSource,
+    /// With the HR outputs, the compensated ones beside them (always there when they are the
+    /// raw reading).
+    pub compensated: bool,
     /// With the magnetic field.
     pub mag: bool,
     /// With the temperature.
@@ -43,40 +46,55 @@ pub struct OutputChoice {
     pub utc: bool,
 }
 
-/// The output sets tried in order: the first the unit accepts is used.
-pub const CHOICES: [OutputChoice; 6] = [
+/// The output sets tried in order: the first the unit accepts is used. The HR outputs alone
+/// (fourth) serve a unit that refuses its compensated outputs and magnetic field at the HR
+/// rate: they come from its filter, whose rate is lower than the HR outputs' on some series.
+pub const CHOICES: [OutputChoice; 7] = [
     OutputChoice {
         raw: RawSource::HighRate,
+        compensated: true,
         mag: true,
         temperature: true,
         utc: true,
     },
     OutputChoice {
         raw: RawSource::HighRate,
+        compensated: true,
         mag: true,
         temperature: true,
         utc: false,
     },
     OutputChoice {
         raw: RawSource::HighRate,
+        compensated: true,
         mag: false,
         temperature: false,
         utc: false,
     },
     OutputChoice {
+        raw: RawSource::HighRate,
+        compensated: false,
+        mag: false,
+        temperature: true,
+        utc: true,
+    },
+    OutputChoice {
         raw: RawSource::Compensated,
+        compensated: true,
         mag: true,
         temperature: true,
         utc: true,
     },
     OutputChoice {
         raw: RawSource::Compensated,
+        compensated: true,
         mag: true,
         temperature: false,
         utc: false,
     },
     OutputChoice {
         raw: RawSource::Compensated,
+        compensated: true,
         mag: false,
         temperature: false,
         utc: false,
@@ -85,7 +103,8 @@ pub const CHOICES: [OutputChoice; 6] = [
 
 impl OutputChoice {
     /// The output configuration at `rate_hz` (float32; the counter and the clock with every
-    /// sample). With the HR outputs, the compensated ones come at the same rate beside them.
+    /// sample). With the HR outputs, the compensated ones (if chosen) come at the same rate
+    /// beside them.
     pub fn outputs(self, rate_hz: u16) -> OutputConfiguration {
         let mut out = vec![
             (id::PACKET_COUNTER, EVERY_SAMPLE),
@@ -103,7 +122,9 @@ impl OutputChoice {
                 (id::RATE_OF_TURN_HR, rate_hz),
             ]);
         }
-        out.extend([(id::ACCELERATION, rate_hz), (id::RATE_OF_TURN, rate_hz)]);
+        if self.compensated || self.raw == RawSource::Compensated {
+            out.extend([(id::ACCELERATION, rate_hz), (id::RATE_OF_TURN, rate_hz)]);
+        }
         if self.mag {
             out.push((id::MAGNETIC_FIELD, rate_hz));
         }
@@ -126,7 +147,9 @@ impl OutputChoice {
         if self.raw == RawSource::HighRate {
             parts.extend(["AccelerationHR", "RateOfTurnHR"]);
         }
-        parts.extend(["Acceleration", "RateOfTurn"]);
+        if self.compensated || self.raw == RawSource::Compensated {
+            parts.extend(["Acceleration", "RateOfTurn"]);
+        }
         if self.mag {
             parts.push("MagneticField");
         }
@@ -471,8 +494,9 @@ mod tests {
                 .iter()
                 .all(|s| s.rate_hz == 400)
         );
-        assert_eq!(CHOICES[5].outputs(100).0.len(), 4);
-        assert_eq!(CHOICES[5].raw, RawSource::Compensated);
+        let last = CHOICES[CHOICES.len() - 1];
+        assert_eq!(last.outputs(100).0.len(), 4);
+        assert_eq!(last.raw, RawSource::Compensated);
         assert_eq!(
             CHOICES[2].describe(),
             "PacketCounter,SampleTimeFine,AccelerationHR,RateOfTurnHR,Acceleration,RateOfTurn"

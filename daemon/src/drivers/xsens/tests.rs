@@ -5,6 +5,7 @@
 use std::time::{Duration, Instant};
 
 use imu_proto::DeviceProtocol;
+use imu_proto::xsens::data::id;
 use imu_proto::xsens::{Message, XsensReply};
 use imu_sim::virtual_device::Request;
 use imu_sim::xsens_device::PRODUCT_CODE;
@@ -212,6 +213,42 @@ fn a_refused_output_set_falls_back_to_the_next_and_a_different_read_back_fails()
 }
 
 #[test]
+fn the_hr_outputs_alone_are_tried_before_the_compensated_ones_stand_in() {
+    let ids = |k: usize| -> Vec<u16> {
+        CHOICES[k]
+            .outputs(1000)
+            .0
+            .iter()
+            .map(|o| o.data_id)
+            .collect()
+    };
+    let hr_only = CHOICES
+        .iter()
+        .position(|c| c.raw == reading::RawSource::HighRate && !c.compensated)
+        .expect("an HR-only set");
+    let first_compensated_raw = CHOICES
+        .iter()
+        .position(|c| c.raw == reading::RawSource::Compensated)
+        .unwrap();
+    assert!(hr_only < first_compensated_raw);
+    let set = ids(hr_only);
+    assert!(set.contains(&id::ACCELERATION_HR) && set.contains(&id::RATE_OF_TURN_HR));
+    for filtered in [id::ACCELERATION, id::RATE_OF_TURN, id::MAGNETIC_FIELD] {
+        assert!(!set.contains(&filtered), "{set:x?}");
+    }
+    assert!(
+        !CHOICES[hr_only]
+            .describe()
+            .split(',')
+            .any(|name| name == "Acceleration")
+    );
+    // Every other HR set carries the compensated outputs beside.
+    for k in (0..first_compensated_raw).filter(|&k| k != hr_only) {
+        assert!(ids(k).contains(&id::ACCELERATION), "set {k}");
+    }
+}
+
+#[test]
 fn config_problems_name_the_key() {
     let mut c = Config::default().device;
     c.protocol = Some(DeviceProtocol::Xsens);
@@ -293,6 +330,21 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
         .expect("a sample");
     assert_eq!(r.measured.accel_m_s2.z, -9.81f32 as f64);
     assert!(r.compensated.is_none() && r.gnss.is_none());
+
+    // The HR outputs alone (the fourth output set, for a unit that refuses its filter's
+    // outputs at the HR rate): the HR reading, nothing recorded beside it.
+    let hr_only = MtData2 {
+        acceleration_m_s2: None,
+        rate_of_turn_rad_s: None,
+        magnetic_field: None,
+        ..next
+    };
+    let r = readings
+        .content(&hr_only.to_message(Format::Float32))
+        .reading
+        .expect("a sample");
+    assert_eq!(r.measured.accel_m_s2.z, -9.8f32 as f64);
+    assert!(r.compensated.is_none() && r.measured.mag_gauss.x.is_nan());
 
     // No clock: unusable, its temperature still taken; another message: nothing.
     let no_clock = MtData2 {
