@@ -32,7 +32,7 @@
 use std::collections::VecDeque;
 
 use imu_proto::gnss_time::unix_ns_to_gps_ns;
-use imu_proto::vectornav::binary::{common, group, imu, time};
+use imu_proto::vectornav::binary::{common, group, time};
 use imu_proto::vectornav::{
     BinaryData, BinaryMessage, BinaryOutputConfig, Check, DeltaTheta, IMU_RATE_HZ, OutputFields,
     Register, SYNC, TimeStatus, VnCommand, VnDecoder, VnError, VnEvent, VnReply, error_code, reg,
@@ -71,23 +71,8 @@ fn supported() -> OutputFields {
     f
 }
 
-/// The fields of a saved binary output: startup time, GPS time and its status (VN-200/300),
-/// uncompensated and compensated accel, gyro and mag, temperature.
-pub fn default_fields(has_gnss: bool) -> OutputFields {
-    let mut f = OutputFields::default();
-    f.words[group::COMMON] = common::TIME_STARTUP;
-    if has_gnss {
-        f.words[group::TIME] = time::TIME_GPS | time::TIME_STATUS;
-    }
-    f.words[group::IMU] = imu::UNCOMP_MAG
-        | imu::UNCOMP_ACCEL
-        | imu::UNCOMP_GYRO
-        | imu::TEMP
-        | imu::MAG
-        | imu::ACCEL
-        | imu::ANGULAR_RATE;
-    f
-}
+/// The fields of a saved binary output: the fields a calibration needs (imud's choice too).
+pub use imu_proto::vectornav::calibration_fields as default_fields;
 
 /// One sentence from the host: the command, or the `$VNERR` code it earns.
 pub type VnRequest = Result<VnCommand, u8>;
@@ -364,9 +349,7 @@ impl VnDevice {
 }
 
 /// A VN-200 or VN-300 has a GNSS receiver.
-pub fn has_gnss(model: &str) -> bool {
-    model.starts_with("VN-2") || model.starts_with("VN-3")
-}
+pub use imu_proto::vectornav::model_has_gnss as has_gnss;
 
 /// IMU rate / data rate (validated to be whole for a VectorNav scenario).
 fn divisor_for(rate_hz: f64) -> u16 {

@@ -112,8 +112,16 @@ fn hot_reload_garbage_unplug_and_kill(protocol: DeviceProtocol) {
         imud.stderr()
     );
 
-    // kill -9: the file is readable up to at most about a second before the kill.
-    std::thread::sleep(Duration::from_millis(1500));
+    // kill -9 after 150 more samples (1.5 s at 100 Hz): the file is readable up to at most
+    // about a second before the kill.
+    let n_before = got.len();
+    drain(
+        &mut sub,
+        &mut got,
+        Instant::now() + Duration::from_secs(30),
+        |g| g.len() >= n_before + 150,
+    );
+    assert!(got.len() >= n_before + 150, "{}", imud.stderr());
     let killed_at_ns = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()

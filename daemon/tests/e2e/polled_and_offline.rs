@@ -73,13 +73,20 @@ fn polled_mode_logs_temperature_and_reloads_on_file_change() {
         "{log}"
     );
 
-    // A valid edit is picked up by the file watch alone (no signal).
-    std::thread::sleep(Duration::from_millis(1100)); // a new modification time
+    // A valid edit is picked up by the file watch alone (no signal). Its modification time is
+    // set 2 s on, so it differs from the invalid file's whatever the file system's resolution.
     let edited = TRUTH.replace(
         "value = [0.01, -0.005, 0.008]",
         "value = [0.02, -0.005, 0.008]",
     );
+    let invalid_mtime = std::fs::metadata(&cal_path).unwrap().modified().unwrap();
     std::fs::write(&cal_path, &edited).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&cal_path)
+        .unwrap()
+        .set_modified(invalid_mtime + Duration::from_secs(2))
+        .unwrap();
     let new_id = u64::from_str_radix(
         &Calibration::from_toml_str(&edited, "e")
             .unwrap()

@@ -87,3 +87,29 @@ pub const IMU_RATE_HZ: u32 = 800;
 
 #[cfg(test)]
 mod tests;
+
+/// A model with a GNSS receiver (VN-200, VN-300 and their variants) sends GPS time.
+pub fn model_has_gnss(model: &str) -> bool {
+    model.starts_with("VN-2") || model.starts_with("VN-3")
+}
+
+/// The binary output fields a calibration needs: startup time (the sample clock), GPS time and
+/// its status on a unit with GNSS, uncompensated accel, gyro and mag (the raw reading a
+/// calibration corrects), temperature, and the unit's compensated accel, rate and mag. What
+/// imud's start-up writes, and what the simulated unit has saved.
+pub fn calibration_fields(has_gnss: bool) -> OutputFields {
+    use binary::{common, group, imu, time};
+    let mut f = OutputFields::default();
+    f.words[group::COMMON] = common::TIME_STARTUP;
+    if has_gnss {
+        f.words[group::TIME] = time::TIME_GPS | time::TIME_STATUS;
+    }
+    f.words[group::IMU] = imu::UNCOMP_MAG
+        | imu::UNCOMP_ACCEL
+        | imu::UNCOMP_GYRO
+        | imu::TEMP
+        | imu::MAG
+        | imu::ACCEL
+        | imu::ANGULAR_RATE;
+    f
+}

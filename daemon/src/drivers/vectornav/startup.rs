@@ -15,10 +15,8 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail};
-use imu_proto::vectornav::binary::{common, group, imu, time};
 use imu_proto::vectornav::{
-    BinaryOutputConfig, Check, IMU_RATE_HZ, OutputFields, Register, Sentence, VnCommand, VnReply,
-    reg,
+    BinaryOutputConfig, Check, IMU_RATE_HZ, Register, Sentence, VnCommand, VnReply, reg,
 };
 
 use crate::drivers::{TRIES, back_off};
@@ -26,29 +24,9 @@ use crate::drivers::{TRIES, back_off};
 /// Serial port 1 and 2 both: the unit outputs on whichever port the host is on.
 pub const ASYNC_MODE_BOTH_PORTS: u16 = 3;
 
-/// The binary output fields the start-up writes: startup time (the sample clock), GPS time and
-/// its status on a unit with GNSS, uncompensated accel, gyro and mag (the raw reading the
-/// calibration corrects), temperature, and the unit's compensated accel, rate and mag.
-pub fn preferred_fields(has_gnss: bool) -> OutputFields {
-    let mut f = OutputFields::default();
-    f.words[group::COMMON] = common::TIME_STARTUP;
-    if has_gnss {
-        f.words[group::TIME] = time::TIME_GPS | time::TIME_STATUS;
-    }
-    f.words[group::IMU] = imu::UNCOMP_MAG
-        | imu::UNCOMP_ACCEL
-        | imu::UNCOMP_GYRO
-        | imu::TEMP
-        | imu::MAG
-        | imu::ACCEL
-        | imu::ANGULAR_RATE;
-    f
-}
-
-/// A model with a GNSS receiver (VN-200, VN-300 and their variants) sends GPS time.
-pub fn model_has_gnss(model: &str) -> bool {
-    model.starts_with("VN-2") || model.starts_with("VN-3")
-}
+/// The binary output fields the start-up writes, and which models send GPS time: facts of
+/// the codec (`imu_proto::vectornav`), shared with the simulated unit.
+pub use imu_proto::vectornav::{calibration_fields as preferred_fields, model_has_gnss};
 
 /// The rate divisor when neither the configuration nor the unit names one: 100 Hz.
 pub const DEFAULT_DIVISOR: u16 = 8;
