@@ -14,13 +14,13 @@
 
 use std::collections::BTreeSet;
 use std::fs::File;
-use std::io::{BufWriter, Read, Seek};
+use std::io::{BufReader, BufWriter, Read, Seek};
 use std::path::{Path, PathBuf};
 
 use mcap::records::Record;
-use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
 
+use crate::mcap_read::records::{End, Event, RecordStream};
 use crate::mcap_read::{self, McapReadError};
 
 /// Suffix of the repaired copy while it is written and verified.
@@ -155,32 +155,21 @@ fn copy_records(src: &Path, copy: &Path) -> Result<Copied, RecoverError> {
         path: copy.to_path_buf(),
         source,
     };
-    let mut file = File::open(src).map_err(read_err)?;
+    let file = File::open(src).map_err(read_err)?;
     let out = File::create(copy).map_err(io_err(copy, "creating the repaired copy"))?;
-    let mut reader = LinearReader::new_with_options(
-        LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_record_length_limit(1 << 30),
-    );
+    let mut stream = RecordStream::new(BufReader::with_capacity(1 << 16, file));
     let mut writer: Option<CopyWriter> = None;
     let mut out = Some(out);
     let mut c = Copied::default();
     let mut header = None;
-    while let Some(event) = reader.next_event() {
-        let event = match event {
-            Ok(e) => e,
-            Err(e) => {
-                c.stopped = Some(e.to_string());
+    loop {
+        let (opcode, data) = match stream.next_event().map_err(read_err)? {
+            Event::Record { opcode, body } => (opcode, body),
+            Event::End(End::Complete) => break,
+            Event::End(End::Stopped { reason, .. }) => {
+                c.stopped = Some(reason);
                 break;
             }
-        };
-        let (opcode, data) = match event {
-            LinearReadEvent::ReadRequest(need) => {
-                let n = file.read(reader.insert(need)).map_err(read_err)?;
-                reader.notify_read(n);
-                continue;
-            }
-            LinearReadEvent::Record { opcode, data } => (opcode, data),
         };
         let record = match mcap::parse_record(opcode, data) {
             Ok(r) => r,

@@ -1,17 +1,20 @@
 //! Streaming, truncation-tolerant MCAP reading shared by every offline tool.
 //!
-//! Recordings are read front to back with mcap's sans-IO [`LinearReader`], so memory stays bounded
-//! by one chunk whatever the file size, and a file whose writer died (no summary, a half-written
-//! chunk) is read up to its last good record: the damage is reported in [`ReadReport::stopped_early`]
-//! instead of failing the whole read.
+//! Recordings are read front to back by [`records::RecordStream`], so memory stays bounded by one
+//! chunk whatever the file size, and a file whose writer died (no summary, a half-written chunk) is
+//! read up to its last good record: the damage is reported in [`ReadReport::stopped_early`] instead
+//! of failing the whole read.
+
+pub(crate) mod records;
 
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::Read;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use mcap::records::{MessageHeader, Record};
-use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+
+use records::{End, Event, RecordStream};
 
 /// What went wrong opening or decoding a recording (set-up errors only; damage after the first
 /// good records is reported in [`ReadReport`] instead).
@@ -133,36 +136,26 @@ pub fn for_each_message_with_progress(
     on_progress: &mut dyn FnMut(u64, u64),
     mut on_message: impl FnMut(&ChannelInfo, &MessageHeader, &[u8]) -> Result<(), String>,
 ) -> Result<ReadReport, McapReadError> {
-    let mut pass = Pass::open(path, on_progress)?;
-    // Chunk CRCs are checked as each chunk ends (not before its first message), so a damaged
-    // chunk still delivers the records that precede the damage. The record length limit keeps a
-    // corrupt length field from asking for gigabytes.
-    let options = LinearReaderOptions::default()
-        .with_validate_chunk_crcs(true)
-        .with_record_length_limit(1 << 30);
-    let mut reader = LinearReader::new_with_options(options);
-    while let Some(event) = reader.next_event() {
+    let (mut pass, file) = Pass::open(path, on_progress)?;
+    // A whole chunk is checked against its CRC before its first message is delivered (a damaged
+    // one delivers none); a chunk cut by the file's end delivers every message before the cut.
+    let mut stream = RecordStream::new(BufReader::with_capacity(1 << 16, file));
+    loop {
+        // Where the previous record left the reader.
+        pass.advanced(stream.read_bytes(), stream.hit_eof());
+        let event = stream.next_event().map_err(|e| pass.io_err(e))?;
         let flow = match event {
-            Err(e) => pass.reader_error(e)?,
-            Ok(LinearReadEvent::ReadRequest(need)) => {
-                // The reader asks for a whole record at once; a damaged length field can ask for
-                // up to the limit (1 GiB, zero-filled before the read). No more than the file
-                // holds (and 64 KiB beyond it, should the file grow) is asked of it, so a small
-                // damaged file costs little memory and time: the read ends at its end anyway.
-                let need = need.min(pass.bytes_left().saturating_add(64 * 1024));
-                let n = pass.fill(reader.insert(need))?;
-                reader.notify_read(n);
-                Flow::Continue
-            }
-            Ok(LinearReadEvent::Record { opcode, data }) => {
-                let parsed = mcap::parse_record(opcode, data);
-                pass.record(parsed, &mut on_message)?
+            Event::End(End::Complete) => Flow::Stop,
+            Event::End(End::Stopped { reason, .. }) => pass.stopped(reason)?,
+            Event::Record { opcode, body } => {
+                pass.record(mcap::parse_record(opcode, body), &mut on_message)?
             }
         };
         if flow == Flow::Stop {
             break;
         }
     }
+    pass.advanced(stream.read_bytes(), stream.hit_eof());
     pass.finish()
 }
 
@@ -173,11 +166,9 @@ enum Flow {
     Stop,
 }
 
-/// One front-to-back read of a file: the file the sans-IO reader is fed from, and what has
-/// been seen so far.
+/// One front-to-back read of a file: what has been seen so far.
 struct Pass<'p> {
     path: &'p Path,
-    file: File,
     on_progress: &'p mut dyn FnMut(u64, u64),
     total_bytes: u64,
     read_bytes: u64,
@@ -196,10 +187,11 @@ impl<'p> Pass<'p> {
         }
     }
 
+    /// Opens the file; the pass starts at its first byte.
     fn open(
         path: &'p Path,
         on_progress: &'p mut dyn FnMut(u64, u64),
-    ) -> Result<Self, McapReadError> {
+    ) -> Result<(Self, File), McapReadError> {
         let io_err = |source| McapReadError::Io {
             path: path.to_path_buf(),
             source,
@@ -207,9 +199,8 @@ impl<'p> Pass<'p> {
         let file = File::open(path).map_err(io_err)?;
         let total_bytes = file.metadata().map_err(io_err)?.len();
         on_progress(0, total_bytes);
-        Ok(Pass {
+        let pass = Pass {
             path,
-            file,
             on_progress,
             total_bytes,
             read_bytes: 0,
@@ -218,42 +209,30 @@ impl<'p> Pass<'p> {
             saw_record: false,
             hit_eof: false,
             last_log_time_ns: None,
-        })
+        };
+        Ok((pass, file))
     }
 
-    /// The reader refused the bytes: not MCAP at all before the first record, damage after it.
-    fn reader_error(&mut self, e: mcap::McapError) -> Result<Flow, McapReadError> {
+    /// Follows the reader's position: progress is reported whenever it moved.
+    fn advanced(&mut self, read_bytes: u64, hit_eof: bool) {
+        self.hit_eof = hit_eof;
+        if read_bytes != self.read_bytes {
+            self.read_bytes = read_bytes;
+            (self.on_progress)(read_bytes.min(self.total_bytes), self.total_bytes);
+        }
+    }
+
+    /// The read stopped before the footer: not MCAP at all before the first record, a cut or
+    /// damaged file after it.
+    fn stopped(&mut self, reason: String) -> Result<Flow, McapReadError> {
         if !self.saw_record {
             return Err(McapReadError::NotMcap {
                 path: self.path.to_path_buf(),
-                message: e.to_string(),
+                message: reason,
             });
         }
-        self.report.stopped_early = Some(if self.hit_eof {
-            format!("file ends mid-record ({e}); it was not closed cleanly")
-        } else {
-            format!("damaged record: {e}")
-        });
+        self.report.stopped_early = Some(reason);
         Ok(Flow::Stop)
-    }
-
-    /// Bytes of the file not read yet (by its size at open).
-    fn bytes_left(&self) -> usize {
-        usize::try_from(self.total_bytes.saturating_sub(self.read_bytes)).unwrap_or(usize::MAX)
-    }
-
-    /// Reads the next bytes of the file into the reader's `buf`; returns how many.
-    fn fill(&mut self, buf: &mut [u8]) -> Result<usize, McapReadError> {
-        let n = match self.file.read(buf) {
-            Ok(n) => n,
-            Err(e) => return Err(self.io_err(e)),
-        };
-        if n == 0 {
-            self.hit_eof = true;
-        }
-        self.read_bytes += n as u64;
-        (self.on_progress)(self.read_bytes.min(self.total_bytes), self.total_bytes);
-        Ok(n)
     }
 
     /// One record: schemas and channels are remembered, messages handed over, metadata kept.
