@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use mcap::records::Record;
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
 
-use crate::mcap_read::records::{End, Event, RecordStream};
+use crate::mcap_read::records::{self, End, Event, RecordStream};
 use crate::mcap_read::{self, McapReadError};
 
 /// Suffix of the repaired copy while it is written and verified.
@@ -171,7 +171,7 @@ fn copy_records(src: &Path, copy: &Path) -> Result<Copied, RecoverError> {
                 break;
             }
         };
-        let record = match mcap::parse_record(opcode, data) {
+        let record = match records::parse_record(opcode, data) {
             Ok(r) => r,
             Err(e) => {
                 c.stopped = Some(format!("undecodable record: {e}"));

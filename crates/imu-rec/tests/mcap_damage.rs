@@ -233,3 +233,37 @@ fn a_file_without_the_magic_is_not_mcap() {
         "{text}"
     );
 }
+
+#[test]
+fn an_attachment_too_short_for_its_crc_is_damage_not_a_panic() {
+    // mcap 0.26's `parse_record` panicked on this (found by the `mcap` fuzz target): the read
+    // skips attachments, the repair copies them and must refuse this one.
+    let mut attachment = 0u64.to_le_bytes().to_vec();
+    attachment.extend_from_slice(&0u64.to_le_bytes());
+    attachment.extend_from_slice(&string("a"));
+    attachment.extend_from_slice(&string("text/plain"));
+    attachment.extend_from_slice(&0u64.to_le_bytes());
+    attachment.extend_from_slice(&[0, 0]); // two of the CRC's four bytes
+    let mut file = mcap::MAGIC.to_vec();
+    file.extend_from_slice(&header());
+    file.extend_from_slice(&chunk(&records(3), Compression::None, None));
+    file.extend_from_slice(&record(0x09, &attachment));
+    file.extend_from_slice(&chunk(
+        &[3, 4].map(message).concat(),
+        Compression::None,
+        None,
+    ));
+    // No footer: the writer was killed, so the repair runs.
+    let (seqs, report) = read(&file);
+    assert_eq!(seqs, [0, 1, 2, 3, 4]);
+    assert!(report.unfinished.unwrap().footer_missing);
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("attached.mcap");
+    std::fs::write(&path, &file).unwrap();
+    let repaired = imu_rec::recover::recover(&path, false)
+        .unwrap()
+        .expect("repaired");
+    assert_eq!(repaired.n_messages, 3, "{repaired:?}");
+    assert!(repaired.reason.contains("undecodable"), "{repaired:?}");
+}

@@ -147,9 +147,12 @@ pub fn for_each_message_with_progress(
         let flow = match event {
             Event::End(End::Complete) => Flow::Stop,
             Event::End(End::Stopped { reason, .. }) => pass.stopped(reason)?,
-            Event::Record { opcode, body } => {
-                pass.record(mcap::parse_record(opcode, body), &mut on_message)?
+            // Only the records a read uses are parsed: indexes, statistics and attachments
+            // are skipped unread (the summary repeats what the data section said).
+            Event::Record { opcode, body } if USED_OPCODES.contains(&opcode) => {
+                pass.record(records::parse_record(opcode, body), &mut on_message)?
             }
+            Event::Record { .. } => pass.skipped(),
         };
         if flow == Flow::Stop {
             break;
@@ -158,6 +161,16 @@ pub fn for_each_message_with_progress(
     pass.advanced(stream.read_bytes(), stream.hit_eof());
     pass.finish()
 }
+
+/// The records a read parses: schemas and channels (to name the messages' topics), messages,
+/// metadata; and the header, the first record, which says the file is MCAP.
+const USED_OPCODES: [u8; 5] = [
+    mcap::records::op::HEADER,
+    mcap::records::op::SCHEMA,
+    mcap::records::op::CHANNEL,
+    mcap::records::op::MESSAGE,
+    mcap::records::op::METADATA,
+];
 
 /// Whether the read goes on after an event.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -233,6 +246,12 @@ impl<'p> Pass<'p> {
         }
         self.report.stopped_early = Some(reason);
         Ok(Flow::Stop)
+    }
+
+    /// A record the read does not use.
+    fn skipped(&mut self) -> Flow {
+        self.saw_record = true;
+        Flow::Continue
     }
 
     /// One record: schemas and channels are remembered, messages handed over, metadata kept.

@@ -17,7 +17,8 @@
 
 use std::io::{self, Cursor, Read};
 
-use mcap::records::op;
+use mcap::McapError;
+use mcap::records::{Record, op};
 
 /// The longest record accepted: a length field above this is damage, not a record.
 pub(crate) const RECORD_LENGTH_LIMIT: u64 = 1 << 30;
@@ -440,4 +441,29 @@ impl ChunkHeader {
             records_offset: size_end,
         })
     }
+}
+
+/// A record's body parsed by `mcap::parse_record`, refused first where that would panic: mcap
+/// 0.26 takes an attachment's CRC from the last four bytes of its body without checking that
+/// four are left after its header (found by the `mcap` fuzz target).
+pub(crate) fn parse_record(opcode: u8, body: &[u8]) -> mcap::McapResult<Record<'_>> {
+    if opcode == op::ATTACHMENT && !attachment_has_room(body) {
+        return Err(McapError::UnexpectedEof);
+    }
+    mcap::parse_record(opcode, body)
+}
+
+/// True when an attachment's body holds its header (log time, create time, name, media type,
+/// data length) and the four bytes of its CRC.
+fn attachment_has_room(body: &[u8]) -> bool {
+    let string_end = |at: usize| -> Option<usize> {
+        let len = u32::from_le_bytes(body.get(at..at.checked_add(4)?)?.try_into().ok()?);
+        at.checked_add(4)?.checked_add(len as usize)
+    };
+    let header_len = string_end(16)
+        .and_then(string_end)
+        .and_then(|end| end.checked_add(8));
+    header_len
+        .and_then(|h| h.checked_add(4))
+        .is_some_and(|need| body.len() >= need)
 }
