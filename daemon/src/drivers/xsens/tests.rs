@@ -14,6 +14,7 @@ use super::startup::CHOICES;
 use super::*;
 use crate::config::Config;
 use crate::drivers::scripted::{Fate, Harness, Peer, Script};
+use crate::drivers::streaming::StartupMachine;
 
 fn harness(script: Script) -> Harness<XsensDriver> {
     let mut c = Config::default().device;
@@ -152,7 +153,7 @@ fn a_silent_unit_fails_the_start_up_after_three_tries() {
 
 /// Feeds `startup` the answer `reply` and returns the next message it writes.
 fn answer(s: &mut Startup, reply: XsensReply, now: Instant) -> (Option<Outcome>, Message) {
-    let outcome = s.on_message(&reply.to_message(), now);
+    let outcome = s.on_frame(&reply.to_message(), now);
     let bytes = s.tx.pop_back().expect("a request out");
     (outcome, Message::parse(&bytes).unwrap())
 }
@@ -164,7 +165,7 @@ fn a_refused_output_set_falls_back_to_the_next_and_a_different_read_back_fails()
     s.tx.clear();
     // A stream error while entering config mode is no refusal of GoToConfig.
     assert!(
-        s.on_message(&XsensReply::Error(41).to_message(), now)
+        s.on_frame(&XsensReply::Error(41).to_message(), now)
             .is_none()
     );
     assert!(s.tx.is_empty());
@@ -202,7 +203,7 @@ fn a_refused_output_set_falls_back_to_the_next_and_a_different_read_back_fails()
         XsensCommand::ReqOutputConfiguration
     );
     // It reads back something else: start-up fails, naming it.
-    let outcome = s.on_message(
+    let outcome = s.on_frame(
         &XsensReply::OutputConfiguration(CHOICES[2].outputs(400)).to_message(),
         now,
     );
