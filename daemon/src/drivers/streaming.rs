@@ -145,8 +145,13 @@ pub trait Unit {
 
     /// The unit `config` describes, before it answered.
     fn new(config: &DeviceConfig) -> Self;
-    /// A start-up begun at `now`, or why `config` cannot start one.
-    fn startup(config: &DeviceConfig, now: Instant) -> anyhow::Result<Self::Startup>;
+    /// A start-up begun at `now` that waits `timeout` for each reply, or why `config` cannot
+    /// start one.
+    fn startup(
+        config: &DeviceConfig,
+        timeout: Duration,
+        now: Instant,
+    ) -> anyhow::Result<Self::Startup>;
     /// What a frame of a streaming unit carries.
     fn content(&mut self, frame: &<Self::Decoder as FrameDecoder>::Frame) -> FrameContent;
     /// Passive: the stream, if `frame` is usable (its clock then restarted).
@@ -269,7 +274,8 @@ impl<U: Unit> Driver for StreamingDriver<U> {
             self.learning = Some(now + Duration::from_secs_f64(self.config.silence_timeout_s));
             return;
         }
-        match U::startup(&self.config, now) {
+        let timeout = Duration::from_secs_f64(self.config.reply_timeout_s);
+        match U::startup(&self.config, timeout, now) {
             Ok(s) => self.startup = Some(s),
             Err(e) => self.push(DriverEvent::Failed(e)),
         }

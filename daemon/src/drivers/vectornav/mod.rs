@@ -213,13 +213,9 @@ impl Unit for VnUnit {
         }
     }
 
-    fn startup(config: &DeviceConfig, now: Instant) -> anyhow::Result<Startup> {
+    fn startup(config: &DeviceConfig, timeout: Duration, now: Instant) -> anyhow::Result<Startup> {
         let divisor = config.rate_hz.map(startup::rate_divisor).transpose()?;
-        Ok(Startup::new(
-            Duration::from_secs_f64(config.reply_timeout_s),
-            divisor,
-            now,
-        ))
+        Ok(Startup::new(timeout, divisor, now))
     }
 
     /// A binary message's reading; a sentence (logged as a frame only) carries none.

@@ -131,12 +131,8 @@ impl Unit for XsensUnit {
         }
     }
 
-    fn startup(config: &DeviceConfig, now: Instant) -> anyhow::Result<Startup> {
-        Ok(Startup::new(
-            Duration::from_secs_f64(config.reply_timeout_s),
-            config.rate_hz,
-            now,
-        ))
+    fn startup(config: &DeviceConfig, timeout: Duration, now: Instant) -> anyhow::Result<Startup> {
+        Ok(Startup::new(timeout, config.rate_hz, now))
     }
 
     fn content(&mut self, msg: &Message) -> FrameContent {
