@@ -39,6 +39,20 @@ pub mod id {
 /// The UTC time flags bit saying the time is valid (`mtmanager` "UTC valid").
 pub const UTC_VALID: u8 = 0x04;
 
+/// Bits of the status word (0xE020), as the Xsens MT Low-Level Communication Protocol
+/// documents them and the vendor SDK's `XsStatusFlag` names them (`XSF_ClipAccX` 0x100 to
+/// `XSF_ClipMagZ` 0x10000): each set when that axis's sensor clipped in this sample.
+pub mod status {
+    /// Accelerometer clipping, x, y, z: bits 8, 9, 10.
+    pub const CLIP_ACC: u32 = 0x0000_0700;
+    /// Gyroscope clipping, x, y, z: bits 11, 12, 13.
+    pub const CLIP_GYR: u32 = 0x0000_3800;
+    /// Magnetometer clipping, x, y, z: bits 14, 15, 16.
+    pub const CLIP_MAG: u32 = 0x0001_C000;
+    /// Any axis of any of the three sensors clipped.
+    pub const CLIPPING: u32 = CLIP_ACC | CLIP_GYR | CLIP_MAG;
+}
+
 /// The number format of a float item: the identifier's low two bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Format {
@@ -233,7 +247,7 @@ pub struct MtData2 {
     pub raw: Option<RawAccGyrMagTemp>,
     /// 0xC020, normalised units.
     pub magnetic_field: Option<[f64; 3]>,
-    /// 0xE020.
+    /// 0xE020 ([`status`] names its clipping bits).
     pub status_word: Option<u32>,
     /// Coordinate bits of the last vector item (0 ENU, 4 NED, 8 NWU).
     pub coordinates: u8,

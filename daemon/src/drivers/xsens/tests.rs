@@ -303,6 +303,29 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
     );
     assert_eq!(c.temperature.map(|t| t.0), Some(30.5));
     assert_eq!(r.command, mid::MT_DATA2);
+    assert!(!r.saturated, "no status word: not clipping");
+
+    // The status word's clipping bits are the sample's saturation, whichever sensor's axis
+    // clipped; its other bits (here the filter valid bit 1 and the sync-in bit 21) are not.
+    for (word, clipped) in [
+        (0x0000_0002 | 1 << 21, false),
+        (1 << 8, true),
+        (1 << 10, true),
+        (1 << 11, true),
+        (1 << 13, true),
+        (1 << 16, true),
+        (1 << 17, false),
+    ] {
+        let m = MtData2 {
+            status_word: Some(word),
+            ..first
+        };
+        let r = reading::Readings::new()
+            .content(&m.to_message(Format::Float64))
+            .reading
+            .expect("a sample");
+        assert_eq!(r.saturated, clipped, "status word 0x{word:08X}");
+    }
 
     // SampleTimeFine wraps its u32 and is unwrapped; a UTC time without the valid flag is
     // still reported, as invalid.
