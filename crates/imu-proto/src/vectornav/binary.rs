@@ -143,15 +143,12 @@ impl OutputFields {
     pub fn payload_len(&self) -> Result<usize, VnError> {
         let mut len = 0;
         for (g, &word) in self.words.iter().enumerate() {
-            for (bit, &size) in FIELD_LEN[g].iter().enumerate() {
-                if word & 1 << bit == 0 {
-                    continue;
-                }
-                match size {
+            for bit in set_bits(word) {
+                match FIELD_LEN[g][usize::from(bit)] {
                     0 => {
                         return Err(VnError::UnknownField {
                             group: g as u8 + 1,
-                            bit: bit as u8,
+                            bit,
                         });
                     }
                     n => len += usize::from(n),
@@ -372,6 +369,19 @@ impl BinaryMessage {
     }
 }
 
+/// The set bits of a field word, lowest first (the order of the fields on the wire): a
+/// message enables a few of sixteen, so only those are visited.
+fn set_bits(word: u16) -> impl Iterator<Item = u8> {
+    let mut rest = word;
+    std::iter::from_fn(move || {
+        (rest != 0).then(|| {
+            let bit = rest.trailing_zeros() as u8;
+            rest &= rest - 1;
+            bit
+        })
+    })
+}
+
 fn f32_at(b: &[u8], i: usize) -> f32 {
     f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
 }
@@ -391,10 +401,7 @@ fn decode_payload(fields: &OutputFields, payload: &[u8]) -> BinaryData {
     let mut d = BinaryData::default();
     let mut at = 0;
     for (g, &word) in fields.words.iter().enumerate() {
-        for bit in 0..16u8 {
-            if word & 1 << bit == 0 {
-                continue;
-            }
+        for bit in set_bits(word) {
             let f = &payload[at..at + usize::from(FIELD_LEN[g][usize::from(bit)])];
             let flag = 1u16 << bit;
             match (g, flag) {
