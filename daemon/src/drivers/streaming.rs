@@ -15,27 +15,12 @@ use std::time::{Duration, Instant};
 
 use imu_bus::recording::{FrameData, SampleFrame};
 use imu_proto::DeviceProtocol;
+use imu_proto::decoder::DecoderStats;
 use imu_proto::decoder::framed::{FramedDecoder, Framing, PacketEvent};
-use imu_proto::decoder::{DecoderStats, RejectReason};
 
 use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot, Held};
 use crate::config::DeviceConfig;
 use crate::pipeline::{FrameContent, SessionSpec};
-
-/// One thing a [`FrameDecoder`] found in the stream.
-pub enum Decoded<F> {
-    /// A good frame and the stream offset of its first byte.
-    Frame(F, u64),
-    /// Bytes that are not (part of) a good frame.
-    Rejected {
-        /// The bytes.
-        bytes: Vec<u8>,
-        /// Stream offset of the first.
-        offset: u64,
-        /// Why.
-        reason: RejectReason,
-    },
-}
 
 /// A unit's streaming decoder, as the driver uses it.
 pub trait FrameDecoder: Default {
@@ -47,8 +32,9 @@ pub trait FrameDecoder: Default {
     fn flush(&mut self);
     /// The counters so far.
     fn stats(&self) -> DecoderStats;
-    /// The next event, or `None` when more bytes are needed.
-    fn next_frame(&mut self) -> Option<Decoded<Self::Frame>>;
+    /// The next event, or `None` when more bytes are needed: the packet decoders' own event
+    /// type, so theirs is handed over as it is, with no copy of the frame on the way.
+    fn next_frame(&mut self) -> Option<PacketEvent<Self::Frame>>;
     /// A frame's bytes on the wire.
     fn bytes(frame: &Self::Frame) -> &[u8];
 }
@@ -69,19 +55,8 @@ impl<F: Framing> FrameDecoder for FramedDecoder<F> {
         FramedDecoder::stats(self)
     }
 
-    fn next_frame(&mut self) -> Option<Decoded<F::Packet>> {
-        Some(match self.next_event()? {
-            PacketEvent::Packet { packet, offset } => Decoded::Frame(packet, offset),
-            PacketEvent::Rejected {
-                bytes,
-                offset,
-                reason,
-            } => Decoded::Rejected {
-                bytes,
-                offset,
-                reason,
-            },
-        })
+    fn next_frame(&mut self) -> Option<PacketEvent<F::Packet>> {
+        self.next_event()
     }
 
     fn bytes(frame: &F::Packet) -> &[u8] {
@@ -291,7 +266,10 @@ impl<U: Unit> Driver for StreamingDriver<U> {
             return Some(held.hand_over(slot));
         }
         Some(match self.decoder.next_frame()? {
-            Decoded::Frame(frame, offset) => {
+            PacketEvent::Packet {
+                packet: frame,
+                offset,
+            } => {
                 // Passive: the first usable frame sets the session, which goes out before it.
                 let learned = self.learning.is_some() && self.learn(&frame);
                 // The start-up's frames (and the data a unit streams before start-up has it
@@ -321,7 +299,7 @@ impl<U: Unit> Driver for StreamingDriver<U> {
                 slot.set_frame(bytes, offset);
                 DriverEvent::Frame
             }
-            Decoded::Rejected {
+            PacketEvent::Rejected {
                 bytes,
                 offset,
                 reason,

@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 use imu_bus::sample::device_protocol;
 use imu_proto::DeviceProtocol;
 use imu_proto::decoder::DecoderStats;
+use imu_proto::decoder::framed::PacketEvent;
 use imu_proto::vectornav::binary::group;
 use imu_proto::vectornav::{
     BinaryMessage, BinaryOutputConfig, Check, OutputFields, Register, Sentence, VnCommand,
@@ -29,7 +30,7 @@ use tracing::info;
 use startup::{Configured, Outcome, Startup};
 
 use super::DeviceIdentity;
-use super::streaming::{Decoded, FrameDecoder, Passive, Step, StreamingDriver, Unit};
+use super::streaming::{FrameDecoder, Passive, Step, StreamingDriver, Unit};
 use crate::config::{AcquisitionMode, DeviceConfig};
 use crate::pipeline::{Acquisition, FrameContent, Gains, SessionSpec};
 
@@ -116,15 +117,21 @@ impl FrameDecoder for VnDecoder {
         VnDecoder::stats(self)
     }
 
-    fn next_frame(&mut self) -> Option<Decoded<VnFrame>> {
+    fn next_frame(&mut self) -> Option<PacketEvent<VnFrame>> {
         Some(match self.next_event()? {
-            VnEvent::Binary { message, offset } => Decoded::Frame(VnFrame::Binary(message), offset),
-            VnEvent::Ascii { sentence, offset } => Decoded::Frame(VnFrame::Ascii(sentence), offset),
+            VnEvent::Binary { message, offset } => PacketEvent::Packet {
+                packet: VnFrame::Binary(message),
+                offset,
+            },
+            VnEvent::Ascii { sentence, offset } => PacketEvent::Packet {
+                packet: VnFrame::Ascii(sentence),
+                offset,
+            },
             VnEvent::Rejected {
                 bytes,
                 offset,
                 reason,
-            } => Decoded::Rejected {
+            } => PacketEvent::Rejected {
                 bytes,
                 offset,
                 reason,
