@@ -245,8 +245,9 @@ pub struct MtData2 {
     pub rate_of_turn_hr_rad_s: Option<[f64; 3]>,
     /// 0xA010.
     pub raw: Option<RawAccGyrMagTemp>,
-    /// 0xC020, normalised units.
-    pub magnetic_field: Option<[f64; 3]>,
+    /// 0xC020: the magnetic field normalised to the field where the unit's magnetometer was
+    /// calibrated (its magnitude there is 1): a ratio, not gauss or tesla.
+    pub magnetic_field_normalised: Option<[f64; 3]>,
     /// 0xE020 ([`status`] names its clipping bits).
     pub status_word: Option<u32>,
     /// Coordinate bits of the last vector item (0 ENU, 4 NED, 8 NWU).
@@ -362,7 +363,7 @@ impl MtData2 {
             }
             id::MAGNETIC_FIELD => {
                 vector(self);
-                set!(magnetic_field, floats(f, data))
+                set!(magnetic_field_normalised, floats(f, data))
             }
             id::RAW_ACC_GYR_MAG_TEMP => set!(
                 raw,
@@ -436,7 +437,7 @@ impl MtData2 {
             (id::RAW_ACC_GYR_MAG_TEMP, None),
             (
                 id::MAGNETIC_FIELD,
-                self.magnetic_field.as_ref().map(|v| &v[..]),
+                self.magnetic_field_normalised.as_ref().map(|v| &v[..]),
             ),
         ];
         for (base, values) in vectors {

@@ -66,6 +66,11 @@ pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
     })
 }
 
+/// What an MTi's magnetic field is in, for the metadata: the recording carries it in the
+/// magnetometer's gauss slot (and on `/imu/mag` as that times 1e-4 T) as the unit sends it.
+pub const MAGNETOMETER_UNIT: &str =
+    "ratio to the field where the unit was calibrated (1 there), not gauss";
+
 /// An Xsens MTi (see the module docs).
 pub type XsensDriver = StreamingDriver<XsensUnit>;
 
@@ -109,6 +114,7 @@ impl XsensUnit {
                 ("clock".into(), CLOCK_NAME.into()),
                 ("raw-reading".into(), choice.raw.name().into()),
                 ("magnetometer".into(), choice.mag.to_string()),
+                ("magnetometer-unit".into(), MAGNETOMETER_UNIT.into()),
                 ("temperature".into(), choice.temperature.to_string()),
                 ("utc-time".into(), choice.utc.to_string()),
                 ("configuration-verified".into(), "true".into()),
@@ -154,7 +160,7 @@ impl Unit for XsensUnit {
              reading {}{}{}{} (rate measured; configuration not verified)",
             self.path.display(),
             raw.name(),
-            if data.magnetic_field.is_some() {
+            if data.magnetic_field_normalised.is_some() {
                 ", magnetometer"
             } else {
                 ", no magnetometer"
@@ -178,7 +184,11 @@ impl Unit for XsensUnit {
             details: vec![
                 ("clock".into(), CLOCK_NAME.into()),
                 ("raw-reading".into(), raw.name().into()),
-                ("magnetometer".into(), yes_no(data.magnetic_field.is_some())),
+                (
+                    "magnetometer".into(),
+                    yes_no(data.magnetic_field_normalised.is_some()),
+                ),
+                ("magnetometer-unit".into(), MAGNETOMETER_UNIT.into()),
                 ("temperature".into(), yes_no(data.temperature_c.is_some())),
                 ("utc-time".into(), yes_no(data.utc.is_some())),
             ],

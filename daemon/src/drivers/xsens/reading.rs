@@ -139,9 +139,12 @@ impl Readings {
             };
         };
         let v = |a: [f64; 3]| Vector3::from(a);
-        // A unit without a magnetometer: NaN, never a zero field. The field is in the unit's
-        // own units (normalised to the field where it was calibrated), carried as it is.
-        let mag = data.magnetic_field.map_or(Vector3::repeat(f64::NAN), v);
+        // A unit without a magnetometer: NaN, never a zero field. The field is a ratio to the
+        // field where the unit was calibrated, carried as it is in the gauss slot (the
+        // identity's `magnetometer-unit` says so in the recording).
+        let mag = data
+            .magnetic_field_normalised
+            .map_or(Vector3::repeat(f64::NAN), v);
         let (measured, compensated) = match source {
             RawSource::HighRate => (
                 Measured {

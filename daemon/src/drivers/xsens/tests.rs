@@ -72,6 +72,12 @@ fn a_clean_start_up_of_a_streaming_unit_configures_the_preferred_outputs_and_str
             .unwrap()
             .starts_with("AccelerationHR")
     );
+    // The magnetic field is a ratio to the calibration's field, and the metadata says so.
+    assert_eq!(
+        detail(&id, "magnetometer-unit").as_deref(),
+        Some(MAGNETOMETER_UNIT)
+    );
+    assert!(MAGNETOMETER_UNIT.contains("not gauss"));
     assert_eq!(h.seen.sessions, vec![session()]);
     // The unit streamed from power-up: its data before the GoToConfig ack was logged as
     // frames, never made samples, and nothing was rejected.
@@ -282,7 +288,7 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
         rate_of_turn_hr_rad_s: Some([0.01, 0.02, 0.03]),
         acceleration_m_s2: Some([0.0, 0.0, -9.81]),
         rate_of_turn_rad_s: Some([0.0, 0.0, 0.001]),
-        magnetic_field: Some([0.2, 0.0, 0.4]),
+        magnetic_field_normalised: Some([0.2, 0.0, 0.4]),
         temperature_c: Some(30.5),
         utc: Some(utc),
         ..MtData2::default()
@@ -360,7 +366,7 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
     let hr_only = MtData2 {
         acceleration_m_s2: None,
         rate_of_turn_rad_s: None,
-        magnetic_field: None,
+        magnetic_field_normalised: None,
         ..next
     };
     let r = readings
