@@ -98,7 +98,7 @@ fn frames(protocol: DeviceProtocol) -> (Vec<Vec<u8>>, u64) {
                         rate_of_turn_hr_rad_s: Some(gyro),
                         acceleration_m_s2: Some(accel),
                         rate_of_turn_rad_s: Some(gyro),
-                        magnetic_field: Some([0.2 + f(6), f(7), 0.4]),
+                        magnetic_field_normalised: Some([0.2 + f(6), f(7), 0.4]),
                         ..MtData2::default()
                     }
                     .to_message(Format::Float32)

@@ -293,7 +293,11 @@ impl XsensDevice {
                 id::RATE_OF_TURN => d.rate_of_turn_rad_s = Some(arr(compensated.gyro_rad_s)),
                 id::DELTA_Q => d.delta_q = Some(delta_q(m.gyro_rad_s * period_s)),
                 id::RATE_OF_TURN_HR => d.rate_of_turn_hr_rad_s = Some(arr(m.gyro_rad_s)),
-                id::MAGNETIC_FIELD => d.magnetic_field = Some(arr(compensated.mag_gauss)),
+                // The simulated unit's calibration field is taken as 1 gauss, so its
+                // normalised field is its field in gauss.
+                id::MAGNETIC_FIELD => {
+                    d.magnetic_field_normalised = Some(arr(compensated.mag_gauss))
+                }
                 id::STATUS_WORD => d.status_word = Some(0),
                 _ => {}
             }
@@ -404,7 +408,7 @@ mod tests {
         let (msg, truth) = d.data_message(0.5);
         let data = MtData2::decode(&msg).unwrap();
         assert_eq!(data.packet_counter, Some(0));
-        assert!(data.acceleration_m_s2.is_some() && data.magnetic_field.is_some());
+        assert!(data.acceleration_m_s2.is_some() && data.magnetic_field_normalised.is_some());
         assert_eq!(data.acceleration_hr_m_s2, None);
         assert_eq!(
             u64::from(data.sample_time_fine.unwrap()),

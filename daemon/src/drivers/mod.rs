@@ -23,6 +23,7 @@ pub mod probe;
 pub mod ros2_input;
 #[cfg(test)]
 mod scripted;
+pub mod streaming;
 #[cfg(test)]
 mod tests;
 pub mod vectornav;

@@ -7,6 +7,8 @@
 //! speaks: reads and writes of the [`Register`]s that identify and configure a unit, the unit's
 //! `$VNERR` and its ASCII asynchronous outputs.
 
+use smallvec::SmallVec;
+
 use super::VnError;
 use super::binary::{OutputFields, group};
 use super::checksum::{checksum8, crc16};
@@ -27,10 +29,15 @@ pub enum Check {
     Wildcard,
 }
 
-/// One good sentence: its bytes (`$` to `\n`) and the check it carried.
+/// Longest sentence held inline, `$` to `\n`: register replies and the `$VNYPR` output are
+/// well under it, so only a long ASCII output's bytes go to the heap.
+pub const MAX_INLINE_SENTENCE_LEN: usize = 128;
+
+/// One good sentence: its bytes (`$` to `\n`, inline up to [`MAX_INLINE_SENTENCE_LEN`], so
+/// framing one allocates nothing) and the check it carried.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Sentence {
-    bytes: Vec<u8>,
+    bytes: SmallVec<[u8; MAX_INLINE_SENTENCE_LEN]>,
     check: Check,
 }
 
@@ -43,7 +50,7 @@ impl Sentence {
             Check::Wildcard => "XX".to_string(),
         };
         Sentence {
-            bytes: format!("${body}*{tail}\r\n").into_bytes(),
+            bytes: SmallVec::from_vec(format!("${body}*{tail}\r\n").into_bytes()),
             check,
         }
     }
@@ -92,14 +99,11 @@ impl Sentence {
                 return Err(VnError::BadSentence("check is not hex"));
             };
             if found != computed {
-                return Err(VnError::BadChecksum {
-                    computed: format!("{computed:0w$X}", w = tail.len()),
-                    found: tail_str.to_string(),
-                });
+                return Err(VnError::BadChecksum { computed, found });
             }
         }
         Ok(Sentence {
-            bytes: bytes.to_vec(),
+            bytes: SmallVec::from_slice(bytes),
             check,
         })
     }
@@ -252,8 +256,11 @@ impl Register {
     }
 
     /// Parses register `id`'s values (what follows the id in a read reply or a write).
-    pub fn parse(id: u8, values: &[&str]) -> Result<Register, VnError> {
-        let mut it = values.iter().copied();
+    pub fn parse<'a>(
+        id: u8,
+        values: impl IntoIterator<Item = &'a str>,
+    ) -> Result<Register, VnError> {
+        let mut it = values.into_iter();
         let first = it.next();
         let r = match id {
             reg::MODEL => Register::Model(text(id, first)?),
@@ -275,11 +282,13 @@ impl Register {
                 let rate_divisor = dec(id, it.next())?;
                 let groups = hex16(id, it.next())?;
                 let groups = u8::try_from(groups).map_err(|_| VnError::BadGroups(0xFF))?;
-                let mut words = Vec::new();
-                for _ in 0..groups.count_ones() {
-                    words.push(hex16(id, it.next())?);
+                // One word per group bit, at most eight: a fixed array, no allocation.
+                let n = groups.count_ones() as usize;
+                let mut words = [0u16; 8];
+                for w in &mut words[..n] {
+                    *w = hex16(id, it.next())?;
                 }
-                let fields = OutputFields::from_header(groups, &words)?;
+                let fields = OutputFields::from_header(groups, &words[..n])?;
                 Register::BinaryOutput {
                     index: id - 74,
                     config: BinaryOutputConfig {
@@ -328,17 +337,17 @@ impl VnCommand {
 
     /// The command a sentence carries (device side).
     pub fn decode(s: &Sentence) -> Result<VnCommand, VnError> {
-        let values: Vec<&str> = s.values().collect();
+        let mut values = s.values();
         match s.header() {
-            "VNRRG" if values.len() == 1 => {
-                Ok(VnCommand::Read(register_id(values.first().copied())?))
-            }
-            "VNRRG" => Err(VnError::BadSentence("a read names one register")),
+            "VNRRG" => match (values.next(), values.next()) {
+                (Some(id), None) => Ok(VnCommand::Read(register_id(Some(id))?)),
+                _ => Err(VnError::BadSentence("a read names one register")),
+            },
             "VNWRG" => {
-                let id = register_id(values.first().copied())?;
-                Ok(VnCommand::Write(Register::parse(id, &values[1..])?))
+                let id = register_id(values.next())?;
+                Ok(VnCommand::Write(Register::parse(id, values)?))
             }
-            other => Err(VnError::UnknownHeader(other.to_string())),
+            other => Err(VnError::unknown_header(other)),
         }
     }
 }
@@ -388,31 +397,42 @@ impl VnReply {
 
     /// The reply a sentence carries (host side).
     pub fn decode(s: &Sentence) -> Result<VnReply, VnError> {
-        let values: Vec<&str> = s.values().collect();
+        // The values are parsed from the sentence's bytes as they are split: nothing is
+        // collected, so decoding a reply or an ASCII output allocates nothing.
+        let mut values = s.values();
         match s.header() {
             h @ ("VNRRG" | "VNWRG") => {
-                let id = register_id(values.first().copied())?;
-                let r = Register::parse(id, values.get(1..).unwrap_or(&[]))?;
+                let id = register_id(values.next())?;
+                let r = Register::parse(id, values)?;
                 Ok(if h == "VNRRG" {
                     VnReply::Read(r)
                 } else {
                     VnReply::Written(r)
                 })
             }
-            "VNERR" => match values.as_slice() {
-                [code] => u8::from_str_radix(code, 16)
+            "VNERR" => match (values.next(), values.next()) {
+                (Some(code), None) => u8::from_str_radix(code, 16)
                     .map(VnReply::Error)
                     .map_err(|_| VnError::BadSentence("error code is not hex")),
                 _ => Err(VnError::BadSentence("an error carries one code")),
             },
             "VNYPR" => {
-                let v: Vec<f32> = values.iter().filter_map(|v| v.parse().ok()).collect();
-                match (v.as_slice(), values.len()) {
-                    (&[y, p, r], 3) => Ok(VnReply::Ypr([y, p, r])),
-                    _ => Err(VnError::BadSentence("YPR carries three numbers")),
+                let mut ypr = [0f32; 3];
+                let (mut n, mut parsed) = (0, 0);
+                for v in values {
+                    if let (Some(slot), Ok(x)) = (ypr.get_mut(n), v.parse()) {
+                        *slot = x;
+                        parsed += 1;
+                    }
+                    n += 1;
+                }
+                if n == 3 && parsed == 3 {
+                    Ok(VnReply::Ypr(ypr))
+                } else {
+                    Err(VnError::BadSentence("YPR carries three numbers"))
                 }
             }
-            other => Err(VnError::UnknownHeader(other.to_string())),
+            other => Err(VnError::unknown_header(other)),
         }
     }
 }

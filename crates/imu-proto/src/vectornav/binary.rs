@@ -6,6 +6,8 @@
 //! size is unknown (0 in the table, or bit 15, the extension flag of newer firmware) makes the
 //! message undecodable rather than misparsed.
 
+use smallvec::SmallVec;
+
 use super::checksum::crc16;
 use super::{SYNC, VnError};
 
@@ -141,15 +143,12 @@ impl OutputFields {
     pub fn payload_len(&self) -> Result<usize, VnError> {
         let mut len = 0;
         for (g, &word) in self.words.iter().enumerate() {
-            for (bit, &size) in FIELD_LEN[g].iter().enumerate() {
-                if word & 1 << bit == 0 {
-                    continue;
-                }
-                match size {
+            for bit in set_bits(word) {
+                match FIELD_LEN[g][usize::from(bit)] {
                     0 => {
                         return Err(VnError::UnknownField {
                             group: g as u8 + 1,
-                            bit: bit as u8,
+                            bit,
                         });
                     }
                     n => len += usize::from(n),
@@ -186,11 +185,13 @@ pub fn header(bytes: &[u8]) -> Result<Option<(OutputFields, usize)>, VnError> {
     let Some(raw) = bytes.get(2..2 + 2 * n) else {
         return Ok(None);
     };
-    let words: Vec<u16> = raw
-        .chunks_exact(2)
-        .map(|c| u16::from_le_bytes([c[0], c[1]]))
-        .collect();
-    let fields = OutputFields::from_header(groups, &words)?;
+    // At most seven groups (bit 7 was refused above): the words fit a fixed array, so framing
+    // a message allocates nothing.
+    let mut words = [0u16; group::COUNT];
+    for (w, c) in words.iter_mut().zip(raw.chunks_exact(2)) {
+        *w = u16::from_le_bytes([c[0], c[1]]);
+    }
+    let fields = OutputFields::from_header(groups, &words[..n])?;
     let len = fields.message_len()?;
     Ok(Some((fields, len)))
 }
@@ -283,10 +284,17 @@ pub struct BinaryData {
     pub angular_rate_rad_s: Option<[f32; 3]>,
 }
 
+/// Longest message held inline, sync to CRC: the calibration outputs with GPS time and the
+/// time status are 103 bytes, so a longer one (a unit also sending attitude or INS fields) is
+/// the only kind whose bytes go to the heap.
+pub const MAX_INLINE_MESSAGE_LEN: usize = 128;
+
 /// A good binary message: its bytes (sync to CRC), its fields and the values decoded from them.
+/// The bytes are held inline up to [`MAX_INLINE_MESSAGE_LEN`], so decoding one allocates
+/// nothing.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BinaryMessage {
-    bytes: Vec<u8>,
+    bytes: SmallVec<[u8; MAX_INLINE_MESSAGE_LEN]>,
     fields: OutputFields,
     data: BinaryData,
 }
@@ -312,7 +320,7 @@ impl BinaryMessage {
         }
         let data = decode_payload(&fields, &bytes[fields.header_len()..len - 2]);
         Ok(BinaryMessage {
-            bytes: bytes.to_vec(),
+            bytes: SmallVec::from_slice(bytes),
             fields,
             data,
         })
@@ -339,7 +347,7 @@ impl BinaryMessage {
         out.extend_from_slice(&crc.to_be_bytes());
         debug_assert_eq!(out.len(), len);
         Ok(BinaryMessage {
-            bytes: out,
+            bytes: SmallVec::from_vec(out),
             fields,
             data: data.clone(),
         })
@@ -361,6 +369,19 @@ impl BinaryMessage {
     }
 }
 
+/// The set bits of a field word, lowest first (the order of the fields on the wire): a
+/// message enables a few of sixteen, so only those are visited.
+fn set_bits(word: u16) -> impl Iterator<Item = u8> {
+    let mut rest = word;
+    std::iter::from_fn(move || {
+        (rest != 0).then(|| {
+            let bit = rest.trailing_zeros() as u8;
+            rest &= rest - 1;
+            bit
+        })
+    })
+}
+
 fn f32_at(b: &[u8], i: usize) -> f32 {
     f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
 }
@@ -380,10 +401,7 @@ fn decode_payload(fields: &OutputFields, payload: &[u8]) -> BinaryData {
     let mut d = BinaryData::default();
     let mut at = 0;
     for (g, &word) in fields.words.iter().enumerate() {
-        for bit in 0..16u8 {
-            if word & 1 << bit == 0 {
-                continue;
-            }
+        for bit in set_bits(word) {
             let f = &payload[at..at + usize::from(FIELD_LEN[g][usize::from(bit)])];
             let flag = 1u16 << bit;
             match (g, flag) {

@@ -2,6 +2,9 @@
 
 use thiserror::Error;
 
+/// Bytes of a sentence header: `VN` and three letters.
+pub const HEADER_LEN: usize = 5;
+
 /// Why a complete ASCII sentence or binary message, or a value in it, could not be decoded.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum VnError {
@@ -30,13 +33,14 @@ pub enum VnError {
     /// The CRC over the message after its sync byte is not zero.
     #[error("bad CRC: 0x{0:04X} over the message instead of 0")]
     BadCrc(u16),
-    /// The ASCII sentence's checksum or CRC does not match its body.
-    #[error("bad ASCII check: computed {computed}, sentence carries {found}")]
+    /// The ASCII sentence's checksum or CRC does not match its body (numbers, not text, so
+    /// that a corrupt sentence met while resynchronising allocates nothing).
+    #[error("bad ASCII check: computed 0x{computed:X}, sentence carries 0x{found:X}")]
     BadChecksum {
-        /// The check computed over the body, as hex.
-        computed: String,
+        /// The check computed over the body.
+        computed: u16,
         /// The check the sentence carries.
-        found: String,
+        found: u16,
     },
     /// The ASCII sentence is not `$VNxxx,...*CS\r\n` of printable characters.
     #[error("malformed ASCII sentence: {0}")]
@@ -52,9 +56,11 @@ pub enum VnError {
         /// What is wrong.
         problem: &'static str,
     },
-    /// The sentence is not a command or reply this codec decodes.
-    #[error("unknown sentence header {0:?}")]
-    UnknownHeader(String),
+    /// The sentence is not a command or reply this codec decodes: its header's first
+    /// [`HEADER_LEN`] bytes (a good sentence's header is `VN` and three letters), padded with
+    /// spaces (held inline: an unknown ASCII output is met at its rate).
+    #[error("unknown sentence header {:?}", String::from_utf8_lossy(.0).trim_end())]
+    UnknownHeader([u8; HEADER_LEN]),
     /// Encoding asked for a field the data does not hold.
     #[error("group {group} field bit {bit} is enabled but the data has no value for it")]
     MissingValue {
@@ -63,4 +69,15 @@ pub enum VnError {
         /// Bit in the group's field word.
         bit: u8,
     },
+}
+
+impl VnError {
+    /// [`VnError::UnknownHeader`] of `header`.
+    pub(crate) fn unknown_header(header: &str) -> VnError {
+        let mut h = [b' '; HEADER_LEN];
+        for (d, s) in h.iter_mut().zip(header.bytes()) {
+            *d = s;
+        }
+        VnError::UnknownHeader(h)
+    }
 }

@@ -39,6 +39,20 @@ pub mod id {
 /// The UTC time flags bit saying the time is valid (`mtmanager` "UTC valid").
 pub const UTC_VALID: u8 = 0x04;
 
+/// Bits of the status word (0xE020), as the Xsens MT Low-Level Communication Protocol
+/// documents them and the vendor SDK's `XsStatusFlag` names them (`XSF_ClipAccX` 0x100 to
+/// `XSF_ClipMagZ` 0x10000): each set when that axis's sensor clipped in this sample.
+pub mod status {
+    /// Accelerometer clipping, x, y, z: bits 8, 9, 10.
+    pub const CLIP_ACC: u32 = 0x0000_0700;
+    /// Gyroscope clipping, x, y, z: bits 11, 12, 13.
+    pub const CLIP_GYR: u32 = 0x0000_3800;
+    /// Magnetometer clipping, x, y, z: bits 14, 15, 16.
+    pub const CLIP_MAG: u32 = 0x0001_C000;
+    /// Any axis of any of the three sensors clipped.
+    pub const CLIPPING: u32 = CLIP_ACC | CLIP_GYR | CLIP_MAG;
+}
+
 /// The number format of a float item: the identifier's low two bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Format {
@@ -231,9 +245,10 @@ pub struct MtData2 {
     pub rate_of_turn_hr_rad_s: Option<[f64; 3]>,
     /// 0xA010.
     pub raw: Option<RawAccGyrMagTemp>,
-    /// 0xC020, normalised units.
-    pub magnetic_field: Option<[f64; 3]>,
-    /// 0xE020.
+    /// 0xC020: the magnetic field normalised to the field where the unit's magnetometer was
+    /// calibrated (its magnitude there is 1): a ratio, not gauss or tesla.
+    pub magnetic_field_normalised: Option<[f64; 3]>,
+    /// 0xE020 ([`status`] names its clipping bits).
     pub status_word: Option<u32>,
     /// Coordinate bits of the last vector item (0 ENU, 4 NED, 8 NWU).
     pub coordinates: u8,
@@ -348,7 +363,7 @@ impl MtData2 {
             }
             id::MAGNETIC_FIELD => {
                 vector(self);
-                set!(magnetic_field, floats(f, data))
+                set!(magnetic_field_normalised, floats(f, data))
             }
             id::RAW_ACC_GYR_MAG_TEMP => set!(
                 raw,
@@ -422,7 +437,7 @@ impl MtData2 {
             (id::RAW_ACC_GYR_MAG_TEMP, None),
             (
                 id::MAGNETIC_FIELD,
-                self.magnetic_field.as_ref().map(|v| &v[..]),
+                self.magnetic_field_normalised.as_ref().map(|v| &v[..]),
             ),
         ];
         for (base, values) in vectors {

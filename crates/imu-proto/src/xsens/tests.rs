@@ -160,7 +160,7 @@ fn golden_mtdata2_example_decodes_to_the_documented_values() {
         [0.02131760, -0.00327826, -0.00163019]
     ));
     assert!(close(
-        m.magnetic_field.unwrap(),
+        m.magnetic_field_normalised.unwrap(),
         [-0.49215657, 0.70221740, -1.25496686]
     ));
     assert!(close(
@@ -457,7 +457,7 @@ fn arb_data() -> impl Strategy<Value = MtData2> {
                     delta_q: dq,
                     rate_of_turn_hr_rad_s: rot_hr,
                     raw,
-                    magnetic_field: mag,
+                    magnetic_field_normalised: mag,
                     status_word: status,
                     ..MtData2::default()
                 }
@@ -523,7 +523,7 @@ proptest! {
             (data.acceleration_hr_m_s2, back.acceleration_hr_m_s2),
             (data.rate_of_turn_rad_s, back.rate_of_turn_rad_s),
             (data.rate_of_turn_hr_rad_s, back.rate_of_turn_hr_rad_s),
-            (data.magnetic_field, back.magnetic_field),
+            (data.magnetic_field_normalised, back.magnetic_field_normalised),
             (data.delta_v_m_s, back.delta_v_m_s),
         ];
         for (a, b) in pairs {

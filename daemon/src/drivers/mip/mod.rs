@@ -14,21 +14,20 @@ pub mod startup;
 #[cfg(test)]
 mod tests;
 
-use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use imu_bus::recording::{FrameData, SampleFrame};
 use imu_bus::sample::device_protocol;
-use imu_proto::decoder::DecoderStats;
-use imu_proto::mip::{MipCommand, MipDecoder, MipEvent};
+use imu_proto::DeviceProtocol;
+use imu_proto::mip::{MipCommand, MipDecoder, Packet};
 use tracing::info;
 
 pub use reading::MipTimebase;
 pub use startup::preferred_mip_format;
 use startup::{Configured, Outcome, Startup};
 
-use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot, Held};
+use super::DeviceIdentity;
+use super::streaming::{Passive, Step, StreamingDriver, Unit};
 use crate::config::{AcquisitionMode, DeviceConfig};
 use crate::pipeline::{Acquisition, FrameContent, Gains, SessionSpec};
 
@@ -72,130 +71,30 @@ pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
 }
 
 /// A MIP unit (see the module docs).
-pub struct MipDriver {
-    config: DeviceConfig,
-    path: PathBuf,
-    decoder: MipDecoder,
-    readings: reading::Readings,
-    /// Readings are made (the unit resumed).
-    streaming: bool,
-    startup: Option<Startup>,
-    /// Passive: listening for the first usable IMU packet until this time.
-    learning: Option<Instant>,
-    events: VecDeque<Held>,
-    now: Instant,
-}
+pub type MipDriver = StreamingDriver<MipUnit>;
 
 impl MipDriver {
-    /// The driver for the unit `config` describes.
-    pub fn new(config: &DeviceConfig) -> Self {
-        Self {
-            config: config.clone(),
-            path: config.path.clone(),
-            decoder: MipDecoder::new(),
-            readings: reading::Readings::new(MipTimebase::ReferenceTime),
-            streaming: false,
-            startup: None,
-            learning: None,
-            events: VecDeque::new(),
-            now: Instant::now(),
-        }
-    }
-
-    /// Queues an event for the session.
-    fn push(&mut self, ev: DriverEvent) {
-        self.events.push_back(Held::Event(ev));
-    }
-
     /// Packets of data sets other than the IMU's, by descriptor set.
     pub fn other_sets(&self) -> &std::collections::BTreeMap<u8, u64> {
-        self.readings.other_sets()
+        self.unit.readings.other_sets()
     }
 
     /// A driver of a unit already streaming on `timebase` (no start-up: the offline path,
     /// which configured its simulated unit directly).
     pub fn with_session(config: &DeviceConfig, timebase: MipTimebase) -> Self {
-        let mut d = Self::new(config);
-        d.readings.restart(timebase);
-        d.streaming = true;
-        d
+        let mut unit = MipUnit::new(config);
+        unit.readings.restart(timebase);
+        Self::already_streaming(config, unit)
     }
+}
 
-    /// Passive: the clock a packet would set, if it is a usable IMU data packet.
-    fn learn(&mut self, packet: &imu_proto::mip::Packet) -> bool {
-        if packet.descriptor_set() != imu_proto::mip::descriptor_set::IMU_DATA {
-            return false;
-        }
-        let Ok(data) = imu_proto::mip::ImuData::decode_packet(packet) else {
-            return false;
-        };
-        let timebase = match (data.reference_time_ns, data.internal_ticks) {
-            (Some(_), _) => MipTimebase::ReferenceTime,
-            (None, Some(_)) => MipTimebase::InternalTimestamp,
-            (None, None) => return false,
-        };
-        if data.accel_g.is_none() || data.gyro_rad_s.is_none() {
-            return false;
-        }
-        self.learning = None;
-        self.streaming = true;
-        self.readings.restart(timebase);
-        info!(
-            "device {} (MIP) passive: its IMU stream taken as it is, clock {}{}{} (rate \
-             measured; configuration not verified)",
-            self.path.display(),
-            timebase.name(),
-            if data.mag_gauss.is_some() {
-                ", magnetometer"
-            } else {
-                ", no magnetometer"
-            },
-            if data.temperature.is_some() {
-                ", temperature"
-            } else {
-                ", no temperature"
-            },
-        );
-        self.push(DriverEvent::Session(passive_session(timebase)));
-        let not_asked = "not asked (passive)".to_string();
-        self.push(DriverEvent::Identified(Box::new(DeviceIdentity {
-            protocol: imu_proto::DeviceProtocol::Mip.name(),
-            model: not_asked.clone(),
-            firmware: not_asked.clone(),
-            serial: not_asked,
-            details: vec![
-                ("clock".into(), timebase.name().into()),
-                ("magnetometer".into(), data.mag_gauss.is_some().to_string()),
-                ("temperature".into(), data.temperature.is_some().to_string()),
-                ("gps-timestamp".into(), data.gps_time.is_some().to_string()),
-                ("configuration-verified".into(), "false".into()),
-            ],
-        })));
-        self.push(DriverEvent::Ready);
-        true
-    }
+/// What is a MIP unit's own in its driver.
+pub struct MipUnit {
+    path: PathBuf,
+    readings: reading::Readings,
+}
 
-    fn on_outcome(&mut self, outcome: Option<Outcome>) {
-        match outcome {
-            None => {}
-            Some(Outcome::Configured(c)) => {
-                self.readings.restart(c.choice.timebase);
-                self.push(DriverEvent::Session(session(c.choice.timebase)));
-                let identity = self.identity_of(&c);
-                self.push(DriverEvent::Identified(Box::new(identity)));
-            }
-            Some(Outcome::Done) => {
-                self.startup = None;
-                self.streaming = true;
-                self.push(DriverEvent::Ready);
-            }
-            Some(Outcome::Failed(e)) => {
-                self.startup = None;
-                self.push(DriverEvent::Failed(e));
-            }
-        }
-    }
-
+impl MipUnit {
     /// Says what was set up; the identity and metadata.
     fn identity_of(&self, c: &Configured) -> DeviceIdentity {
         let info = &c.info;
@@ -226,7 +125,7 @@ impl MipDriver {
             },
         );
         DeviceIdentity {
-            protocol: imu_proto::DeviceProtocol::Mip.name(),
+            protocol: DeviceProtocol::Mip.name(),
             model: info.model_name.clone(),
             firmware,
             serial: info.serial_number.clone(),
@@ -246,125 +145,91 @@ impl MipDriver {
     }
 }
 
-impl Driver for MipDriver {
-    fn start(&mut self, now: Instant) {
-        self.now = now;
-        self.streaming = false;
-        self.learning = None;
-        if !self.config.configure {
-            self.startup = None;
-            self.learning = Some(now + Duration::from_secs_f64(self.config.silence_timeout_s));
-            return;
+impl Unit for MipUnit {
+    const PROTOCOL: DeviceProtocol = DeviceProtocol::Mip;
+    const PASSIVE_WANTS: &'static str = "MIP IMU data packet with accel, gyro and a timestamp";
+    type Decoder = MipDecoder;
+    type Startup = Startup;
+
+    fn new(config: &DeviceConfig) -> Self {
+        Self {
+            path: config.path.clone(),
+            readings: reading::Readings::new(MipTimebase::ReferenceTime),
         }
-        self.startup = Some(Startup::new(
-            Duration::from_secs_f64(self.config.reply_timeout_s),
-            self.config.rate_hz,
-            now,
-        ));
     }
 
-    fn handle_input(&mut self, bytes: &[u8], now: Instant) {
-        self.now = now;
-        self.decoder.push(bytes);
+    fn startup(config: &DeviceConfig, timeout: Duration, now: Instant) -> anyhow::Result<Startup> {
+        Ok(Startup::new(timeout, config.rate_hz, now))
     }
 
-    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
-        if let Some(held) = self.events.pop_front() {
-            return Some(held.hand_over(slot));
+    fn content(&mut self, packet: &Packet) -> FrameContent {
+        self.readings.content(packet)
+    }
+
+    /// The clock a packet sets, if it is a usable IMU data packet.
+    fn learn(&mut self, packet: &Packet) -> Option<Passive> {
+        if packet.descriptor_set() != imu_proto::mip::descriptor_set::IMU_DATA {
+            return None;
         }
-        Some(match self.decoder.next_event()? {
-            MipEvent::Packet { packet, offset } => {
-                // Passive: the first usable packet sets the session, which goes out before it.
-                let learned = self.learning.is_some() && self.learn(&packet);
-                // The start-up's packets are logged only: no samples before the unit resumed.
-                // Written in place: the content is most of a frame's bytes on this path.
-                slot.content = if self.streaming {
-                    self.readings.content(&packet)
-                } else {
-                    FrameContent::default()
-                };
-                if let Some(s) = &mut self.startup {
-                    let outcome = s.on_packet(&packet, self.now);
-                    self.on_outcome(outcome);
-                }
-                if learned {
-                    // The session (queued by `learn`) goes out before its first sample.
-                    let frame = SampleFrame {
-                        stream_offset: offset,
-                        bytes: FrameData::from_slice(packet.as_bytes()),
-                    };
-                    self.events
-                        .push_back(Held::frame(frame, std::mem::take(&mut slot.content)));
-                    return self.events.pop_front().map(|held| held.hand_over(slot));
-                }
-                slot.set_frame(packet.as_bytes(), offset);
-                DriverEvent::Frame
-            }
-            MipEvent::Rejected {
-                bytes,
-                offset,
-                reason,
-            } => DriverEvent::Rejected {
-                bytes,
-                offset,
-                reason,
+        let data = imu_proto::mip::ImuData::decode_packet(packet).ok()?;
+        let timebase = match (data.reference_time_ns, data.internal_ticks) {
+            (Some(_), _) => MipTimebase::ReferenceTime,
+            (None, Some(_)) => MipTimebase::InternalTimestamp,
+            (None, None) => return None,
+        };
+        if data.accel_g.is_none() || data.gyro_rad_s.is_none() {
+            return None;
+        }
+        self.readings.restart(timebase);
+        info!(
+            "device {} (MIP) passive: its IMU stream taken as it is, clock {}{}{} (rate \
+             measured; configuration not verified)",
+            self.path.display(),
+            timebase.name(),
+            if data.mag_gauss.is_some() {
+                ", magnetometer"
+            } else {
+                ", no magnetometer"
             },
+            if data.temperature.is_some() {
+                ", temperature"
+            } else {
+                ", no temperature"
+            },
+        );
+        Some(Passive {
+            session: passive_session(timebase),
+            details: vec![
+                ("clock".into(), timebase.name().into()),
+                ("magnetometer".into(), data.mag_gauss.is_some().to_string()),
+                ("temperature".into(), data.temperature.is_some().to_string()),
+                ("gps-timestamp".into(), data.gps_time.is_some().to_string()),
+            ],
         })
     }
 
-    fn poll_transmit(&mut self, out: &mut Vec<u8>) -> bool {
-        match self.startup.as_mut().and_then(|s| s.tx.pop_front()) {
-            Some(bytes) => {
-                out.extend_from_slice(&bytes);
-                true
+    fn outcome(&mut self, outcome: Outcome) -> Step {
+        match outcome {
+            Outcome::Configured(c) => {
+                self.readings.restart(c.choice.timebase);
+                Step::Configured {
+                    session: session(c.choice.timebase),
+                    identity: self.identity_of(&c),
+                    // The resume follows.
+                    streaming: false,
+                }
             }
-            None => false,
+            Outcome::Done => Step::Done,
+            Outcome::Failed(e) => Step::Failed(e),
         }
-    }
-
-    fn poll_timeout(&self) -> Option<Instant> {
-        match &self.startup {
-            Some(s) => s.deadline(),
-            None => self.learning,
-        }
-    }
-
-    fn handle_timeout(&mut self, now: Instant) {
-        self.now = now;
-        if self.learning.is_some_and(|t| now >= t) {
-            self.learning = None;
-            self.push(DriverEvent::Failed(anyhow::anyhow!(
-                "no MIP IMU data packet with accel, gyro and a timestamp heard within {:.1} s \
-                 (passive: nothing is sent to the unit)",
-                self.config.silence_timeout_s
-            )));
-        }
-        if let Some(s) = &mut self.startup {
-            let outcome = s.on_timeout(now);
-            self.on_outcome(outcome);
-        }
-    }
-
-    fn flush(&mut self) {
-        self.decoder.flush();
-        // No readings until the next start: the unit is not known to stream.
-        self.streaming = false;
-        self.learning = None;
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {
-        // A passive unit is never sent anything, not even a stop.
-        self.config
-            .configure
-            .then(|| MipCommand::SetToIdle.to_packet().as_bytes().to_vec())
+        Some(MipCommand::SetToIdle.to_packet().as_bytes().to_vec())
     }
 
-    fn stats(&self) -> DecoderStats {
-        self.decoder.stats()
-    }
-
-    fn initial_session(&self) -> SessionSpec {
-        initial_session(&self.config)
+    fn initial_session(config: &DeviceConfig) -> SessionSpec {
+        initial_session(config)
     }
 }
 

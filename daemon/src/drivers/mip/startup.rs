@@ -25,6 +25,7 @@ use imu_proto::mip::{
 use tracing::{info, warn};
 
 use super::reading::MipTimebase;
+use crate::drivers::streaming::StartupMachine;
 use crate::drivers::{TRIES, back_off};
 
 /// One message format to try: its clock and optional fields.
@@ -296,25 +297,6 @@ impl Startup {
         }
     }
 
-    /// When [`Startup::on_timeout`] is next due.
-    pub fn deadline(&self) -> Option<Instant> {
-        self.stage.map(|_| self.ex.until)
-    }
-
-    /// A good packet arrived at `now`.
-    pub fn on_packet(&mut self, packet: &Packet, now: Instant) -> Option<Outcome> {
-        self.stage?;
-        let reply = self.ex.reply(packet)?;
-        self.advance(Ok(reply), now)
-    }
-
-    /// A deadline passed.
-    pub fn on_timeout(&mut self, now: Instant) -> Option<Outcome> {
-        self.stage?;
-        let e = self.ex.on_timeout(now, &mut self.tx)?;
-        self.advance(Err(e), now)
-    }
-
     fn send(&mut self, stage: Stage, cmd: MipCommand, now: Instant) {
         self.stage = Some(stage);
         self.ex = Exchange::new(cmd, self.timeout, now, &mut self.tx);
@@ -485,6 +467,34 @@ impl Startup {
             }
         }
         None
+    }
+}
+
+impl StartupMachine for Startup {
+    type Frame = Packet;
+    type Outcome = Outcome;
+
+    /// A good packet arrived at `now`.
+    fn on_frame(&mut self, packet: &Packet, now: Instant) -> Option<Outcome> {
+        self.stage?;
+        let reply = self.ex.reply(packet)?;
+        self.advance(Ok(reply), now)
+    }
+
+    /// A deadline passed.
+    fn on_timeout(&mut self, now: Instant) -> Option<Outcome> {
+        self.stage?;
+        let e = self.ex.on_timeout(now, &mut self.tx)?;
+        self.advance(Err(e), now)
+    }
+
+    /// When `on_timeout` is next due.
+    fn deadline(&self) -> Option<Instant> {
+        self.stage.map(|_| self.ex.until)
+    }
+
+    fn transmit(&mut self) -> Option<Vec<u8>> {
+        self.tx.pop_front()
     }
 }
 

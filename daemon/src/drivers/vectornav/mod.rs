@@ -13,23 +13,24 @@ pub mod startup;
 #[cfg(test)]
 mod tests;
 
-use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use imu_bus::recording::{FrameData, SampleFrame};
 use imu_bus::sample::device_protocol;
 use imu_proto::DeviceProtocol;
 use imu_proto::decoder::DecoderStats;
+use imu_proto::decoder::framed::PacketEvent;
 use imu_proto::vectornav::binary::group;
 use imu_proto::vectornav::{
-    BinaryMessage, BinaryOutputConfig, Check, OutputFields, Register, VnCommand, VnDecoder, VnEvent,
+    BinaryMessage, BinaryOutputConfig, Check, OutputFields, Register, Sentence, VnCommand,
+    VnDecoder, VnEvent,
 };
 use tracing::info;
 
 use startup::{Configured, Outcome, Startup};
 
-use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot, Held};
+use super::DeviceIdentity;
+use super::streaming::{FrameDecoder, Passive, Step, StreamingDriver, Unit};
 use crate::config::{AcquisitionMode, DeviceConfig};
 use crate::pipeline::{Acquisition, FrameContent, Gains, SessionSpec};
 
@@ -90,112 +91,87 @@ pub fn fields_name(fields: &OutputFields) -> String {
         .join(" ")
 }
 
-/// A VectorNav unit (see the module docs).
-pub struct VnDriver {
-    config: DeviceConfig,
-    path: PathBuf,
-    decoder: VnDecoder,
-    readings: reading::Readings,
-    /// Readings are made (the output is verified, or a passive unit's stream was taken).
-    streaming: bool,
-    startup: Option<Startup>,
-    /// The output configured, for the stop bytes.
-    output: Option<BinaryOutputConfig>,
-    /// Passive: listening for the first usable binary message until this time.
-    learning: Option<Instant>,
-    events: VecDeque<Held>,
-    now: Instant,
+/// A good frame of a VectorNav unit's stream.
+// The decoded values are held inline (as in `VnEvent`): they move once, into the frame.
+#[allow(clippy::large_enum_variant)]
+pub enum VnFrame {
+    /// A binary output message.
+    Binary(BinaryMessage),
+    /// An ASCII sentence (a register reply, `$VNERR`, an ASCII output).
+    Ascii(Sentence),
 }
 
-impl VnDriver {
-    /// The driver for the unit `config` describes.
-    pub fn new(config: &DeviceConfig) -> Self {
-        Self {
-            config: config.clone(),
-            path: config.path.clone(),
-            decoder: VnDecoder::new(),
-            readings: reading::Readings::new(),
-            streaming: false,
-            startup: None,
-            output: None,
-            learning: None,
-            events: VecDeque::new(),
-            now: Instant::now(),
-        }
+/// One decoder for both kinds of frame on the port.
+impl FrameDecoder for VnDecoder {
+    type Frame = VnFrame;
+
+    fn push(&mut self, bytes: &[u8]) {
+        VnDecoder::push(self, bytes);
     }
 
+    fn flush(&mut self) {
+        VnDecoder::flush(self);
+    }
+
+    fn stats(&self) -> DecoderStats {
+        VnDecoder::stats(self)
+    }
+
+    fn next_frame(&mut self) -> Option<PacketEvent<VnFrame>> {
+        Some(match self.next_event()? {
+            VnEvent::Binary { message, offset } => PacketEvent::Packet {
+                packet: VnFrame::Binary(message),
+                offset,
+            },
+            VnEvent::Ascii { sentence, offset } => PacketEvent::Packet {
+                packet: VnFrame::Ascii(sentence),
+                offset,
+            },
+            VnEvent::Rejected {
+                bytes,
+                offset,
+                reason,
+            } => PacketEvent::Rejected {
+                bytes,
+                offset,
+                reason,
+            },
+        })
+    }
+
+    fn bytes(frame: &VnFrame) -> &[u8] {
+        match frame {
+            VnFrame::Binary(message) => message.as_bytes(),
+            VnFrame::Ascii(sentence) => sentence.as_bytes(),
+        }
+    }
+}
+
+/// A VectorNav unit (see the module docs).
+pub type VnDriver = StreamingDriver<VnUnit>;
+
+impl VnDriver {
     /// A driver of a unit already streaming (no start-up: the offline path, which configured
     /// its simulated unit directly).
     pub fn with_session(config: &DeviceConfig) -> Self {
-        let mut d = Self::new(config);
-        d.streaming = true;
-        d
+        Self::already_streaming(config, VnUnit::new(config))
     }
 
     /// Binary messages that made no sample so far.
     pub fn unusable_count(&self) -> u64 {
-        self.readings.unusable_count()
+        self.unit.readings.unusable_count()
     }
+}
 
-    fn push(&mut self, ev: DriverEvent) {
-        self.events.push_back(Held::Event(ev));
-    }
+/// What is a VectorNav unit's own in its driver.
+pub struct VnUnit {
+    path: PathBuf,
+    readings: reading::Readings,
+    /// The output configured, for the stop bytes.
+    output: Option<BinaryOutputConfig>,
+}
 
-    /// Passive: takes the stream if `message` is a usable sample.
-    fn learn(&mut self, message: &BinaryMessage) -> bool {
-        let d = message.data();
-        if d.startup_ns.is_none() || d.uncomp_accel_m_s2.is_none() || d.uncomp_gyro_rad_s.is_none()
-        {
-            return false;
-        }
-        self.learning = None;
-        self.streaming = true;
-        self.readings.restart();
-        let fields = fields_name(&message.fields());
-        info!(
-            "device {} (VectorNav) passive: its binary output taken as it is ({fields}; rate \
-             measured; configuration not verified)",
-            self.path.display()
-        );
-        self.push(DriverEvent::Session(passive_session()));
-        let not_asked = "not asked (passive)".to_string();
-        self.push(DriverEvent::Identified(Box::new(DeviceIdentity {
-            protocol: DeviceProtocol::Vectornav.name(),
-            model: not_asked.clone(),
-            firmware: not_asked.clone(),
-            serial: not_asked,
-            details: vec![
-                ("clock".into(), "startup time (ns)".into()),
-                ("outputs".into(), fields),
-                ("gnss-time".into(), d.gps_ns.is_some().to_string()),
-                ("compensated".into(), d.accel_m_s2.is_some().to_string()),
-                ("configuration-verified".into(), "false".into()),
-            ],
-        })));
-        self.push(DriverEvent::Ready);
-        true
-    }
-
-    fn on_outcome(&mut self, outcome: Option<Outcome>) {
-        match outcome {
-            None => {}
-            Some(Outcome::Configured(c)) => {
-                self.startup = None;
-                self.readings.restart();
-                self.output = Some(c.output);
-                self.streaming = true;
-                self.push(DriverEvent::Session(session()));
-                let identity = self.identity_of(&c);
-                self.push(DriverEvent::Identified(Box::new(identity)));
-                self.push(DriverEvent::Ready);
-            }
-            Some(Outcome::Failed(e)) => {
-                self.startup = None;
-                self.push(DriverEvent::Failed(e));
-            }
-        }
-    }
-
+impl VnUnit {
     /// Says what was set up; the identity and metadata.
     fn identity_of(&self, c: &Configured) -> DeviceIdentity {
         let fields = fields_name(&c.output.fields);
@@ -229,128 +205,86 @@ impl VnDriver {
     }
 }
 
-impl Driver for VnDriver {
-    fn start(&mut self, now: Instant) {
-        self.now = now;
-        self.streaming = false;
-        self.learning = None;
-        if !self.config.configure {
-            self.startup = None;
-            self.learning = Some(now + Duration::from_secs_f64(self.config.silence_timeout_s));
-            return;
-        }
-        match self.config.rate_hz.map(startup::rate_divisor).transpose() {
-            Ok(divisor) => {
-                self.startup = Some(Startup::new(
-                    Duration::from_secs_f64(self.config.reply_timeout_s),
-                    divisor,
-                    now,
-                ));
-            }
-            Err(e) => self.push(DriverEvent::Failed(e)),
+impl Unit for VnUnit {
+    const PROTOCOL: DeviceProtocol = DeviceProtocol::Vectornav;
+    const PASSIVE_WANTS: &'static str =
+        "VectorNav binary message with the startup time and uncompensated accel and gyro";
+    type Decoder = VnDecoder;
+    type Startup = Startup;
+
+    fn new(config: &DeviceConfig) -> Self {
+        Self {
+            path: config.path.clone(),
+            readings: reading::Readings::new(),
+            output: None,
         }
     }
 
-    fn handle_input(&mut self, bytes: &[u8], now: Instant) {
-        self.now = now;
-        self.decoder.push(bytes);
+    fn startup(config: &DeviceConfig, timeout: Duration, now: Instant) -> anyhow::Result<Startup> {
+        let divisor = config.rate_hz.map(startup::rate_divisor).transpose()?;
+        Ok(Startup::new(timeout, divisor, now))
     }
 
-    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
-        if let Some(held) = self.events.pop_front() {
-            return Some(held.hand_over(slot));
+    /// A binary message's reading; a sentence (logged as a frame only) carries none.
+    fn content(&mut self, frame: &VnFrame) -> FrameContent {
+        match frame {
+            VnFrame::Binary(message) => self.readings.content(message),
+            VnFrame::Ascii(_) => FrameContent::default(),
         }
-        Some(match self.decoder.next_event()? {
-            VnEvent::Binary { message, offset } => {
-                let learned = self.learning.is_some() && self.learn(&message);
-                slot.content = if self.streaming {
-                    self.readings.content(&message)
-                } else {
-                    FrameContent::default()
-                };
-                if learned {
-                    // The session (queued by `learn`) goes out before its first sample.
-                    let frame = SampleFrame {
-                        stream_offset: offset,
-                        bytes: FrameData::from_slice(message.as_bytes()),
-                    };
-                    self.events
-                        .push_back(Held::frame(frame, std::mem::take(&mut slot.content)));
-                    return self.events.pop_front().map(|held| held.hand_over(slot));
-                }
-                slot.set_frame(message.as_bytes(), offset);
-                DriverEvent::Frame
-            }
-            VnEvent::Ascii { sentence, offset } => {
-                slot.content = FrameContent::default();
-                if let Some(s) = &mut self.startup {
-                    let outcome = s.on_sentence(&sentence, self.now);
-                    self.on_outcome(outcome);
-                }
-                // The start-up's events (queued above) go out after the reply that ended it.
-                slot.set_frame(sentence.as_bytes(), offset);
-                DriverEvent::Frame
-            }
-            VnEvent::Rejected {
-                bytes,
-                offset,
-                reason,
-            } => DriverEvent::Rejected {
-                bytes,
-                offset,
-                reason,
-            },
+    }
+
+    /// The stream, if `frame` is a usable sample.
+    fn learn(&mut self, frame: &VnFrame) -> Option<Passive> {
+        let VnFrame::Binary(message) = frame else {
+            return None;
+        };
+        let d = message.data();
+        if d.startup_ns.is_none() || d.uncomp_accel_m_s2.is_none() || d.uncomp_gyro_rad_s.is_none()
+        {
+            return None;
+        }
+        self.readings.restart();
+        let fields = fields_name(&message.fields());
+        info!(
+            "device {} (VectorNav) passive: its binary output taken as it is ({fields}; rate \
+             measured; configuration not verified)",
+            self.path.display()
+        );
+        Some(Passive {
+            session: passive_session(),
+            details: vec![
+                ("clock".into(), "startup time (ns)".into()),
+                ("outputs".into(), fields),
+                ("gnss-time".into(), d.gps_ns.is_some().to_string()),
+                ("compensated".into(), d.accel_m_s2.is_some().to_string()),
+            ],
         })
     }
 
-    fn poll_transmit(&mut self, out: &mut Vec<u8>) -> bool {
-        match self.startup.as_mut().and_then(|s| s.tx.pop_front()) {
-            Some(bytes) => {
-                out.extend_from_slice(&bytes);
-                true
+    fn outcome(&mut self, outcome: Outcome) -> Step {
+        match outcome {
+            Outcome::Configured(c) => {
+                self.readings.restart();
+                self.output = Some(c.output);
+                Step::Configured {
+                    session: session(),
+                    identity: self.identity_of(&c),
+                    // The output was turned on by the reply that ended start-up.
+                    streaming: true,
+                }
             }
-            None => false,
+            Outcome::Failed(e) => Step::Failed(e),
         }
-    }
-
-    fn poll_timeout(&self) -> Option<Instant> {
-        match &self.startup {
-            Some(s) => s.deadline(),
-            None => self.learning,
-        }
-    }
-
-    fn handle_timeout(&mut self, now: Instant) {
-        self.now = now;
-        if self.learning.is_some_and(|t| now >= t) {
-            self.learning = None;
-            self.push(DriverEvent::Failed(anyhow::anyhow!(
-                "no VectorNav binary message with the startup time and uncompensated accel and \
-                 gyro heard within {:.1} s (passive: nothing is sent to the unit)",
-                self.config.silence_timeout_s
-            )));
-        }
-        if let Some(s) = &mut self.startup {
-            let outcome = s.on_timeout(now);
-            self.on_outcome(outcome);
-        }
-    }
-
-    fn flush(&mut self) {
-        self.decoder.flush();
-        self.streaming = false;
-        self.learning = None;
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {
-        // A passive unit is never sent anything; a configured one has its binary output
-        // turned off (the fields kept, so a later start-up finds them as written).
-        let output = self.output.filter(|_| self.config.configure)?;
+        // The binary output turned off, the fields kept, so a later start-up finds them as
+        // written.
         let off = Register::BinaryOutput {
             index: 1,
             config: BinaryOutputConfig {
                 async_mode: 0,
-                ..output
+                ..self.output?
             },
         };
         Some(
@@ -361,11 +295,7 @@ impl Driver for VnDriver {
         )
     }
 
-    fn stats(&self) -> DecoderStats {
-        self.decoder.stats()
-    }
-
-    fn initial_session(&self) -> SessionSpec {
-        initial_session(&self.config)
+    fn initial_session(config: &DeviceConfig) -> SessionSpec {
+        initial_session(config)
     }
 }

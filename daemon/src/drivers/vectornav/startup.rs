@@ -16,9 +16,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail};
 use imu_proto::vectornav::{
-    BinaryOutputConfig, Check, IMU_RATE_HZ, Register, Sentence, VnCommand, VnReply, reg,
+    BinaryOutputConfig, Check, IMU_RATE_HZ, Register, VnCommand, VnReply, reg,
 };
 
+use super::VnFrame;
+use crate::drivers::streaming::StartupMachine;
 use crate::drivers::{TRIES, back_off};
 
 /// Serial port 1 and 2 both: the unit outputs on whichever port the host is on.
@@ -188,26 +190,6 @@ impl Startup {
         }
     }
 
-    /// When [`Startup::on_timeout`] is next due.
-    pub fn deadline(&self) -> Option<Instant> {
-        self.stage.map(|_| self.ex.until)
-    }
-
-    /// A good sentence arrived at `now`.
-    pub fn on_sentence(&mut self, sentence: &Sentence, now: Instant) -> Option<Outcome> {
-        self.stage?;
-        let reply = VnReply::decode(sentence).ok()?;
-        let answer = self.ex.reply(&reply)?;
-        self.advance(Ok(answer), now)
-    }
-
-    /// A deadline passed.
-    pub fn on_timeout(&mut self, now: Instant) -> Option<Outcome> {
-        self.stage?;
-        let e = self.ex.on_timeout(now, &mut self.tx)?;
-        self.advance(Err(e), now)
-    }
-
     fn send(&mut self, stage: Stage, cmd: VnCommand, now: Instant) {
         self.stage = Some(stage);
         self.ex = Exchange::new(cmd, self.timeout, now, &mut self.tx);
@@ -314,5 +296,37 @@ impl Startup {
             (_, other) => return self.fail(anyhow!("unexpected answer to {cmd}: {other:?}")),
         }
         None
+    }
+}
+
+impl StartupMachine for Startup {
+    type Frame = VnFrame;
+    type Outcome = Outcome;
+
+    /// A good frame arrived at `now`: a sentence may answer, a binary message never does.
+    fn on_frame(&mut self, frame: &VnFrame, now: Instant) -> Option<Outcome> {
+        let VnFrame::Ascii(sentence) = frame else {
+            return None;
+        };
+        self.stage?;
+        let reply = VnReply::decode(sentence).ok()?;
+        let answer = self.ex.reply(&reply)?;
+        self.advance(Ok(answer), now)
+    }
+
+    /// A deadline passed.
+    fn on_timeout(&mut self, now: Instant) -> Option<Outcome> {
+        self.stage?;
+        let e = self.ex.on_timeout(now, &mut self.tx)?;
+        self.advance(Err(e), now)
+    }
+
+    /// When `on_timeout` is next due.
+    fn deadline(&self) -> Option<Instant> {
+        self.stage.map(|_| self.ex.until)
+    }
+
+    fn transmit(&mut self) -> Option<Vec<u8>> {
+        self.tx.pop_front()
     }
 }

@@ -10,6 +10,7 @@ use imu_sim::virtual_device::Request;
 
 use super::*;
 use crate::config::Config;
+use crate::drivers::Driver;
 use crate::drivers::scripted::{Fate, Harness, Peer, Script};
 
 fn config(configure: bool) -> DeviceConfig {

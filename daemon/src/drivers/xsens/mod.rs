@@ -12,22 +12,20 @@ pub mod startup;
 #[cfg(test)]
 mod tests;
 
-use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use imu_bus::recording::{FrameData, SampleFrame};
 use imu_bus::sample::device_protocol;
 use imu_proto::DeviceProtocol;
-use imu_proto::decoder::DecoderStats;
-use imu_proto::xsens::{Message, MtData2, XsensCommand, XsensDecoder, XsensEvent, mid};
+use imu_proto::xsens::{Message, MtData2, XsensCommand, XsensDecoder, mid};
 use tracing::info;
 
 use reading::{CLOCK_NAME, RawSource, Readings, timebase};
 pub use startup::preferred_outputs;
 use startup::{Configured, Outcome, Startup};
 
-use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot, Held};
+use super::DeviceIdentity;
+use super::streaming::{Passive, Step, StreamingDriver, Unit};
 use crate::config::{AcquisitionMode, DeviceConfig};
 use crate::pipeline::{Acquisition, FrameContent, Gains, SessionSpec};
 
@@ -68,132 +66,29 @@ pub fn config_problem(config: &DeviceConfig) -> Option<(&'static str, String)> {
     })
 }
 
+/// What an MTi's magnetic field is in, for the metadata: the recording carries it in the
+/// magnetometer's gauss slot (and on `/imu/mag` as that times 1e-4 T) as the unit sends it.
+pub const MAGNETOMETER_UNIT: &str =
+    "ratio to the field where the unit was calibrated (1 there), not gauss";
+
 /// An Xsens MTi (see the module docs).
-pub struct XsensDriver {
-    config: DeviceConfig,
-    path: PathBuf,
-    decoder: XsensDecoder,
-    readings: Readings,
-    /// Readings are made (the unit is in measurement mode).
-    streaming: bool,
-    startup: Option<Startup>,
-    /// Passive: listening for the first usable data message until this time.
-    learning: Option<Instant>,
-    events: VecDeque<Held>,
-    now: Instant,
-}
+pub type XsensDriver = StreamingDriver<XsensUnit>;
 
 impl XsensDriver {
-    /// The driver for the unit `config` describes.
-    pub fn new(config: &DeviceConfig) -> Self {
-        Self {
-            config: config.clone(),
-            path: config.path.clone(),
-            decoder: XsensDecoder::new(),
-            readings: Readings::new(),
-            streaming: false,
-            startup: None,
-            learning: None,
-            events: VecDeque::new(),
-            now: Instant::now(),
-        }
-    }
-
     /// A driver of a unit already streaming (no start-up: the offline path, which configured
     /// its simulated unit directly).
     pub fn with_session(config: &DeviceConfig) -> Self {
-        let mut d = Self::new(config);
-        d.streaming = true;
-        d
+        Self::already_streaming(config, XsensUnit::new(config))
     }
+}
 
-    fn push(&mut self, ev: DriverEvent) {
-        self.events.push_back(Held::Event(ev));
-    }
+/// What is an MTi's own in its driver.
+pub struct XsensUnit {
+    path: PathBuf,
+    readings: Readings,
+}
 
-    /// Passive: whether `msg` is a usable data message, which then sets the session.
-    fn learn(&mut self, msg: &Message) -> bool {
-        if msg.mid() != mid::MT_DATA2 {
-            return false;
-        }
-        let Ok(data) = MtData2::decode(msg) else {
-            return false;
-        };
-        let Some(raw) = RawSource::of(&data) else {
-            return false;
-        };
-        if data.sample_time_fine.is_none() {
-            return false;
-        }
-        self.learning = None;
-        self.streaming = true;
-        self.readings.restart();
-        let yes_no = |b: bool| b.to_string();
-        info!(
-            "device {} (Xsens) passive: its stream taken as it is, clock {CLOCK_NAME}, raw \
-             reading {}{}{}{} (rate measured; configuration not verified)",
-            self.path.display(),
-            raw.name(),
-            if data.magnetic_field.is_some() {
-                ", magnetometer"
-            } else {
-                ", no magnetometer"
-            },
-            if data.temperature_c.is_some() {
-                ", temperature"
-            } else {
-                ", no temperature"
-            },
-            if data.utc.is_some() {
-                ", UTC time"
-            } else {
-                ", no UTC time"
-            },
-        );
-        self.push(DriverEvent::Session(SessionSpec {
-            configuration_verified: false,
-            ..session()
-        }));
-        let not_asked = "not asked (passive)".to_string();
-        self.push(DriverEvent::Identified(Box::new(DeviceIdentity {
-            protocol: DeviceProtocol::Xsens.name(),
-            model: not_asked.clone(),
-            firmware: not_asked.clone(),
-            serial: not_asked,
-            details: vec![
-                ("clock".into(), CLOCK_NAME.into()),
-                ("raw-reading".into(), raw.name().into()),
-                ("magnetometer".into(), yes_no(data.magnetic_field.is_some())),
-                ("temperature".into(), yes_no(data.temperature_c.is_some())),
-                ("utc-time".into(), yes_no(data.utc.is_some())),
-                ("configuration-verified".into(), "false".into()),
-            ],
-        })));
-        self.push(DriverEvent::Ready);
-        true
-    }
-
-    fn on_outcome(&mut self, outcome: Option<Outcome>) {
-        match outcome {
-            None => {}
-            Some(Outcome::Configured(c)) => {
-                self.readings.restart();
-                self.push(DriverEvent::Session(session()));
-                let identity = self.identity_of(&c);
-                self.push(DriverEvent::Identified(Box::new(identity)));
-            }
-            Some(Outcome::Done) => {
-                self.startup = None;
-                self.streaming = true;
-                self.push(DriverEvent::Ready);
-            }
-            Some(Outcome::Failed(e)) => {
-                self.startup = None;
-                self.push(DriverEvent::Failed(e));
-            }
-        }
-    }
-
+impl XsensUnit {
     /// Says what was set up; the identity and metadata.
     fn identity_of(&self, c: &Configured) -> DeviceIdentity {
         let choice = c.choice;
@@ -219,6 +114,7 @@ impl XsensDriver {
                 ("clock".into(), CLOCK_NAME.into()),
                 ("raw-reading".into(), choice.raw.name().into()),
                 ("magnetometer".into(), choice.mag.to_string()),
+                ("magnetometer-unit".into(), MAGNETOMETER_UNIT.into()),
                 ("temperature".into(), choice.temperature.to_string()),
                 ("utc-time".into(), choice.utc.to_string()),
                 ("configuration-verified".into(), "true".into()),
@@ -227,123 +123,99 @@ impl XsensDriver {
     }
 }
 
-impl Driver for XsensDriver {
-    fn start(&mut self, now: Instant) {
-        self.now = now;
-        self.streaming = false;
-        self.learning = None;
-        if !self.config.configure {
-            self.startup = None;
-            self.learning = Some(now + Duration::from_secs_f64(self.config.silence_timeout_s));
-            return;
+impl Unit for XsensUnit {
+    const PROTOCOL: DeviceProtocol = DeviceProtocol::Xsens;
+    const PASSIVE_WANTS: &'static str =
+        "Xsens MTData2 message with SampleTimeFine, an acceleration and a rate of turn";
+    type Decoder = XsensDecoder;
+    type Startup = Startup;
+
+    fn new(config: &DeviceConfig) -> Self {
+        Self {
+            path: config.path.clone(),
+            readings: Readings::new(),
         }
-        self.startup = Some(Startup::new(
-            Duration::from_secs_f64(self.config.reply_timeout_s),
-            self.config.rate_hz,
-            now,
-        ));
     }
 
-    fn handle_input(&mut self, bytes: &[u8], now: Instant) {
-        self.now = now;
-        self.decoder.push(bytes);
+    fn startup(config: &DeviceConfig, timeout: Duration, now: Instant) -> anyhow::Result<Startup> {
+        Ok(Startup::new(timeout, config.rate_hz, now))
     }
 
-    fn poll_event(&mut self, slot: &mut FrameSlot) -> Option<DriverEvent> {
-        if let Some(held) = self.events.pop_front() {
-            return Some(held.hand_over(slot));
+    fn content(&mut self, msg: &Message) -> FrameContent {
+        self.readings.content(msg)
+    }
+
+    /// The stream, if `msg` is a usable data message.
+    fn learn(&mut self, msg: &Message) -> Option<Passive> {
+        if msg.mid() != mid::MT_DATA2 {
+            return None;
         }
-        Some(match self.decoder.next_event()? {
-            XsensEvent::Packet { packet, offset } => {
-                // Passive: the first usable message sets the session, which goes out before it.
-                let learned = self.learning.is_some() && self.learn(&packet);
-                // The start-up's messages (and the data a streaming unit sends before it
-                // enters config mode) are logged only: no samples before measurement mode.
-                slot.content = if self.streaming {
-                    self.readings.content(&packet)
-                } else {
-                    FrameContent::default()
-                };
-                if let Some(s) = &mut self.startup {
-                    let outcome = s.on_message(&packet, self.now);
-                    self.on_outcome(outcome);
-                }
-                if learned {
-                    let frame = SampleFrame {
-                        stream_offset: offset,
-                        bytes: FrameData::from_slice(packet.as_bytes()),
-                    };
-                    self.events
-                        .push_back(Held::frame(frame, std::mem::take(&mut slot.content)));
-                    return self.events.pop_front().map(|held| held.hand_over(slot));
-                }
-                slot.set_frame(packet.as_bytes(), offset);
-                DriverEvent::Frame
-            }
-            XsensEvent::Rejected {
-                bytes,
-                offset,
-                reason,
-            } => DriverEvent::Rejected {
-                bytes,
-                offset,
-                reason,
+        let data = MtData2::decode(msg).ok()?;
+        let raw = RawSource::of(&data)?;
+        data.sample_time_fine?;
+        self.readings.restart();
+        let yes_no = |b: bool| b.to_string();
+        info!(
+            "device {} (Xsens) passive: its stream taken as it is, clock {CLOCK_NAME}, raw \
+             reading {}{}{}{} (rate measured; configuration not verified)",
+            self.path.display(),
+            raw.name(),
+            if data.magnetic_field_normalised.is_some() {
+                ", magnetometer"
+            } else {
+                ", no magnetometer"
             },
+            if data.temperature_c.is_some() {
+                ", temperature"
+            } else {
+                ", no temperature"
+            },
+            if data.utc.is_some() {
+                ", UTC time"
+            } else {
+                ", no UTC time"
+            },
+        );
+        Some(Passive {
+            session: SessionSpec {
+                configuration_verified: false,
+                ..session()
+            },
+            details: vec![
+                ("clock".into(), CLOCK_NAME.into()),
+                ("raw-reading".into(), raw.name().into()),
+                (
+                    "magnetometer".into(),
+                    yes_no(data.magnetic_field_normalised.is_some()),
+                ),
+                ("magnetometer-unit".into(), MAGNETOMETER_UNIT.into()),
+                ("temperature".into(), yes_no(data.temperature_c.is_some())),
+                ("utc-time".into(), yes_no(data.utc.is_some())),
+            ],
         })
     }
 
-    fn poll_transmit(&mut self, out: &mut Vec<u8>) -> bool {
-        match self.startup.as_mut().and_then(|s| s.tx.pop_front()) {
-            Some(bytes) => {
-                out.extend_from_slice(&bytes);
-                true
+    fn outcome(&mut self, outcome: Outcome) -> Step {
+        match outcome {
+            Outcome::Configured(c) => {
+                self.readings.restart();
+                Step::Configured {
+                    session: session(),
+                    identity: self.identity_of(&c),
+                    // Measurement mode follows.
+                    streaming: false,
+                }
             }
-            None => false,
+            Outcome::Done => Step::Done,
+            Outcome::Failed(e) => Step::Failed(e),
         }
-    }
-
-    fn poll_timeout(&self) -> Option<Instant> {
-        match &self.startup {
-            Some(s) => s.deadline(),
-            None => self.learning,
-        }
-    }
-
-    fn handle_timeout(&mut self, now: Instant) {
-        self.now = now;
-        if self.learning.is_some_and(|t| now >= t) {
-            self.learning = None;
-            self.push(DriverEvent::Failed(anyhow::anyhow!(
-                "no Xsens MTData2 message with SampleTimeFine, an acceleration and a rate of \
-                 turn heard within {:.1} s (passive: nothing is sent to the unit)",
-                self.config.silence_timeout_s
-            )));
-        }
-        if let Some(s) = &mut self.startup {
-            let outcome = s.on_timeout(now);
-            self.on_outcome(outcome);
-        }
-    }
-
-    fn flush(&mut self) {
-        self.decoder.flush();
-        // No readings until the next start: the unit is not known to stream.
-        self.streaming = false;
-        self.learning = None;
     }
 
     fn stop_bytes(&self) -> Option<Vec<u8>> {
-        // A passive unit is never sent anything, not even a stop.
-        self.config
-            .configure
-            .then(|| XsensCommand::GoToConfig.to_message().as_bytes().to_vec())
+        Some(XsensCommand::GoToConfig.to_message().as_bytes().to_vec())
     }
 
-    fn stats(&self) -> DecoderStats {
-        self.decoder.stats()
-    }
-
-    fn initial_session(&self) -> SessionSpec {
-        initial_session(&self.config)
+    fn initial_session(config: &DeviceConfig) -> SessionSpec {
+        initial_session(config)
     }
 }

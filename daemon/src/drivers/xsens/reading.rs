@@ -1,12 +1,13 @@
 //! An Xsens MTData2 message as a device reading: the HR outputs (factory calibration only)
 //! are the reading imud calibrates, the compensated outputs go beside it, `SampleTimeFine` is
-//! the sample clock, `UtcTime` the GNSS time and a temperature item updates the temperature in
-//! force.
+//! the sample clock, `UtcTime` the GNSS time, the status word's clipping bits the sample's
+//! saturation, and a temperature item updates the temperature in force.
 
 use imu_model::Measured;
 use imu_model::nalgebra::Vector3;
 use imu_proto::gnss_time::GnssTime;
 use imu_proto::ticks::TickUnwrapper;
+use imu_proto::xsens::data::status as xsens_status;
 use imu_proto::xsens::{Message, MtData2, SAMPLE_TIME_FINE_HZ, mid};
 use tracing::{info, warn};
 
@@ -138,9 +139,12 @@ impl Readings {
             };
         };
         let v = |a: [f64; 3]| Vector3::from(a);
-        // A unit without a magnetometer: NaN, never a zero field. The field is in the unit's
-        // own units (normalised to the field where it was calibrated), carried as it is.
-        let mag = data.magnetic_field.map_or(Vector3::repeat(f64::NAN), v);
+        // A unit without a magnetometer: NaN, never a zero field. The field is a ratio to the
+        // field where the unit was calibrated, carried as it is in the gauss slot (the
+        // identity's `magnetometer-unit` says so in the recording).
+        let mag = data
+            .magnetic_field_normalised
+            .map_or(Vector3::repeat(f64::NAN), v);
         let (measured, compensated) = match source {
             RawSource::HighRate => (
                 Measured {
@@ -172,7 +176,11 @@ impl Readings {
                 ticks: ticks as u16,
                 counts: None,
                 measured,
-                saturated: false,
+                // The unit says which axes clipped (the GX1's counts at a rail say the same);
+                // a unit not sending its status word is taken as not clipping.
+                saturated: data
+                    .status_word
+                    .is_some_and(|w| w & xsens_status::CLIPPING != 0),
                 command: mid::MT_DATA2,
                 compensated,
                 gnss: data.utc.and_then(|u| {

@@ -23,6 +23,7 @@ use imu_proto::xsens::{
 use tracing::{info, warn};
 
 use super::reading::RawSource;
+use crate::drivers::streaming::StartupMachine;
 use crate::drivers::{TRIES, back_off};
 
 /// The rate configured when neither the configuration nor the unit names one, Hz.
@@ -318,28 +319,6 @@ impl Startup {
         }
     }
 
-    /// When [`Startup::on_timeout`] is next due.
-    pub fn deadline(&self) -> Option<Instant> {
-        self.stage.map(|_| self.ex.until)
-    }
-
-    /// A good message arrived at `now`.
-    pub fn on_message(&mut self, msg: &Message, now: Instant) -> Option<Outcome> {
-        self.stage?;
-        let reply = self.ex.reply(msg)?;
-        self.advance(
-            reply.map_err(|code| anyhow!("error {code}: {}", error_name(code))),
-            now,
-        )
-    }
-
-    /// A deadline passed.
-    pub fn on_timeout(&mut self, now: Instant) -> Option<Outcome> {
-        self.stage?;
-        let e = self.ex.on_timeout(now, &mut self.tx)?;
-        self.advance(Err(e), now)
-    }
-
     fn send(&mut self, stage: Stage, cmd: XsensCommand, now: Instant) {
         self.stage = Some(stage);
         self.ex = Exchange::new(cmd, self.timeout, now, &mut self.tx);
@@ -450,6 +429,37 @@ impl Startup {
             }
         }
         None
+    }
+}
+
+impl StartupMachine for Startup {
+    type Frame = Message;
+    type Outcome = Outcome;
+
+    /// A good message arrived at `now`.
+    fn on_frame(&mut self, msg: &Message, now: Instant) -> Option<Outcome> {
+        self.stage?;
+        let reply = self.ex.reply(msg)?;
+        self.advance(
+            reply.map_err(|code| anyhow!("error {code}: {}", error_name(code))),
+            now,
+        )
+    }
+
+    /// A deadline passed.
+    fn on_timeout(&mut self, now: Instant) -> Option<Outcome> {
+        self.stage?;
+        let e = self.ex.on_timeout(now, &mut self.tx)?;
+        self.advance(Err(e), now)
+    }
+
+    /// When `on_timeout` is next due.
+    fn deadline(&self) -> Option<Instant> {
+        self.stage.map(|_| self.ex.until)
+    }
+
+    fn transmit(&mut self) -> Option<Vec<u8>> {
+        self.tx.pop_front()
     }
 }
 

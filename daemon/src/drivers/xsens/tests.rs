@@ -14,6 +14,7 @@ use super::startup::CHOICES;
 use super::*;
 use crate::config::Config;
 use crate::drivers::scripted::{Fate, Harness, Peer, Script};
+use crate::drivers::streaming::StartupMachine;
 
 fn harness(script: Script) -> Harness<XsensDriver> {
     let mut c = Config::default().device;
@@ -71,6 +72,12 @@ fn a_clean_start_up_of_a_streaming_unit_configures_the_preferred_outputs_and_str
             .unwrap()
             .starts_with("AccelerationHR")
     );
+    // The magnetic field is a ratio to the calibration's field, and the metadata says so.
+    assert_eq!(
+        detail(&id, "magnetometer-unit").as_deref(),
+        Some(MAGNETOMETER_UNIT)
+    );
+    assert!(MAGNETOMETER_UNIT.contains("not gauss"));
     assert_eq!(h.seen.sessions, vec![session()]);
     // The unit streamed from power-up: its data before the GoToConfig ack was logged as
     // frames, never made samples, and nothing was rejected.
@@ -152,7 +159,7 @@ fn a_silent_unit_fails_the_start_up_after_three_tries() {
 
 /// Feeds `startup` the answer `reply` and returns the next message it writes.
 fn answer(s: &mut Startup, reply: XsensReply, now: Instant) -> (Option<Outcome>, Message) {
-    let outcome = s.on_message(&reply.to_message(), now);
+    let outcome = s.on_frame(&reply.to_message(), now);
     let bytes = s.tx.pop_back().expect("a request out");
     (outcome, Message::parse(&bytes).unwrap())
 }
@@ -164,7 +171,7 @@ fn a_refused_output_set_falls_back_to_the_next_and_a_different_read_back_fails()
     s.tx.clear();
     // A stream error while entering config mode is no refusal of GoToConfig.
     assert!(
-        s.on_message(&XsensReply::Error(41).to_message(), now)
+        s.on_frame(&XsensReply::Error(41).to_message(), now)
             .is_none()
     );
     assert!(s.tx.is_empty());
@@ -202,7 +209,7 @@ fn a_refused_output_set_falls_back_to_the_next_and_a_different_read_back_fails()
         XsensCommand::ReqOutputConfiguration
     );
     // It reads back something else: start-up fails, naming it.
-    let outcome = s.on_message(
+    let outcome = s.on_frame(
         &XsensReply::OutputConfiguration(CHOICES[2].outputs(400)).to_message(),
         now,
     );
@@ -281,7 +288,7 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
         rate_of_turn_hr_rad_s: Some([0.01, 0.02, 0.03]),
         acceleration_m_s2: Some([0.0, 0.0, -9.81]),
         rate_of_turn_rad_s: Some([0.0, 0.0, 0.001]),
-        magnetic_field: Some([0.2, 0.0, 0.4]),
+        magnetic_field_normalised: Some([0.2, 0.0, 0.4]),
         temperature_c: Some(30.5),
         utc: Some(utc),
         ..MtData2::default()
@@ -302,6 +309,29 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
     );
     assert_eq!(c.temperature.map(|t| t.0), Some(30.5));
     assert_eq!(r.command, mid::MT_DATA2);
+    assert!(!r.saturated, "no status word: not clipping");
+
+    // The status word's clipping bits are the sample's saturation, whichever sensor's axis
+    // clipped; its other bits (here the filter valid bit 1 and the sync-in bit 21) are not.
+    for (word, clipped) in [
+        (0x0000_0002 | 1 << 21, false),
+        (1 << 8, true),
+        (1 << 10, true),
+        (1 << 11, true),
+        (1 << 13, true),
+        (1 << 16, true),
+        (1 << 17, false),
+    ] {
+        let m = MtData2 {
+            status_word: Some(word),
+            ..first
+        };
+        let r = reading::Readings::new()
+            .content(&m.to_message(Format::Float64))
+            .reading
+            .expect("a sample");
+        assert_eq!(r.saturated, clipped, "status word 0x{word:08X}");
+    }
 
     // SampleTimeFine wraps its u32 and is unwrapped; a UTC time without the valid flag is
     // still reported, as invalid.
@@ -336,7 +366,7 @@ fn readings_take_the_hr_outputs_as_raw_the_compensated_beside_and_utc_as_gnss() 
     let hr_only = MtData2 {
         acceleration_m_s2: None,
         rate_of_turn_rad_s: None,
-        magnetic_field: None,
+        magnetic_field_normalised: None,
         ..next
     };
     let r = readings
