@@ -6,7 +6,7 @@
 use imu_model::Triad;
 use imu_stats::allan::{self, DevPoint, EdfMethod, Kind, NoiseType, Options, TauSet};
 use imu_stats::noise_terms::{
-    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_with, slope_readoffs,
+    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_extended, slope_readoffs,
 };
 use serde::Serialize;
 
@@ -268,13 +268,18 @@ pub fn analyse(
                     kind_report(kind, unit, &y, rate_hz, &opts).map_err(failed(Some(kind)))
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            let fit = fit_terms_with(&curve, &FitOptions::default()).map_err(|source| {
-                NoiseError::Terms {
+            let theo1 = if req.kinds.iter().any(|k| k.is_theo()) {
+                fit_extension(&y, rate_hz, &curve, &fit_opts).map_err(failed(Some(Kind::Theo1)))?
+            } else {
+                None
+            };
+            let fit = fit_terms_extended(&curve, theo1.as_ref(), &FitOptions::default()).map_err(
+                |source| NoiseError::Terms {
                     sensor,
                     axis,
                     source,
-                }
-            })?;
+                },
+            )?;
             out.push(AxisReport {
                 sensor,
                 axis,
@@ -293,6 +298,36 @@ pub fn analyse(
         }
     }
     Ok(out)
+}
+
+/// The Theo1 points that extend the fit's OADEV `curve` (asked for with `--kind theo1` or
+/// `theoh`): the fit's tau set read as averaging times, beyond the curve's largest tau, up to
+/// 75 % of the record. `None` when the set has no such tau.
+fn fit_extension(
+    y: &[f64],
+    rate_hz: f64,
+    curve: &allan::DevCurve,
+    fit_opts: &Options,
+) -> Result<Option<allan::DevCurve>, allan::AllanError> {
+    let longest = curve.points.last().map_or(0, |p| p.m);
+    let factors: Vec<usize> = fit_opts
+        .taus
+        .factors(3 * y.len() / 4)
+        .into_iter()
+        .filter(|&f| f > longest)
+        .collect();
+    if factors.is_empty() || y.len() < allan::THEO1_MIN_M {
+        return Ok(None);
+    }
+    let opts = Options {
+        taus: TauSet::Factors(factors),
+        ..fit_opts.clone()
+    };
+    match allan::deviation(Kind::Theo1, y, 1.0 / rate_hz, &opts) {
+        Ok(c) => Ok(Some(c)),
+        Err(allan::AllanError::TooShort { .. }) => Ok(None),
+        Err(e) => Err(e),
+    }
 }
 
 /// One deviation kind of one axis, each point with its noise type and exponent.
