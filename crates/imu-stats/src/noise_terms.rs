@@ -236,7 +236,8 @@ pub fn fit_terms_with(curve: &DevCurve, options: &FitOptions) -> Result<NoiseTer
 }
 
 /// As [`fit_terms_with`], with the points of a Theo1 curve of the same record (`theo1`,
-/// [`Kind::Theo1`]) whose averaging times lie beyond the Allan curve's largest one: Theo1
+/// [`Kind::Theo1`]) whose averaging times lie beyond the Allan curve's largest one (by more
+/// than Theo1's tau resolution, 0.75 tau0): Theo1
 /// reaches 75 % of the record where the Allan variance stops at half of it (in practice at the
 /// last octave below), and there a rate random walk or ramp is plainest.
 ///
@@ -282,7 +283,9 @@ pub fn fit_terms_extended(
             t.points
                 .iter()
                 .filter(usable)
-                .filter(|p| p.tau_s > longest)
+                // Theo1's taus are 0.75 m tau0 with m even, a grid of 1.5 tau0: one within
+                // 0.75 tau0 of the longest Allan tau is the same averaging time.
+                .filter(|p| p.tau_s > longest + 0.75 * t.tau0_s)
                 .map(|p| FitPoint {
                     p,
                     basis: theo1_basis(p.m, t.tau0_s),

@@ -268,10 +268,23 @@ pub fn analyse(
                     kind_report(kind, unit, &y, rate_hz, &opts).map_err(failed(Some(kind)))
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            let theo1 = if req.kinds.iter().any(|k| k.is_theo()) {
-                fit_extension(&y, rate_hz, &curve, &fit_opts).map_err(failed(Some(Kind::Theo1)))?
-            } else {
-                None
+            // A Theo1 curve already computed at the fit's taus is reused (its long taus cost
+            // the most: O(N m) each).
+            let computed = deviations
+                .iter()
+                .find(|d| d.kind == Kind::Theo1 && fit_opts.taus == opts.taus);
+            let theo1 = match computed {
+                Some(d) => Some(allan::DevCurve {
+                    kind: Kind::Theo1,
+                    tau0_s: 1.0 / rate_hz,
+                    confidence: d.confidence,
+                    points: d.points.iter().map(|p| p.point).collect(),
+                }),
+                None if req.kinds.iter().any(|k| k.is_theo()) => {
+                    fit_extension(&y, rate_hz, &curve, &fit_opts)
+                        .map_err(failed(Some(Kind::Theo1)))?
+                }
+                None => None,
             };
             let fit = fit_terms_extended(&curve, theo1.as_ref(), &FitOptions::default()).map_err(
                 |source| NoiseError::Terms {
@@ -300,9 +313,12 @@ pub fn analyse(
     Ok(out)
 }
 
-/// The Theo1 points that extend the fit's OADEV `curve` (asked for with `--kind theo1` or
-/// `theoh`): the fit's tau set read as averaging times, beyond the curve's largest tau, up to
-/// 75 % of the record. `None` when the set has no such tau.
+/// The Theo1 curve that extends the fit's OADEV `curve` (asked for with `--kind theoh`, or
+/// `theo1` at other taus than the fit's): Theo1 at the fit's tau set read as averaging times,
+/// up to 75 % of the record, the same curve `--kind theo1` computes at those taus (so the fit
+/// does not depend on which Theo kind was asked for; the points' noise identification looks
+/// at their neighbours). The fit takes its points beyond the OADEV's longest tau. `None` when
+/// the set has no tau there.
 fn fit_extension(
     y: &[f64],
     rate_hz: f64,
@@ -310,20 +326,15 @@ fn fit_extension(
     fit_opts: &Options,
 ) -> Result<Option<allan::DevCurve>, allan::AllanError> {
     let longest = curve.points.last().map_or(0, |p| p.m);
-    let factors: Vec<usize> = fit_opts
+    let beyond = fit_opts
         .taus
         .factors(3 * y.len() / 4)
         .into_iter()
-        .filter(|&f| f > longest)
-        .collect();
-    if factors.is_empty() || y.len() < allan::THEO1_MIN_M {
+        .any(|f| f > longest);
+    if !beyond || y.len() < allan::THEO1_MIN_M {
         return Ok(None);
     }
-    let opts = Options {
-        taus: TauSet::Factors(factors),
-        ..fit_opts.clone()
-    };
-    match allan::deviation(Kind::Theo1, y, 1.0 / rate_hz, &opts) {
+    match allan::deviation(Kind::Theo1, y, 1.0 / rate_hz, fit_opts) {
         Ok(c) => Ok(Some(c)),
         Err(allan::AllanError::TooShort { .. }) => Ok(None),
         Err(e) => Err(e),
