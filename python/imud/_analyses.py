@@ -53,7 +53,9 @@ def noise(
     ``theo1``, ``theoh``; a list or comma-separated). ``confidence``: two-sided level of the
     bounds. ``edf``: ``greenhall`` or ``sp1065``. ``taus``: ``octave``, ``decade``, ``all``,
     ``N-per-decade``, or taus in seconds (each rounded to whole sample periods; the noise-term
-    fit then uses 8-per-decade).
+    fit then uses 8-per-decade). With ``theo1`` or ``theoh`` among the kinds the noise-term fit
+    also takes Theo1 points beyond the OADEV's longest tau, up to 75 % of the record
+    (``fit["n_theo1_points"]`` of each axis says how many).
     """
     rec = _one(recording, source, read_kw)
     kinds = [k.strip() for k in kind.split(",")] if isinstance(kind, str) else list(kind)

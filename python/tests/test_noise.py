@@ -6,7 +6,7 @@ import numpy as np
 
 import imud
 from compare import assert_close
-from conftest import SCENARIOS
+from conftest import SCENARIOS, record
 
 
 def test_noise_equals_the_cli(static_run, cli):
@@ -39,3 +39,23 @@ def test_white_noise_is_the_simulated_one(static_run):
             # the corrected stream of an uncalibrated recording carries it.
             assert abs(n["value"] - density[i]) < 3 * n["sigma"] + 0.01 * density[i], (
                 sensor, axis, n, density[i])
+
+
+def test_theo1_extends_the_noise_term_fit_as_in_the_cli(bins, cli, tmp_path):
+    """With theo1 among the kinds the fit takes Theo1 points beyond the OADEV's longest tau, in
+    Python as in imu-noise (a 60 s record: Theo1 costs O(N m) per tau)."""
+    text = (SCENARIOS / "static-6h.toml").read_text()
+    text = text.replace("duration-s = 21600.0", "duration-s = 60.0").replace(
+        '"../models/', f'"{SCENARIOS.parent / "models"}/'
+    )
+    scenario = tmp_path / "static-1min.toml"
+    scenario.write_text(text)
+    rec, _ = record(bins, tmp_path, scenario, 11, name="static1min")
+    py = imud.noise(rec, kind=["oadev", "theo1"], taus="octave")
+    doc = cli("imu-noise", rec, "--kind", "oadev,theo1", "--taus", "octave")
+    assert_close(py.to_list(), doc)
+    plain = imud.noise(rec, kind="oadev", taus="octave")
+    for a, b in zip(py.axes, plain.axes):
+        assert a.fit["n_theo1_points"] >= 1, a.fit
+        assert b.fit["n_theo1_points"] == 0, b.fit
+        assert a.fit["n_points"] == b.fit["n_points"] + a.fit["n_theo1_points"]

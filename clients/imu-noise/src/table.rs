@@ -43,6 +43,20 @@ fn print_terms(reports: &[AxisReport], w: &mut impl Write) -> std::io::Result<()
             r.display.k_unit,
         )?;
     }
+    // With --kind theo1/theoh the fit also takes Theo1 points beyond the OADEV's last tau.
+    let theo: Vec<String> = reports
+        .iter()
+        .filter(|r| r.fit.n_theo1_points > 0)
+        .map(|r| format!("{} {} {}", r.sensor.name(), r.axis, r.fit.n_theo1_points))
+        .collect();
+    if !theo.is_empty() {
+        writeln!(
+            w,
+            "Fit extended by Theo1 points beyond the OADEV's longest tau (each modelled by its \
+             own expectation per term): {}",
+            theo.join(", ")
+        )?;
+    }
     writeln!(
         w,
         "\nDiscrete per-sample values and classic slope read-offs (N at tau=1 on the -1/2 line, B = min ADEV/0.664, K at tau=3 on the +1/2 line):"

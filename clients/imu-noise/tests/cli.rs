@@ -357,6 +357,26 @@ fn theo1_and_theoh_in_json_and_plots() {
         inside * 20 >= total * 19,
         "{inside} of {total} bounds hold the truth"
     );
+    // The noise-term fit takes the Theo1 point beyond the OADEV's last octave (1024 samples:
+    // Theo1 at 2048, up to 75 % of the record) when a Theo kind is asked for, and says so.
+    let plain = run_json(&csv, &["--taus", "octave"]);
+    for (a, b) in v.as_array().unwrap().iter().zip(plain.as_array().unwrap()) {
+        assert_eq!(a["fit"]["n_theo1_points"], 1, "{}", a["fit"]);
+        assert_eq!(b["fit"]["n_theo1_points"], 0, "{}", b["fit"]);
+        assert_eq!(
+            a["fit"]["n_points"].as_u64().unwrap(),
+            b["fit"]["n_points"].as_u64().unwrap() + 1
+        );
+    }
+    let text = Command::new(env!("CARGO_BIN_EXE_imu-noise"))
+        .args([csv.to_str().unwrap(), "--kind", "theo1", "--taus", "octave"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("Fit extended by Theo1 points") && text.contains("gyro z 1"),
+        "{text}"
+    );
     for kind in ["theo1", "theoh"] {
         let svg = std::fs::read_to_string(plots.join(format!("dev-{kind}-gyro.svg"))).unwrap();
         assert!(svg.contains(&format!("data-name=\"{}\"", kind.to_uppercase())));

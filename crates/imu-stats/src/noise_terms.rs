@@ -100,6 +100,9 @@ pub struct NoiseTerms {
     pub chi2_per_dof: f64,
     /// Points used.
     pub n_points: usize,
+    /// Of those, the Theo1 points beyond the largest Allan tau ([`fit_terms_extended`]); 0
+    /// when the fit used the Allan curve alone.
+    pub n_theo1_points: usize,
 }
 
 impl NoiseTerms {
@@ -229,15 +232,68 @@ pub fn fit_terms(curve: &DevCurve) -> Result<NoiseTerms, NoiseError> {
 /// until every remaining term is significant (N, the white noise, always stays). A dropped term
 /// is reported as 0 with a 1-sigma upper bound.
 pub fn fit_terms_with(curve: &DevCurve, options: &FitOptions) -> Result<NoiseTerms, NoiseError> {
+    fit_terms_extended(curve, None, options)
+}
+
+/// As [`fit_terms_with`], with the points of a Theo1 curve of the same record (`theo1`,
+/// [`Kind::Theo1`]) whose averaging times lie beyond the Allan curve's largest one (by more
+/// than Theo1's tau resolution, 0.75 tau0): Theo1
+/// reaches 75 % of the record where the Allan variance stops at half of it (in practice at the
+/// last octave below), and there a rate random walk or ramp is plainest.
+///
+/// Theo1 is not the Allan variance: its expectation is a different functional of the noise
+/// (SP 1065 section 5.2.14; Allan-compatible only for white FM). Each Theo1 point is therefore
+/// modelled by its own expectation under each term, `theo1_basis` (exact for the same power-law
+/// models the Allan basis assumes), not by a bias ratio: no rescaling (TheoBR's ratio assumes one
+/// noise type at every tau, which a white-noise floor below a random walk is not). Its weight
+/// follows from the same chi-square argument as the Allan points': an estimate with EDF nu has
+/// variance 2 E[Theo1]^2 / nu, so the relative variance is 2 / nu plus the model-error floor,
+/// with nu Theo1's EDF (SP 1065 Table 12, `edf_theo1`) for the noise type of the term that
+/// dominates the model there (the curve's own EDF when smaller, as for the Allan points). The
+/// Allan points' stop-ratio down-weighting is not applied: Theo1's EDF already counts the few
+/// independent long-term differences left. The correlation between neighbouring taus (the
+/// sandwich) takes the Theo1 points in tau order with the Allan ones.
+pub fn fit_terms_extended(
+    curve: &DevCurve,
+    theo1: Option<&DevCurve>,
+    options: &FitOptions,
+) -> Result<NoiseTerms, NoiseError> {
     if !matches!(curve.kind, Kind::Adev | Kind::Oadev) {
         return Err(NoiseError::WrongKind { kind: curve.kind });
     }
-    let mut pts: Vec<_> = curve
+    if let Some(t) = theo1
+        && t.kind != Kind::Theo1
+    {
+        return Err(NoiseError::WrongKind { kind: t.kind });
+    }
+    let usable = |p: &&DevPoint| p.dev > 0.0 && p.dev.is_finite() && p.edf > 0.0;
+    let mut pts: Vec<FitPoint> = curve
         .points
         .iter()
-        .filter(|p| p.dev > 0.0 && p.dev.is_finite() && p.edf > 0.0)
+        .filter(usable)
+        .map(|p| FitPoint {
+            p,
+            basis: basis(p.tau_s),
+            theo: false,
+        })
         .collect();
-    pts.sort_by(|a, b| a.tau_s.total_cmp(&b.tau_s));
+    let longest = pts.iter().map(|f| f.p.tau_s).fold(0.0, f64::max);
+    if let Some(t) = theo1 {
+        pts.extend(
+            t.points
+                .iter()
+                .filter(usable)
+                // Theo1's taus are 0.75 m tau0 with m even, a grid of 1.5 tau0: one within
+                // 0.75 tau0 of the longest Allan tau is the same averaging time.
+                .filter(|p| p.tau_s > longest + 0.75 * t.tau0_s)
+                .map(|p| FitPoint {
+                    p,
+                    basis: theo1_basis(p.m, t.tau0_s),
+                    theo: true,
+                }),
+        );
+    }
+    pts.sort_by(|a, b| a.p.tau_s.total_cmp(&b.p.tau_s));
     if pts.len() < 3 {
         return Err(NoiseError::TooFewPoints {
             n_points: pts.len(),
@@ -301,7 +357,7 @@ enum Uncertainty {
 
 fn fit_allowed(
     record: Option<usize>,
-    pts: &[&DevPoint],
+    pts: &[FitPoint],
     allowed: &[bool; 5],
     uncertainty: Uncertainty,
 ) -> Result<Fitted, NoiseError> {
@@ -322,7 +378,7 @@ fn fit_allowed(
         scale,
     } = result.expect("IRLS_PASSES > 0");
     let rows = weighted_rows(record, pts, Some(&c));
-    let taus: Vec<f64> = pts.iter().map(|p| p.tau_s).collect();
+    let taus: Vec<f64> = pts.iter().map(|f| f.p.tau_s).collect();
     let correlated = uncertainty == Uncertainty::CorrelatedTaus;
     let cov = if correlated {
         sandwich(&rows, &taus, &scale, &set, &inv)
@@ -369,6 +425,7 @@ fn fit_allowed(
         r_u_per_s: term(4),
         chi2_per_dof: rss / dof as f64,
         n_points: pts.len(),
+        n_theo1_points: pts.iter().filter(|f| f.theo).count(),
     };
     Ok(Fitted { terms, rss, dof })
 }
@@ -433,8 +490,55 @@ pub struct SlopeReadoffs {
 /// Passes of the iteratively reweighted fit.
 const IRLS_PASSES: usize = 4;
 
-fn model_var(c: &[f64; 5], tau_s: f64) -> f64 {
-    basis(tau_s).iter().zip(c).map(|(a, c)| a * c).sum()
+fn model_var(c: &[f64; 5], basis: &[f64; 5]) -> f64 {
+    basis.iter().zip(c).map(|(a, c)| a * c).sum()
+}
+
+/// One point of the fit: the estimate, its regressors (the model's expectation of it per unit
+/// squared term) and whether it is a Theo1 point.
+struct FitPoint<'a> {
+    p: &'a DevPoint,
+    basis: [f64; 5],
+    theo: bool,
+}
+
+/// Regressors of a Theo1 point at averaging factor `m` (tau = 0.75 m tau0): the expectation of
+/// the Theo1 variance per unit (Q^2, N^2, B^2, K^2, R^2). Each Theo1 term
+/// `(x_i - x_{i+u}) + (x_{i+m} - x_{i+m-u})` is a linear combination of phase values whose
+/// weights sum to zero and have zero first moment, so for a phase with (generalized) structure
+/// function D its mean square is `2 D(u) + 2 D(m - u) - D(m) - D(m - 2u)`, and
+/// `E[Theo1] = sum_{u=1}^{m/2} (1/u) (2 D(u) + 2 D(m-u) - D(m) - D(m-2u)) / (0.75 m^2 tau0^2)`.
+/// The D of each term is the one whose Allan variance is that term's `basis`:
+/// white PM `2 Q^2` (t != 0), white FM `N^2 t`, flicker FM `-(B^2/pi) t^2 ln t`, random-walk FM
+/// `-K^2 t^3 / 6`; the ramp is deterministic (phase `R t^2 / 2`: each term is
+/// `R tau0^2 u (m - u)`). For white FM this is exactly the Allan variance at 0.75 m tau0
+/// (Theo1 is Allan-compatible there); for the others it gives Theo1's bias: the Allan variance
+/// at the same tau over E[Theo1] is 0.13 (white PM), 1.86 (flicker FM), 2.70 (random walk) and
+/// 3.68 (ramp) at large m. O(m) per point.
+fn theo1_basis(m: usize, tau0_s: f64) -> [f64; 5] {
+    let d = |j: usize, k: usize| -> f64 {
+        if k == 0 {
+            return 0.0;
+        }
+        let t = k as f64 * tau0_s;
+        match j {
+            0 => 2.0,
+            1 => t,
+            2 => -t * t * t.ln() / std::f64::consts::PI,
+            _ => -t * t * t / 6.0,
+        }
+    };
+    let mut g = [0.0; 5];
+    for u in 1..=m / 2 {
+        let inv_u = 1.0 / u as f64;
+        for (j, g) in g.iter_mut().enumerate().take(4) {
+            *g += inv_u * (2.0 * d(j, u) + 2.0 * d(j, m - u) - d(j, m) - d(j, m - 2 * u));
+        }
+        let ramp = tau0_s * tau0_s * (u * (m - u)) as f64;
+        g[4] += inv_u * ramp * ramp;
+    }
+    let norm = 0.75 * (m as f64 * tau0_s).powi(2);
+    g.map(|v| v / norm)
 }
 
 type Rows = Vec<([f64; 5], f64)>;
@@ -452,12 +556,14 @@ const BEYOND_STOP_VARIANCE_FACTOR: f64 = 10.0;
 /// Phase points of the one record behind an OADEV curve (n_terms + 2m, the same at every
 /// point); `None` for ADEV curves and for curves pooled over several records (or made up), where
 /// the EDF refinements below are not applied and the curve's own EDF is used as given.
-fn single_record(kind: Kind, pts: &[&DevPoint]) -> Option<usize> {
+fn single_record(kind: Kind, pts: &[FitPoint]) -> Option<usize> {
     if kind != Kind::Oadev {
         return None;
     }
-    let n = pts.first().map(|p| p.n_terms + 2 * p.m)?;
-    pts.iter().all(|p| p.n_terms + 2 * p.m == n).then_some(n)
+    // Theo1 points have n_terms = N - m.
+    let phase = |f: &FitPoint| f.p.n_terms + if f.theo { f.p.m } else { 2 * f.p.m };
+    let n = pts.first().map(phase)?;
+    pts.iter().all(|f| phase(f) == n).then_some(n)
 }
 
 /// Greenhall's EDF of point `p` for the noise type of the model term that dominates at its tau
@@ -465,36 +571,40 @@ fn single_record(kind: Kind, pts: &[&DevPoint]) -> Option<usize> {
 /// of this and the curve's own EDF: a noise type identified from a few dozen decimated points
 /// at long taus can be wrong (white FM taken for flicker PM gave a point ten times the EDF it
 /// has, and a spurious K), and neither estimate should give a point more weight than the other.
-fn model_edf(n_phase: usize, p: &DevPoint, c: &[f64; 5]) -> f64 {
-    let a = basis(p.tau_s);
+fn model_edf(n_phase: usize, f: &FitPoint, c: &[f64; 5]) -> f64 {
+    let a = f.basis;
     let dominant = (0..5)
         .max_by(|&i, &j| (a[i] * c[i]).total_cmp(&(a[j] * c[j])))
         .unwrap_or(1);
     let alpha = [2, 0, -1, -2, -2][dominant];
+    if f.theo {
+        return crate::allan::edf_theo1(alpha, f.p.m, n_phase);
+    }
     match Kind::Oadev.estimator() {
-        Some(est) => crate::allan::edf_greenhall(alpha, est, p.m, n_phase),
-        None => p.edf,
+        Some(est) => crate::allan::edf_greenhall(alpha, est, f.p.m, n_phase),
+        None => f.p.edf,
     }
 }
 
-fn weighted_rows(record: Option<usize>, pts: &[&DevPoint], reference: Option<&[f64; 5]>) -> Rows {
+fn weighted_rows(record: Option<usize>, pts: &[FitPoint], reference: Option<&[f64; 5]>) -> Rows {
     pts.iter()
-        .map(|p| {
+        .map(|f| {
+            let p = f.p;
             let avar = p.dev * p.dev;
-            let ref_var = reference.map_or(avar, |c| model_var(c, p.tau_s).max(0.1 * avar));
+            let ref_var = reference.map_or(avar, |c| model_var(c, &f.basis).max(0.1 * avar));
             let mut edf = p.edf;
             let mut rel_factor = 1.0;
             if let Some(n_phase) = record {
                 if let Some(c) = reference {
-                    edf = edf.min(model_edf(n_phase, p, c));
+                    edf = edf.min(model_edf(n_phase, f, c));
                 }
-                if p.m * STOP_RATIO > n_phase {
+                if !f.theo && p.m * STOP_RATIO > n_phase {
                     rel_factor = BEYOND_STOP_VARIANCE_FACTOR;
                 }
             }
             let rel_var = (2.0 / edf + MODEL_ERROR_FLOOR * MODEL_ERROR_FLOOR) * rel_factor;
             let sw = 1.0 / (rel_var.sqrt() * ref_var);
-            (basis(p.tau_s).map(|a| a * sw), avar * sw)
+            (f.basis.map(|a| a * sw), avar * sw)
         })
         .collect()
 }
@@ -530,7 +640,7 @@ struct Pass {
 /// One exact NNLS solve over every non-empty passive set of allowed terms.
 fn nnls_pass(
     record: Option<usize>,
-    pts: &[&DevPoint],
+    pts: &[FitPoint],
     reference: Option<&[f64; 5]>,
     allowed: &[bool; 5],
 ) -> Result<Pass, NoiseError> {
@@ -662,6 +772,34 @@ mod tests {
         let r = slope_readoffs(&curve);
         let b = r.b_u.unwrap();
         assert!(b > 2e-4 && b < 2e-4 * 1.6, "{r:?}");
+    }
+
+    /// Theo1's expectation per term against what it must be: for white FM exactly the Allan
+    /// variance at 0.75 m tau0 (Theo1 is Allan-compatible there); for a rate ramp exactly the
+    /// Theo1 of the ramp's phase (deterministic, so the estimator itself is the truth); for a
+    /// random walk the large-m bias ratio AVAR/Theo1 of the closed form,
+    /// (1/3) 0.75 / (sum_u (2u^3 + 2(m-u)^3 - m^3 - (m-2u)^3) / (-6u)) / (0.75 m^2)) -> 2.698.
+    #[test]
+    fn theo1_basis_is_theo1s_expectation() {
+        let tau0 = 0.01;
+        for m in [10usize, 12, 100, 1366] {
+            let g = theo1_basis(m, tau0);
+            let tau = 0.75 * m as f64 * tau0;
+            assert!((g[1] / basis(tau)[1] - 1.0).abs() < 1e-12, "m {m}: {g:?}");
+            // x = R t^2 / 2 with R = 1 on n points.
+            let n = 3 * m;
+            let x: Vec<f64> = (0..n).map(|i| 0.5 * (i as f64 * tau0).powi(2)).collect();
+            let theo = crate::allan::theo1_variance(&x, m, tau0).unwrap();
+            assert!(
+                (g[4] / theo - 1.0).abs() < 1e-9,
+                "m {m}: {} vs {theo}",
+                g[4]
+            );
+        }
+        let m = 20_000;
+        let g = theo1_basis(m, 1.0);
+        let ratio = basis(0.75 * m as f64)[3] / g[3];
+        assert!((ratio - 2.698).abs() < 2e-3, "{ratio}");
     }
 
     fn fit_model_dev(c: &[f64; 5], tau: f64) -> f64 {

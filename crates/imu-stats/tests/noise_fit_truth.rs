@@ -1,10 +1,14 @@
 //! Truth tests of the IEEE term fit's term selection on simulated series of known noise:
 //! pure white noise gives B and K consistent with zero (not significant) on 20 seeds; white
 //! plus rate random walk gives K within 25 % on a 6-hour 100 Hz record and no rate ramp; a
-//! real rate ramp is found (Auto) and excluded when asked.
+//! real rate ramp is found (Auto) and excluded when asked; Theo1 points beyond the OADEV's
+//! longest tau recover a rate random walk within the reported uncertainty, narrow it, and add
+//! no spurious K on white noise.
 
 use imu_stats::allan::{EdfMethod, Kind, Options, TauSet, deviation};
-use imu_stats::noise_terms::{FitOptions, NoiseTerms, RampTerm, fit_terms_with};
+use imu_stats::noise_terms::{
+    FitOptions, NoiseTerms, RampTerm, fit_terms_extended, fit_terms_with,
+};
 
 const RATE_HZ: f64 = 100.0;
 
@@ -131,4 +135,76 @@ fn rate_ramp_only_where_the_curve_shows_it_or_when_asked() {
         },
     );
     assert_eq!(auto_again, auto);
+}
+
+/// The OADEV at 8 per decade with Greenhall's EDF, and Theo1 at the same set (read as
+/// averaging times) beyond its longest tau, as `imu-noise --kind theo1` fits them.
+fn oadev_and_theo1(y: &[f64]) -> (imu_stats::allan::DevCurve, imu_stats::allan::DevCurve) {
+    let opts = Options {
+        taus: TauSet::PerDecade(8),
+        edf: EdfMethod::Greenhall,
+        ..Options::default()
+    };
+    let oadev = deviation(Kind::Oadev, y, 1.0 / RATE_HZ, &opts).unwrap();
+    let longest = oadev.points.last().unwrap().m;
+    let beyond: Vec<usize> = TauSet::PerDecade(8)
+        .factors(3 * y.len() / 4)
+        .into_iter()
+        .filter(|&f| f > longest)
+        .collect();
+    let theo_opts = Options {
+        taus: TauSet::Factors(beyond),
+        ..opts
+    };
+    let theo1 = deviation(Kind::Theo1, y, 1.0 / RATE_HZ, &theo_opts).unwrap();
+    (oadev, theo1)
+}
+
+#[test]
+fn theo1_points_recover_a_random_walk_within_the_reported_uncertainty() {
+    // 400 s at 100 Hz, white 1e-3 and K = 2e-4 (crossing at sqrt(3) N / K = 8.7 s): the OADEV
+    // stops at 178 s, Theo1 adds 237 s.
+    let k_true = 2e-4;
+    for seed in [1, 2, 3] {
+        let y = series(seed, 40_000, 1e-3, k_true, 0.0);
+        let (oadev, theo1) = oadev_and_theo1(&y);
+        let alone = fit_terms_with(&oadev, &FitOptions::default()).unwrap();
+        let t = fit_terms_extended(&oadev, Some(&theo1), &FitOptions::default()).unwrap();
+        assert_eq!(alone.n_theo1_points, 0);
+        assert!(t.n_theo1_points >= 1, "seed {seed}: {t:?}");
+        assert_eq!(t.n_points, alone.n_points + t.n_theo1_points);
+        let k = t.k_u_sqrt_hz;
+        assert!(k.significant, "seed {seed}: {t:?}");
+        assert!(
+            (k.value - k_true).abs() < 2.0 * k.sigma,
+            "seed {seed}: K {k:?}, truth {k_true}"
+        );
+        assert!(
+            (t.n_u_per_sqrt_hz.value / 1e-3 - 1.0).abs() < 0.05,
+            "seed {seed}: {t:?}"
+        );
+    }
+}
+
+#[test]
+fn theo1_points_narrow_k_and_add_no_spurious_k_on_white_noise() {
+    for seed in 0..6 {
+        let y = series(seed, 40_000, 1e-3, 0.0, 0.0);
+        let (oadev, theo1) = oadev_and_theo1(&y);
+        let alone = fit_terms_with(&oadev, &FitOptions::default()).unwrap();
+        let t = fit_terms_extended(&oadev, Some(&theo1), &FitOptions::default()).unwrap();
+        assert!(t.n_theo1_points >= 1, "seed {seed}: {t:?}");
+        assert!(!t.k_u_sqrt_hz.significant, "seed {seed}: {t:?}");
+        // The extra points tighten the bound on a K the data do not show.
+        assert!(
+            t.k_u_sqrt_hz.sigma < alone.k_u_sqrt_hz.sigma,
+            "seed {seed}: {:?} vs {:?}",
+            t.k_u_sqrt_hz,
+            alone.k_u_sqrt_hz
+        );
+    }
+    // A Theo1 curve is required for the extension.
+    let y = series(9, 4_000, 1e-3, 0.0, 0.0);
+    let (oadev, _) = oadev_and_theo1(&y);
+    assert!(fit_terms_extended(&oadev, Some(&oadev), &FitOptions::default()).is_err());
 }

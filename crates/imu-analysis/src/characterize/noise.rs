@@ -6,7 +6,7 @@
 use imu_model::Triad;
 use imu_stats::allan::{self, DevPoint, EdfMethod, Kind, NoiseType, Options, TauSet};
 use imu_stats::noise_terms::{
-    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_with, slope_readoffs,
+    FitOptions, NoiseTerms, SlopeReadoffs, fit_terms_extended, slope_readoffs,
 };
 use serde::Serialize;
 
@@ -268,13 +268,31 @@ pub fn analyse(
                     kind_report(kind, unit, &y, rate_hz, &opts).map_err(failed(Some(kind)))
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            let fit = fit_terms_with(&curve, &FitOptions::default()).map_err(|source| {
-                NoiseError::Terms {
+            // A Theo1 curve already computed at the fit's taus is reused (its long taus cost
+            // the most: O(N m) each).
+            let computed = deviations
+                .iter()
+                .find(|d| d.kind == Kind::Theo1 && fit_opts.taus == opts.taus);
+            let theo1 = match computed {
+                Some(d) => Some(allan::DevCurve {
+                    kind: Kind::Theo1,
+                    tau0_s: 1.0 / rate_hz,
+                    confidence: d.confidence,
+                    points: d.points.iter().map(|p| p.point).collect(),
+                }),
+                None if req.kinds.iter().any(|k| k.is_theo()) => {
+                    fit_extension(&y, rate_hz, &curve, &fit_opts)
+                        .map_err(failed(Some(Kind::Theo1)))?
+                }
+                None => None,
+            };
+            let fit = fit_terms_extended(&curve, theo1.as_ref(), &FitOptions::default()).map_err(
+                |source| NoiseError::Terms {
                     sensor,
                     axis,
                     source,
-                }
-            })?;
+                },
+            )?;
             out.push(AxisReport {
                 sensor,
                 axis,
@@ -293,6 +311,34 @@ pub fn analyse(
         }
     }
     Ok(out)
+}
+
+/// The Theo1 curve that extends the fit's OADEV `curve` (asked for with `--kind theoh`, or
+/// `theo1` at other taus than the fit's): Theo1 at the fit's tau set read as averaging times,
+/// up to 75 % of the record, the same curve `--kind theo1` computes at those taus (so the fit
+/// does not depend on which Theo kind was asked for; the points' noise identification looks
+/// at their neighbours). The fit takes its points beyond the OADEV's longest tau. `None` when
+/// the set has no tau there.
+fn fit_extension(
+    y: &[f64],
+    rate_hz: f64,
+    curve: &allan::DevCurve,
+    fit_opts: &Options,
+) -> Result<Option<allan::DevCurve>, allan::AllanError> {
+    let longest = curve.points.last().map_or(0, |p| p.m);
+    let beyond = fit_opts
+        .taus
+        .factors(3 * y.len() / 4)
+        .into_iter()
+        .any(|f| f > longest);
+    if !beyond || y.len() < allan::THEO1_MIN_M {
+        return Ok(None);
+    }
+    match allan::deviation(Kind::Theo1, y, 1.0 / rate_hz, fit_opts) {
+        Ok(c) => Ok(Some(c)),
+        Err(allan::AllanError::TooShort { .. }) => Ok(None),
+        Err(e) => Err(e),
+    }
 }
 
 /// One deviation kind of one axis, each point with its noise type and exponent.

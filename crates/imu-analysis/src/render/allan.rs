@@ -378,6 +378,7 @@ mod tests {
             r_u_per_s: term(0.0),
             chi2_per_dof: 1.0,
             n_points: 17,
+            n_theo1_points: 0,
         };
         let points = (0..17)
             .map(|i| {

@@ -9,7 +9,8 @@
 //! against its differences, so a reassociated term would round differently (relative to the
 //! term, by about eps |x| / |d|). Only the order in which the squared terms are added differs
 //! from a plain loop. MDEV's recurrence is serial per tau; it runs as eight interleaved chains
-//! in SIMD lanes ([`ModifiedLanes`]).
+//! in SIMD lanes ([`ModifiedLanes`]), on AVX2 in one fused loop from the phase to the lanes
+//! (`advance_fused`, bit-identical to the scratch-array path the other CPUs take).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -262,8 +263,11 @@ pub(super) fn non_overlapping_sums<const D: usize>(x: &[f64], ms: &[usize]) -> V
 /// two chains of vector additions overlap).
 pub(super) const LANES: usize = 8;
 
-/// j per scratch block of the MDEV pass (the third differences of a block stay in L1).
-const MDEV_BLOCK: usize = 2048;
+/// j per block of the MDEV pass: every tau advances through a block before the next, so a
+/// block's four lagged 64 KiB windows of `x` per tau (shared between octave taus) stay in the
+/// per-core L2 cache while the taus use them (8,192 took 15-20 % less CPU than 2,048 and
+/// 32,768 on the 10 M-point bench series).
+const MDEV_BLOCK: usize = 8192;
 
 /// One tau's MDEV recurrence (see [`modified_sums`]) over rows `row0..row_end` of `LANES`
 /// consecutive v_j (row r holds v_{8r} ..= v_{8r+7}), eight per step:
@@ -294,7 +298,7 @@ impl ModifiedLanes {
     fn new(x: &[f64], m: usize, row0: usize, row_end: usize) -> Self {
         let terms = x.len() - 3 * m + 1;
         let j0 = row0 * LANES;
-        let mut lanes = [sum_by(j0..j0 + m, |i| second_difference(x, i, m)); LANES];
+        let mut lanes = [window_sum(x, j0, m); LANES];
         for l in 1..LANES {
             lanes[l] = lanes[l - 1] + third_step(x, j0 + l - 1, m);
         }
@@ -355,6 +359,76 @@ impl ModifiedLanes {
         (self.lanes, self.acc, self.row) = (lanes, acc, r1);
     }
 
+    /// [`Self::advance`] as one fused loop from the phase to the lanes (no scratch arrays), on
+    /// AVX2: the rows before `stop` that have a step after them and whose loads stay inside `x`
+    /// (all but the last few rows of a tau); [`Self::advance`] takes the rest. Every value is
+    /// computed with the same operations in the same order as there (the sums of two, four and
+    /// eight third differences are formed in registers, the neighbours by lane shuffles), so
+    /// the result is bit-identical to the scratch path's.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn advance_fused(&mut self, simd: pulp::x86::V3, x: &[f64], stop: usize) {
+        let (r0, r1) = (self.row, stop.min(self.row_end));
+        if r1 <= r0 {
+            return;
+        }
+        let m = self.m;
+        let j0 = r0 * LANES;
+        // Row i reads the third differences t_k up to k = 8 i + 19 (four vectors ahead), so
+        // x up to j0 + 8 i + 19 + 3 m.
+        let in_bounds = x.len().saturating_sub(j0 + 3 * m + 20) / LANES;
+        let rows = (r1 - r0 - usize::from(r1 == self.row_end)).min(in_bounds);
+        if rows == 0 {
+            return;
+        }
+        let len = rows * LANES + 20;
+        let lag = |k: usize| pulp::x86::V3::as_simd_f64s(&x[j0 + k * m..j0 + k * m + len]).0;
+        let (x0, x1, x2, x3) = (lag(0), lag(1), lag(2), lag(3));
+        let three = simd.splat_f64s(3.0);
+        // t_{4q..4q+4}: (x3 - 3 x2) + (3 x1 - x0), as `third_step`.
+        macro_rules! t {
+            ($q:expr) => {
+                simd.add_f64s(
+                    simd.sub_f64s(x3[$q], simd.mul_f64s(three, x2[$q])),
+                    simd.sub_f64s(simd.mul_f64s(three, x1[$q]), x0[$q]),
+                )
+            };
+        }
+        // Pairs p_k = t_k + t_{k+1}, fours w_k = p_k + p_{k+2} ((t_k + t_{k+1}) + (t_{k+2} +
+        // t_{k+3}) as in `advance`), eights w_k + w_{k+4}.
+        let (t0, t1) = (t!(0), t!(1));
+        let mut tn = t!(2);
+        let p0 = simd.add_f64s(t0, on_one(simd, t0, t1));
+        let mut p = simd.add_f64s(t1, on_one(simd, t1, tn));
+        let mut w = simd.add_f64s(p0, on_two(simd, p0, p));
+        let (mut lo, mut hi) = (quad(&self.lanes, 0), quad(&self.lanes, 4));
+        let (mut acc_lo, mut acc_hi) = (quad(&self.acc, 0), quad(&self.acc, 4));
+        // The next eight-sum w_{4q} + w_{4q+4}, from t up to 4q + 15.
+        macro_rules! eight {
+            ($q:expr) => {{
+                let t_next = t!($q + 3);
+                let p_next = simd.add_f64s(tn, on_one(simd, tn, t_next));
+                let w_next = simd.add_f64s(p, on_two(simd, p, p_next));
+                let e = simd.add_f64s(w, w_next);
+                (tn, p, w) = (t_next, p_next, w_next);
+                e
+            }};
+        }
+        for i in 0..rows {
+            let e = eight!(2 * i);
+            acc_lo = simd.add_f64s(acc_lo, simd.mul_f64s(lo, lo));
+            lo = simd.add_f64s(lo, e);
+            let e = eight!(2 * i + 1);
+            acc_hi = simd.add_f64s(acc_hi, simd.mul_f64s(hi, hi));
+            hi = simd.add_f64s(hi, e);
+        }
+        self.lanes = [lo.0, lo.1, lo.2, lo.3, hi.0, hi.1, hi.2, hi.3];
+        self.acc = [
+            acc_lo.0, acc_lo.1, acc_lo.2, acc_lo.3, acc_hi.0, acc_hi.1, acc_hi.2, acc_hi.3,
+        ];
+        self.row = r0 + rows;
+    }
+
     /// This part's sum of v_j^2, once all its rows are added; the last part adds the fewer
     /// than `LANES` v_j after the last row, from v_{8 rows - 1}.
     fn finish(&self, x: &[f64]) -> f64 {
@@ -369,6 +443,53 @@ impl ModifiedLanes {
         }
         s
     }
+}
+
+/// Lanes `o..o + 4` of `a` as one AVX2 vector.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn quad(a: &[f64; LANES], o: usize) -> pulp::f64x4 {
+    pulp::f64x4(a[o], a[o + 1], a[o + 2], a[o + 3])
+}
+
+/// [a2, a3, b0, b1]: the four values two places on from `a` in the sequence `a`, `b`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn on_two(simd: pulp::x86::V3, a: pulp::f64x4, b: pulp::f64x4) -> pulp::f64x4 {
+    pulp::cast(
+        simd.avx
+            ._mm256_permute2f128_pd::<0x21>(pulp::cast(a), pulp::cast(b)),
+    )
+}
+
+/// [a1, a2, a3, b0]: the four values one place on.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn on_one(simd: pulp::x86::V3, a: pulp::f64x4, b: pulp::f64x4) -> pulp::f64x4 {
+    pulp::cast(
+        simd.avx
+            ._mm256_shuffle_pd::<0b0101>(pulp::cast(a), pulp::cast(on_two(simd, a, b))),
+    )
+}
+
+/// v_j = sum over i in j..j + m of the second difference at lag m, summed as
+/// `sum_by(j..j + m, ..)` does (term k into accumulator k mod 4, the four added pairwise), so
+/// bit-identical to it, but on contiguous slices the compiler vectorizes (the long taus' first
+/// v_j are millions of terms).
+fn window_sum(x: &[f64], j: usize, m: usize) -> f64 {
+    let (x0, x1, x2) = (&x[j..j + m], &x[j + m..j + 2 * m], &x[j + 2 * m..j + 3 * m]);
+    let mut acc = [0.0f64; 4];
+    let (c0, c1, c2) = (x0.chunks_exact(4), x1.chunks_exact(4), x2.chunks_exact(4));
+    let tail = m / 4 * 4;
+    for ((a, b), c) in c0.zip(c1).zip(c2) {
+        for l in 0..4 {
+            acc[l] += c[l] - 2.0 * b[l] + a[l];
+        }
+    }
+    for k in tail..m {
+        acc[k & 3] += x2[k] - 2.0 * x1[k] + x0[k];
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
 /// The recurrence's step v_{j+1} - v_j, a third difference (allantools' operations).
@@ -398,6 +519,9 @@ pub(super) struct ModifiedPass<'a> {
     pub(super) ms: &'a [usize],
     pub(super) part: usize,
     pub(super) parts: usize,
+    /// Use the fused AVX2 loop where the CPU has it (`false`: the scratch path alone, which
+    /// the tests compare it with).
+    pub(super) fuse: bool,
 }
 
 impl WithSimd for ModifiedPass<'_> {
@@ -405,7 +529,19 @@ impl WithSimd for ModifiedPass<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, _simd: S) -> Vec<f64> {
-        let ModifiedPass { x, ms, part, parts } = self;
+        let ModifiedPass {
+            x,
+            ms,
+            part,
+            parts,
+            fuse,
+        } = self;
+        // The fused loop needs AVX2's lane shuffles; `modified_sums` runs this under
+        // `Arch::dispatch`, which picks the same instruction set where the CPU has it.
+        #[cfg(target_arch = "x86_64")]
+        let fused = pulp::x86::V3::try_new().filter(|_| fuse);
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = fuse;
         let mut states: Vec<ModifiedLanes> = ms
             .iter()
             .map(|&m| {
@@ -421,6 +557,10 @@ impl WithSimd for ModifiedPass<'_> {
         while r < end {
             let stop = (r + MDEV_BLOCK / LANES).min(end);
             for st in &mut states {
+                #[cfg(target_arch = "x86_64")]
+                if let Some(v3) = fused {
+                    st.advance_fused(v3, x, stop);
+                }
                 st.advance(x, stop, &mut t, &mut w);
             }
             r = stop;
@@ -455,6 +595,7 @@ pub(super) fn modified_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
             ms: &long,
             part: 0,
             parts: 1,
+            fuse: true,
         })
     } else {
         let pass = |part| {
@@ -463,6 +604,7 @@ pub(super) fn modified_sums(x: &[f64], ms: &[usize]) -> Vec<f64> {
                 ms: &long,
                 part,
                 parts: 2,
+                fuse: true,
             })
         };
         let (a, b) = std::thread::scope(|scope| {
