@@ -59,7 +59,7 @@ pub(crate) fn read(file: &[u8]) -> Read {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::targets::files::split_cut;
+    use crate::targets::files::{split_cut, with_cut};
 
     #[test]
     fn a_whole_truth_file_reads_completely_and_its_cuts_are_named() {
@@ -83,5 +83,69 @@ mod tests {
             }
             check(seed);
         }
+    }
+
+    #[test]
+    fn a_cut_inside_a_chunk_whose_crc_disagrees_reads_on_where_the_whole_file_stops() {
+        // Found by the long run: the whole file's read delivers none of a chunk whose CRC
+        // disagrees; a cut inside that chunk removes what the CRC was checked against, so the
+        // cut file's read streams the chunk's messages up to the cut (as for a killed writer's
+        // unfinished chunk). The check holds both: the whole's messages come first.
+        // Uncompressed chunks of about 200 bytes, CRCs on, 40 messages.
+        let mut w = mcap::WriteOptions::new()
+            .compression(None)
+            .chunk_size(Some(200))
+            .create(std::io::Cursor::new(Vec::new()))
+            .unwrap();
+        let ch = w
+            .add_channel(0, "/imu", "json", &Default::default())
+            .unwrap();
+        for k in 0..40u32 {
+            let header = mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: k,
+                log_time: u64::from(k),
+                publish_time: u64::from(k),
+            };
+            w.write_to_known_channel(&header, format!("{{\"k\":{k}}}").as_bytes())
+                .unwrap();
+        }
+        w.finish().unwrap();
+        let mut file = w.into_inner().into_inner();
+        // Records after the magic: opcode (1), length (8), body; the second chunk (0x06).
+        let record_len = |at: usize| {
+            usize::try_from(u64::from_le_bytes(file[at + 1..at + 9].try_into().unwrap())).unwrap()
+        };
+        let mut at = 8;
+        let mut chunks = 0;
+        loop {
+            if file[at] == 0x06 {
+                chunks += 1;
+                if chunks == 2 {
+                    break;
+                }
+            }
+            at += 9 + record_len(at);
+        }
+        let len = record_len(at);
+        // The chunk's CRC follows its start time, end time and uncompressed size.
+        file[at + 9 + 24] ^= 1;
+        let whole = read(&file);
+        assert!(
+            matches!(&whole.outcome, Ok(Some(why)) if why.contains("CRC")),
+            "{:?}",
+            whole.outcome
+        );
+        assert!(!whole.messages.is_empty());
+        let cut = at + 9 + len - 1;
+        let part = read(&file[..cut]);
+        assert!(
+            part.messages.len() > whole.messages.len(),
+            "{} {}",
+            part.messages.len(),
+            whole.messages.len()
+        );
+        assert!(part.messages.starts_with(&whole.messages));
+        check(&with_cut(cut, &file));
     }
 }
