@@ -262,12 +262,16 @@ impl<'a> Workbench<'a> {
             .collect()
     }
 
-    /// Every library effect that applies to the triad and is not in the model, tested.
+    /// Every library effect that applies to the triad and is not in the model, tested (each
+    /// on its own, so spread over the cores).
     fn candidates(&self, c: &CandidateBase) -> Vec<Candidate> {
-        EffectKind::ALL
+        let kinds: Vec<EffectKind> = EffectKind::ALL
             .into_iter()
             .filter(|k| k.applies_to(c.triad) && !c.model.has(*k))
-            .filter_map(|k| self.candidate(c, k))
+            .collect();
+        parallel_map(&kinds, |&k| self.candidate(c, k))
+            .into_iter()
+            .flatten()
             .collect()
     }
 

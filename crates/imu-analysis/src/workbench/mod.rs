@@ -462,6 +462,38 @@ pub struct Workbench<'a> {
     pub notes: crate::note::Notes,
 }
 
+/// `f` of every item, in the items' order, the items spread over the cores (round robin, so
+/// that costly and cheap items mix). The items must be independent (the workbench's candidates,
+/// its cross-validation folds): each result is then exactly what a sequential call gives, and
+/// so is everything computed from them in order.
+pub(crate) fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(items.len());
+    if threads <= 1 {
+        return items.iter().map(f).collect();
+    }
+    let f = &f;
+    let mut done: Vec<(usize, R)> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                s.spawn(move || {
+                    (t..items.len())
+                        .step_by(threads)
+                        .map(|i| (i, f(&items[i])))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    done.sort_by_key(|(i, _)| *i);
+    done.into_iter().map(|(_, r)| r).collect()
+}
+
 /// Effects whose time constant or shape a neutral start cannot find: fitted from several
 /// starting points.
 fn start_values(kind: EffectKind, span_s: f64) -> Vec<f64> {
