@@ -53,7 +53,10 @@ fn the_ladder_claims_the_three_hidden_effects_with_the_truths_values() {
     assert_eq!(added, BTreeSet::from(HIDDEN), "{:?}", ladder.steps);
     assert_eq!(ladder.steps.len(), 1 + HIDDEN.len());
     for s in &ladder.steps[1..] {
-        let h = s.held_out.as_ref().expect("a claim carries its held-out check");
+        let h = s
+            .held_out
+            .as_ref()
+            .expect("a claim carries its held-out check");
         assert!(h.confirmed, "{:?}: {h:?}", s.added);
     }
     // The final gyro gains are consistent with the rotations over the moves.
