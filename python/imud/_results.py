@@ -147,7 +147,14 @@ class CalibrationResult(_Doc):
 @dataclass(repr=False)
 class TriadDiagnosis(_Doc):
     """The workbench's verdict on one triad's model: chi-square against the noise floor, its
-    p-value, whether the residual is consistent, and the ranked candidate effects."""
+    p-value, whether the residual is consistent, and the ranked candidate effects.
+
+    ``verdict`` is the sentence for people; ``verdict_codes`` the stable codes of its parts for
+    programs (``consistent``, ``bias_wander``, ``missing_effect``, ``not_confirmed``,
+    ``ambiguous`` or ``unexplained``, then ``periodic_component`` per spectral line, then the
+    moves' ``gains_consistent``/``gains_inconsistent`` and ``missing_gain_effect`` or
+    ``gain_not_confirmed``). Each candidate has ``explanation`` and ``explanation_code``,
+    ``not_observable`` and ``not_observable_codes``."""
 
     triad: str = ""
     effects: List[str] = field(default_factory=list)
@@ -156,6 +163,7 @@ class TriadDiagnosis(_Doc):
     p_value: Optional[float] = None
     consistent: bool = False
     verdict: str = ""
+    verdict_codes: List[str] = field(default_factory=list)
     candidates: List[Dict[str, Any]] = field(default_factory=list)
     extra: Dict[str, Any] = field(default_factory=dict)
 
@@ -178,6 +186,7 @@ class Diagnosis(_Doc):
     note_codes: List[str] = field(default_factory=list)
     added: List[Any] = field(default_factory=list)
     verdict: Dict[str, str] = field(default_factory=dict)
+    verdict_codes: Dict[str, List[str]] = field(default_factory=dict)
     accel: Optional[TriadDiagnosis] = None
     gyro: Optional[TriadDiagnosis] = None
     extra: Dict[str, Any] = field(default_factory=dict)
@@ -210,6 +219,7 @@ class LadderResult(_Doc):
     added: List[Any] = field(default_factory=list)
     steps: List[LadderStep] = field(default_factory=list)
     verdict: Dict[str, str] = field(default_factory=dict)
+    verdict_codes: Dict[str, List[str]] = field(default_factory=dict)
     accel: Optional[TriadDiagnosis] = None
     gyro: Optional[TriadDiagnosis] = None
     calibration: Any = None

@@ -86,7 +86,7 @@ fn with_workbench<T>(
 }
 
 /// Diagnoses the model against `series` (raw stream), the GIL released while it runs: JSON
-/// `{"notes", "note_codes", "added", "verdict", "diagnoses": [accel, gyro]}`.
+/// `{"notes", "note_codes", "added", "verdict", "verdict_codes", "diagnoses": [accel, gyro]}`.
 #[pyfunction]
 pub fn diagnose_json(py: Python<'_>, series: &Series, args: WorkbenchArgs) -> PyResult<String> {
     let inner = series.inner.clone();
@@ -100,7 +100,8 @@ pub fn diagnose_json(py: Python<'_>, series: &Series, args: WorkbenchArgs) -> Py
                 "notes": wb.notes.0,
                 "note_codes": wb.notes.codes(),
                 "added": added,
-                "verdict": {"accel": accel.verdict, "gyro": gyro.verdict},
+                "verdict": {"accel": accel.verdict.to_string(), "gyro": gyro.verdict.to_string()},
+                "verdict_codes": {"accel": accel.verdict.codes(), "gyro": gyro.verdict.codes()},
                 "diagnoses": [accel, gyro],
             })
             .to_string())
@@ -110,7 +111,8 @@ pub fn diagnose_json(py: Python<'_>, series: &Series, args: WorkbenchArgs) -> Py
 }
 
 /// Runs the ladder from the base model (`model`), the GIL released while it runs: JSON
-/// `{"notes", "note_codes", "added", "steps", "verdict", "final_diagnoses"}` and the final calibration.
+/// `{"notes", "note_codes", "added", "steps", "verdict", "verdict_codes", "final_diagnoses"}` and
+/// the final calibration.
 #[pyfunction]
 pub fn ladder_json(
     py: Python<'_>,
@@ -140,8 +142,12 @@ pub fn ladder_json(
                     "added": added,
                     "steps": steps,
                     "verdict": {
-                        "accel": final_diagnoses[0].verdict,
-                        "gyro": final_diagnoses[1].verdict,
+                        "accel": final_diagnoses[0].verdict.to_string(),
+                        "gyro": final_diagnoses[1].verdict.to_string(),
+                    },
+                    "verdict_codes": {
+                        "accel": final_diagnoses[0].verdict.codes(),
+                        "gyro": final_diagnoses[1].verdict.codes(),
                     },
                     "final_diagnoses": final_diagnoses,
                 });

@@ -17,13 +17,16 @@ def test_diagnose_equals_the_cli(workbench_demo, cli):
     rec, truth = workbench_demo
     res = imud.diagnose(rec, reference=truth, model=BASE)
     doc = cli("imu-diagnose", rec, "--reference", truth, "--model", BASE)
-    for k in ("notes", "added", "verdict"):
+    for k in ("notes", "added", "verdict", "verdict_codes"):
         assert_close(res.to_dict()[k], doc[k])
     assert_close(res.to_dict()["diagnoses"], doc["diagnoses"])
     # The base model misses the g-sensitivity the truth hides: the gyro is not consistent and
-    # the candidate claimed is that effect.
+    # the candidate claimed is that effect; programs read it from the codes, not the words.
     assert not res.gyro.consistent
     assert [c["effect"] for c in res.gyro.claimed] == ["g-sensitivity"]
+    assert res.gyro.verdict_codes[0] == "missing_effect"
+    assert res.verdict_codes["gyro"] == res.gyro.verdict_codes
+    assert [c["explanation_code"] for c in res.gyro.claimed] == ["fitted"]
 
 
 def test_diagnose_with_an_added_effect_equals_the_cli(workbench_demo, cli):
@@ -50,7 +53,7 @@ def test_the_ladder_equals_the_cli_and_adds_the_hidden_effect(workbench_demo, cl
     res = imud.ladder(rec, reference=truth, base=BASE)
     out = tmp_path / "ladder.toml"
     doc = cli("imu-diagnose", "ladder", rec, "--reference", truth, "--base", BASE, "-o", out)
-    for k in ("notes", "note_codes", "added", "steps", "verdict"):
+    for k in ("notes", "note_codes", "added", "steps", "verdict", "verdict_codes"):
         assert_close(res.to_dict()[k], doc[k])
     assert ["gyro", "g-sensitivity"] in res.added
     assert res.gyro.consistent
@@ -65,7 +68,7 @@ def test_reference_free_diagnose_equals_the_cli(multi_pose, cli):
     rec, _ = multi_pose
     res = imud.diagnose(rec, reference_free=True, latitude_deg=40.0)
     doc = cli("imu-diagnose", rec, "--reference-free", "--latitude-deg", "40")
-    for k in ("notes", "note_codes", "added", "verdict", "diagnoses"):
+    for k in ("notes", "note_codes", "added", "verdict", "verdict_codes", "diagnoses"):
         assert_close(res.to_dict()[k], doc[k])
     # The reference-free conventions are noted, each with its code, in the same order.
     assert res.note_codes == [

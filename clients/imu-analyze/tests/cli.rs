@@ -114,6 +114,21 @@ fn impact_and_dynamic_write_json_svg_and_html() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("cannot support or rule out"), "{text}");
     assert!(plots.join("thermal-01.svg").exists());
+    // In JSON, the same recommendation with its code beside it.
+    let out = bin()
+        .args(["thermal", rec.to_str().unwrap(), "--bin-s", "2", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        v["recommendation_codes"],
+        serde_json::json!(["range_too_small"])
+    );
+    assert!(
+        text.contains(v["recommendation"].as_str().unwrap()),
+        "{text}"
+    );
 }
 
 #[test]

@@ -223,14 +223,35 @@ struct CandidateRow {
     /// The cross-validation of a candidate that won in-sample.
     #[serde(skip_serializing_if = "Option::is_none")]
     held_out: Option<imu_analysis::workbench::HeldOut>,
-    explanation: String,
+    /// `explanation` (the sentence) and `explanation_code`.
+    #[serde(flatten)]
+    explanation: imu_analysis::workbench::Explanation,
     model_change: String,
 }
 
+/// Each triad's verdict in words (JSON `verdict`) or its codes (JSON `verdict_codes`).
 #[derive(Debug, Serialize)]
-struct Verdicts {
-    accel: String,
-    gyro: String,
+struct Verdicts<T> {
+    accel: T,
+    gyro: T,
+}
+
+impl Verdicts<String> {
+    fn words(d: [&TriadDiagnosis; 2]) -> Self {
+        Verdicts {
+            accel: d[0].verdict.to_string(),
+            gyro: d[1].verdict.to_string(),
+        }
+    }
+}
+
+impl Verdicts<Vec<&'static str>> {
+    fn codes(d: [&TriadDiagnosis; 2]) -> Self {
+        Verdicts {
+            accel: d[0].verdict.codes(),
+            gyro: d[1].verdict.codes(),
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -243,7 +264,8 @@ struct DiagnoseJson<'a> {
     #[serde(flatten)]
     notes: &'a Notes,
     added: Vec<(Triad, EffectKind)>,
-    verdict: Verdicts,
+    verdict: Verdicts<String>,
+    verdict_codes: Verdicts<Vec<&'static str>>,
     candidates: Vec<CandidateRow>,
     diagnoses: [&'a TriadDiagnosis; 2],
     report: Option<String>,
@@ -267,7 +289,8 @@ struct LadderJson<'a> {
     report: Option<String>,
     added: Vec<(Triad, EffectKind)>,
     steps: &'a [LadderStep],
-    verdict: Verdicts,
+    verdict: Verdicts<String>,
+    verdict_codes: Verdicts<Vec<&'static str>>,
     calibration: &'a Calibration,
     /// Present when the recording was read without its footer: how far the read got.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -430,10 +453,8 @@ fn run_diagnose(a: &DiagnoseArgs) -> Result<()> {
             model: a.model.as_ref().map(|p| p.display().to_string()),
             notes: &wb.notes,
             added,
-            verdict: Verdicts {
-                accel: accel.verdict.clone(),
-                gyro: gyro.verdict.clone(),
-            },
+            verdict: Verdicts::words([&accel, &gyro]),
+            verdict_codes: Verdicts::codes([&accel, &gyro]),
             candidates: candidate_rows(&accel)
                 .chain(candidate_rows(&gyro))
                 .collect(),
@@ -565,10 +586,8 @@ fn run_ladder(a: &LadderArgs) -> Result<()> {
             report: a.report.as_ref().map(|p| p.display().to_string()),
             added,
             steps: &steps,
-            verdict: Verdicts {
-                accel: final_diagnoses[0].verdict.clone(),
-                gyro: final_diagnoses[1].verdict.clone(),
-            },
+            verdict: Verdicts::words([&final_diagnoses[0], &final_diagnoses[1]]),
+            verdict_codes: Verdicts::codes([&final_diagnoses[0], &final_diagnoses[1]]),
             calibration: &calibration,
             input_unfinished: series
                 .unfinished

@@ -124,6 +124,21 @@ fn ladder_finds_the_hidden_gyro_g_sensitivity() {
             .unwrap()["effect"],
         "g-sensitivity"
     );
+    // Programs read the verdict and the explanation by their codes, beside the words.
+    assert_eq!(base["verdict_codes"]["gyro"][0], "missing_effect");
+    assert_eq!(
+        base["verdict_codes"]["gyro"],
+        base["diagnoses"][1]["verdict_codes"]
+    );
+    assert_eq!(
+        base["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["triad"] == "gyro")
+            .unwrap()["explanation_code"],
+        "fitted"
+    );
     let with = run(&[
         rec.as_os_str(),
         "--reference".as_ref(),

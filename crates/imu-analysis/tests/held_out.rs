@@ -13,7 +13,7 @@
 use imu_analysis::ImuSeries;
 use imu_analysis::input::{Source, read_mcap};
 use imu_analysis::reference::Reference;
-use imu_analysis::workbench::{DiagnoseOptions, FoldScheme, VerdictState, Workbench};
+use imu_analysis::workbench::{DiagnoseOptions, Finding, FoldScheme, VerdictState, Workbench};
 use imu_model::{Calibration, EffectKind, Triad, TriadModel};
 use imu_rec::truth::read_truth;
 
@@ -137,7 +137,11 @@ fn an_in_sample_only_improvement_is_not_confirmed_on_held_out_positions() {
                 assert!(!c.claimed, "{}", d.verdict);
                 assert_eq!(d.state, VerdictState::NotConfirmed, "{}", d.verdict);
                 assert!(
-                    d.verdict.contains("not confirmed on held-out data"),
+                    matches!(
+                        &d.verdict.finding,
+                        Finding::NotConfirmed { best: Some(b), .. }
+                            if b.held_out.as_ref().is_some_and(|h| !h.confirmed)
+                    ),
                     "{}",
                     d.verdict
                 );

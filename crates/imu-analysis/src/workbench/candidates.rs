@@ -60,7 +60,7 @@ pub(super) fn rank_and_claim(
                     triad,
                     effects: [ci.effect, cj.effect],
                     correlation: r,
-                    separating_recording: separating_recording(ci.effect, cj.effect),
+                    separating_recording: Separation::of(ci.effect, cj.effect),
                 });
             }
         }
@@ -81,7 +81,7 @@ pub(super) const MAX_LEVER_ARM_M: f64 = 1.0;
 /// Parameters of candidate `k` that the recording excites so weakly that their standard error
 /// exceeds any physically possible value (a lever arm seen only through Earth's rate, a
 /// time constant longer than the recording): what to say instead of their fitted values.
-pub(super) fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<String> {
+pub(super) fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<NotObservable> {
     let ids = r.model.param_ids();
     (0..r.names.len())
         .filter(|&i| ids.get(i).is_some_and(|id| id.effect == k))
@@ -89,27 +89,38 @@ pub(super) fn barely_excited(k: EffectKind, r: &FitResult, span_s: f64) -> Vec<S
             let se = r.std_errors[i]?;
             let name = &r.names[i];
             match k {
-                EffectKind::LeverArm if se > MAX_LEVER_ARM_M => Some(format!(
-                    "{name}: standard error {se:.1e} m, more than any lever arm inside an IMU \
-                     package ({MAX_LEVER_ARM_M} m): the recording barely excites it (rotate \
-                     about each axis at several rates)"
-                )),
-                EffectKind::Warmup if ids[i].is_time_constant() && se > span_s => Some(format!(
-                    "{name}: standard error {se:.0} s, longer than the recording ({span_s:.0} s): \
-                     no decay is resolved (record from power-on)"
-                )),
+                EffectKind::LeverArm if se > MAX_LEVER_ARM_M => {
+                    Some(NotObservable::LeverArmBarelyExcited {
+                        name: name.clone(),
+                        std_error_m: se,
+                        max_m: MAX_LEVER_ARM_M,
+                    })
+                }
+                EffectKind::Warmup if ids[i].is_time_constant() && se > span_s => {
+                    Some(NotObservable::DecayNotResolved {
+                        name: name.clone(),
+                        std_error_s: se,
+                        span_s,
+                    })
+                }
                 _ => None,
             }
         })
         .collect()
 }
 
-pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -> Candidate {
+/// A candidate for effect `k` that cannot be observed, for the reasons `why`.
+pub(super) fn unobservable_candidate(
+    k: EffectKind,
+    triad: Triad,
+    why: Vec<NotObservable>,
+) -> Candidate {
+    let reasons = NotObservables(why);
     Candidate {
         effect: k,
         triad,
         new_params: 0,
-        not_observable: vec![why.clone()],
+        not_observable: reasons.clone(),
         chi2: f64::NAN,
         dof: 0,
         f: f64::NAN,
@@ -120,10 +131,7 @@ pub(super) fn unobservable_candidate(k: EffectKind, triad: Triad, why: String) -
         significant: false,
         claimed: false,
         held_out: None,
-        explanation: format!(
-            "{}: not observable in this recording ({why})",
-            k.description()
-        ),
+        explanation: Explanation::NotObservable { effect: k, reasons },
         params: Vec::new(),
         model_change: String::new(),
         model: None,
@@ -179,7 +187,7 @@ pub(super) struct CandidateScore {
     pub(super) triad: Triad,
     /// Parameters the candidate adds that the data determine.
     pub(super) new_params: usize,
-    pub(super) not_observable: Vec<String>,
+    pub(super) not_observable: Vec<NotObservable>,
     /// Chi-square and degrees of freedom with the candidate.
     pub(super) chi2: f64,
     pub(super) dof: usize,
@@ -192,7 +200,7 @@ pub(super) struct CandidateScore {
     pub(super) explained_chi2: f64,
     pub(super) excess_chi2: f64,
     pub(super) residual_rms: [f64; 3],
-    pub(super) explanation: String,
+    pub(super) explanation: Explanation,
     pub(super) params: Vec<ParamValue>,
     pub(super) model_change: String,
     pub(super) model: TriadModel,
@@ -207,7 +215,7 @@ impl CandidateScore {
             effect: self.effect,
             triad: self.triad,
             new_params: self.new_params,
-            not_observable: self.not_observable,
+            not_observable: NotObservables(self.not_observable),
             chi2: self.chi2,
             dof: self.dof,
             f: self.f,

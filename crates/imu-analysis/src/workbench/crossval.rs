@@ -192,7 +192,7 @@ pub(super) fn cross_validate(
     n: usize,
     unit: HeldOutUnit,
     in_sample: (WeightedSums, WeightedSums),
-    mut fold: impl FnMut(&[usize], &[usize]) -> FoldSums,
+    fold: impl Fn(&[usize], &[usize]) -> FoldSums + Sync,
 ) -> Option<HeldOut> {
     if n < 3 {
         return None;
@@ -200,8 +200,10 @@ pub(super) fn cross_validate(
     let (scheme, sets) = folds(n);
     let (mut before, mut after) = (WeightedSums::default(), WeightedSums::default());
     let (mut improved, mut failed) = (0, 0);
-    for test in &sets {
-        match fold(&training(n, test), test) {
+    // The folds are refitted independently (spread over the cores) and merged in fold order.
+    let fitted = parallel_map(&sets, |test| fold(&training(n, test), test));
+    for result in fitted {
+        match result {
             Some((b, a)) => {
                 improved += usize::from(a.total() < b.total());
                 before.merge(&b);

@@ -103,7 +103,7 @@ impl<'a> Workbench<'a> {
             structure: &structure,
             lines: &spectral_lines,
         };
-        let (verdict, state) = (verdict_text(&facts), verdict_state(&facts));
+        let (verdict, state) = (verdict(&facts), verdict_state(&facts));
         let mut diagnosis = TriadDiagnosis {
             triad,
             effects: model.kinds(),
@@ -262,12 +262,16 @@ impl<'a> Workbench<'a> {
             .collect()
     }
 
-    /// Every library effect that applies to the triad and is not in the model, tested.
+    /// Every library effect that applies to the triad and is not in the model, tested (each
+    /// on its own, so spread over the cores).
     fn candidates(&self, c: &CandidateBase) -> Vec<Candidate> {
-        EffectKind::ALL
+        let kinds: Vec<EffectKind> = EffectKind::ALL
             .into_iter()
             .filter(|k| k.applies_to(c.triad) && !c.model.has(*k))
-            .filter_map(|k| self.candidate(c, k))
+            .collect();
+        parallel_map(&kinds, |&k| self.candidate(c, k))
+            .into_iter()
+            .flatten()
             .collect()
     }
 
@@ -282,25 +286,20 @@ impl<'a> Workbench<'a> {
             return Some(unobservable_candidate(
                 k,
                 triad,
-                held.map_or_else(
-                    || "not fittable on this recording".into(),
-                    |n| n.to_string(),
-                ),
+                vec![held.map_or(NotObservable::NotFittable, NotObservable::Held)],
             ));
         }
         let prof = self.fit_candidate(triad, &m, k, c.family)?;
         let r = prof.fit.clone();
         let new_params = r.free.len().saturating_sub(base.free.len());
-        let not_obs: Vec<String> = r
+        let not_obs: Vec<NotObservable> = r
             .unobservable
             .iter()
             .filter(|u| of_effect(&r.model.param_ids(), &u.name, k))
-            .map(|u| format!("{}: {}", u.name, u.reason))
+            .map(|u| NotObservable::Parameter(u.clone()))
             .collect();
         if new_params == 0 || r.dof == 0 {
-            let mut c = unobservable_candidate(k, triad, not_obs.join("; "));
-            c.not_observable = not_obs;
-            return Some(c);
+            return Some(unobservable_candidate(k, triad, not_obs));
         }
         // Likelihood ratio with the noise scale and drift profiled in both models, as an
         // F statistic (exact for a linear model with one profiled scale).
@@ -312,9 +311,7 @@ impl<'a> Workbench<'a> {
             // Not significant, and its values say nothing: show why instead of them.
             let weak = barely_excited(k, &r, span_s(c.points));
             if !weak.is_empty() {
-                let mut c = unobservable_candidate(k, triad, weak.join("; "));
-                c.not_observable = weak;
-                return Some(c);
+                return Some(unobservable_candidate(k, triad, weak));
             }
         }
         let cand_chi2: f64 = self.chi2_axes(triad, &r.residuals, c.shared).iter().sum();
@@ -401,7 +398,7 @@ impl<'a> Workbench<'a> {
         {
             d.state = VerdictState::GainsInconsistent;
         }
-        let _ = write!(d.verdict, " {}", m.text);
+        d.verdict.moves = Some(m.finding);
         // Every model handed on (to the ladder, into the calibration) is the whole gyro
         // model: the offsets from the still poses, the gains from the moves.
         d.fit.model = merged(full_model, &[&d.fit.model, &m.gains]);

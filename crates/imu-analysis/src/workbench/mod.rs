@@ -32,8 +32,6 @@
 //! - **Ladder.** From a base model, add the best claimed effect and refit until the residual is
 //!   consistent with the noise floor or nothing more is claimed.
 
-use std::fmt::Write as _;
-
 use imu_model::nalgebra::{DMatrix, DVector};
 use imu_model::{EffectKind, NoiseModel, Triad, TriadModel, Vec3};
 use serde::Serialize;
@@ -62,6 +60,7 @@ mod moves;
 mod observations;
 mod profile;
 mod structure;
+mod words;
 
 use candidates::*;
 use crossval::*;
@@ -73,6 +72,11 @@ use magnitude::*;
 use observations::MovesSetup;
 use profile::*;
 pub use structure::*;
+use words::{AXES, fmt3};
+pub use words::{
+    AxisWander, CandidateFacts, Explanation, Finding, MovesFinding, MovesOutcome, NotObservable,
+    NotObservables, Separation, Unexplained, Verdict,
+};
 
 /// Settings of the workbench.
 #[derive(Clone, Debug)]
@@ -218,8 +222,10 @@ pub struct Candidate {
     pub triad: Triad,
     /// Parameters the recording determines (0: not observable here).
     pub new_params: usize,
-    /// Why not observable (or which of its parameters are not).
-    pub not_observable: Vec<String>,
+    /// Why not observable (or which of its parameters are not); JSON `not_observable` (the
+    /// sentences) and `not_observable_codes`.
+    #[serde(flatten)]
+    pub not_observable: NotObservables,
     /// Generalised chi-square with the effect.
     pub chi2: f64,
     /// Degrees of freedom with the effect.
@@ -245,8 +251,10 @@ pub struct Candidate {
     /// claim): held-out RMS before and after, next to the in-sample figures.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub held_out: Option<HeldOut>,
-    /// Plain-words explanation.
-    pub explanation: String,
+    /// What it means (its `Display` is the plain words); JSON `explanation` and
+    /// `explanation_code`.
+    #[serde(flatten)]
+    pub explanation: Explanation,
     /// The effect's fitted parameters.
     pub params: Vec<ParamValue>,
     /// The lines to add to the model file.
@@ -262,10 +270,7 @@ pub struct Candidate {
 impl Candidate {
     /// `explains 62 % of the excess`, or that there was none, for verdicts.
     pub fn share_of_excess_text(&self) -> String {
-        match self.share_of_excess {
-            Some(s) => format!("explains {:.0} % of the excess", 100.0 * s),
-            None => "the model shows no excess to explain".into(),
-        }
+        words::share_of_excess_text(self.share_of_excess)
     }
 
     /// The share as a table cell: two decimals, or `-` without an excess.
@@ -291,8 +296,10 @@ pub struct Ambiguity {
     pub effects: [EffectKind; 2],
     /// Correlation of what they explain.
     pub correlation: f64,
-    /// The recording that would separate them.
-    pub separating_recording: String,
+    /// The recording that would separate them; JSON `separating_recording` (the sentence) and
+    /// `separating_recording_code`.
+    #[serde(flatten)]
+    pub separating_recording: Separation,
 }
 
 /// What a triad's verdict says, decided once: its words and a report's heading follow it.
@@ -366,8 +373,10 @@ pub struct TriadDiagnosis {
     pub candidates: Vec<Candidate>,
     /// Candidates the recording cannot separate.
     pub ambiguities: Vec<Ambiguity>,
-    /// The verdict in words.
-    pub verdict: String,
+    /// The verdict (its `Display` is the words); JSON `verdict` (the words) and
+    /// `verdict_codes`.
+    #[serde(flatten)]
+    pub verdict: Verdict,
     /// What the verdict says (the heading of a report follows it).
     pub state: VerdictState,
     /// The fit.
@@ -409,8 +418,8 @@ struct MovesDiagnosis {
     ambiguities: Vec<Ambiguity>,
     /// The fitted gain model.
     gains: TriadModel,
-    /// The verdict in words.
-    text: String,
+    /// What the verdict says of the moves.
+    finding: MovesFinding,
 }
 
 /// What a workbench holds the model against.
@@ -451,6 +460,38 @@ pub struct Workbench<'a> {
     mode: Mode,
     /// Conventions and decisions (reference-free: gravity, Earth rate, gyro gains).
     pub notes: crate::note::Notes,
+}
+
+/// `f` of every item, in the items' order, the items spread over the cores (round robin, so
+/// that costly and cheap items mix). The items must be independent (the workbench's candidates,
+/// its cross-validation folds): each result is then exactly what a sequential call gives, and
+/// so is everything computed from them in order.
+pub(crate) fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(items.len());
+    if threads <= 1 {
+        return items.iter().map(f).collect();
+    }
+    let f = &f;
+    let mut done: Vec<(usize, R)> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                s.spawn(move || {
+                    (t..items.len())
+                        .step_by(threads)
+                        .map(|i| (i, f(&items[i])))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    done.sort_by_key(|(i, _)| *i);
+    done.into_iter().map(|(_, r)| r).collect()
 }
 
 /// Effects whose time constant or shape a neutral start cannot find: fitted from several

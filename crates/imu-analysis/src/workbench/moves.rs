@@ -157,13 +157,13 @@ impl<'a> Workbench<'a> {
                 .and_then(|cand| self.moves_held_out(&fitter, &gains, cand));
             c.claimed = c.held_out.as_ref().is_some_and(|h| h.confirmed);
         }
-        let text = moves_text(&kinds, &verdict, &candidates);
+        let finding = moves_finding(&verdict, &candidates);
         Ok(MovesDiagnosis {
             verdict,
             candidates,
             ambiguities,
             gains,
-            text,
+            finding,
         })
     }
 
@@ -184,7 +184,7 @@ impl<'a> Workbench<'a> {
                 (c, Some(g))
             }
             _ => (
-                unobservable_candidate(k, Triad::Gyro, "the moves cannot fit it".into()),
+                unobservable_candidate(k, Triad::Gyro, vec![NotObservable::MovesCannotFit]),
                 None,
             ),
         }
@@ -202,16 +202,14 @@ impl<'a> Workbench<'a> {
         let triad = Triad::Gyro;
         let (n_res, chi2_0) = (fitter.n_res, b.chi2_0);
         let new_params = sol.free.len().saturating_sub(b.free0);
-        let not_obs: Vec<String> = sol
+        let not_obs: Vec<NotObservable> = sol
             .unobservable
             .iter()
             .filter(|u| of_effect(&g.param_ids(), &u.name, k))
-            .map(|u| format!("{}: {}", u.name, u.reason))
+            .map(|u| NotObservable::Parameter(u.clone()))
             .collect();
         if new_params == 0 || sol.dof == 0 {
-            let mut c = unobservable_candidate(k, triad, not_obs.join("; "));
-            c.not_observable = not_obs;
-            return c;
+            return unobservable_candidate(k, triad, not_obs);
         }
         let chi2_1 = fitter.chi2_of(g).max(1e-300);
         let f = ((chi2_0 - chi2_1).max(0.0) / new_params as f64) / (chi2_1 / sol.dof.max(1) as f64);
@@ -236,7 +234,6 @@ impl<'a> Workbench<'a> {
                 std_errors: &sol.std_errors,
             },
         );
-        let best = best_param_text(&params);
         let model = merged(&spec, &[b.offsets, g]);
         CandidateScore {
             effect: k,
@@ -251,14 +248,12 @@ impl<'a> Workbench<'a> {
             explained_chi2: (chi2_0 - chi2_1).max(0.0),
             excess_chi2: b.excess,
             residual_rms: [rms; 3],
-            explanation: format!(
-                "{}{best}: the rotations integrated over the moves between poses \
-                 need it; direction error after the moves {:.2e} rad RMS with it, \
-                 {:.2e} rad without",
-                k.description(),
-                rms,
-                b.residual_rms_rad
-            ),
+            explanation: Explanation::Moves {
+                effect: k,
+                most_significant: most_significant(&params).cloned(),
+                rms_with_rad: rms,
+                rms_without_rad: b.residual_rms_rad,
+            },
             model_change: model_change(triad, &model, k),
             params,
             model,
@@ -335,68 +330,18 @@ impl<'a> Workbench<'a> {
     }
 }
 
-/// ` (name = value +/- error unit)` of the most significant parameter, or empty.
-fn best_param_text(params: &[ParamValue]) -> String {
-    most_significant(params)
-        .map(|p| {
-            format!(
-                " ({} = {:.3e}{} {})",
-                p.name,
-                p.value,
-                p.std_error
-                    .map_or(String::new(), |e| format!(" +/- {e:.1e}")),
-                p.unit
-            )
-        })
-        .unwrap_or_default()
-}
-
-/// The moves' verdict in words, with the claimed missing gain effect if any.
-fn moves_text(kinds: &[EffectKind], verdict: &MovesVerdict, candidates: &[Candidate]) -> String {
-    let mut text = format!(
-        "Gyro gains [{}] against {} moves between poses: direction error {:.2e} rad RMS vs \
-         {:.2e} expected (p = {:.1e}): {}.",
-        kinds.iter().map(|k| k.id()).collect::<Vec<_>>().join(", "),
-        verdict.n_moves,
-        verdict.residual_rms_rad,
-        verdict.expected_rms_rad,
-        verdict.p_value,
-        if verdict.consistent {
-            "consistent"
-        } else {
-            "NOT consistent"
-        }
-    );
-    if let Some(c) = candidates.iter().find(|c| c.claimed) {
-        let _ = write!(
-            text,
-            " Missing gain effect: {} (F-test p = {:.1e}, {}",
-            c.explanation,
-            c.p_value,
-            c.share_of_excess_text()
-        );
-        if let Some(h) = &c.held_out {
-            let _ = write!(
-                text,
-                "; held-out direction error {:.2e} -> {:.2e} rad, {}",
-                h.held_out_rms_before[0],
-                h.held_out_rms_after[0],
-                h.verdict_text()
-            );
-        }
-        text.push_str(").");
-    } else if let Some((c, h)) = candidates
-        .iter()
-        .find_map(|c| c.held_out.as_ref().map(|h| (c, h)))
-    {
-        let _ = write!(
-            text,
-            " The best gain candidate, {}, fits these moves better (F-test p = {:.1e}) but does \
-             not lower the direction error over held-out moves: {}; not claimed.",
-            c.effect,
-            c.p_value,
-            h.summary(h.rms_unit(Triad::Gyro))
-        );
+/// What the moves say: the verdict, and the claimed missing gain effect or the best gain
+/// candidate that held-out moves did not confirm.
+fn moves_finding(verdict: &MovesVerdict, candidates: &[Candidate]) -> MovesFinding {
+    let outcome = if let Some(c) = candidates.iter().find(|c| c.claimed) {
+        MovesOutcome::Claimed(CandidateFacts::of(c))
+    } else if let Some(c) = candidates.iter().find(|c| c.held_out.is_some()) {
+        MovesOutcome::NotConfirmed(CandidateFacts::of(c))
+    } else {
+        MovesOutcome::Nothing
+    };
+    MovesFinding {
+        verdict: verdict.clone(),
+        outcome,
     }
-    text
 }

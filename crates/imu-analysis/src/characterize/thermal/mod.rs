@@ -19,7 +19,7 @@ mod verdict;
 
 pub use charts::charts;
 use fit::{fit_warmup, make_bins, poly_fit};
-pub use verdict::ThermalVerdict;
+pub use verdict::{Recommendation, ThermalVerdict};
 
 const G0: f64 = imu_model::units::STANDARD_GRAVITY_M_S2;
 
@@ -204,8 +204,10 @@ pub struct ThermalReport {
     pub confounding: Confounding,
     /// A thermal model is warranted on at least one axis.
     pub model_recommended: bool,
-    /// Plain-language recommendation.
-    pub recommendation: String,
+    /// Whether a thermal model is warranted (its `Display` is the plain-language
+    /// recommendation); JSON `recommendation` and `recommendation_codes`.
+    #[serde(flatten)]
+    pub recommendation: Recommendation,
 }
 
 /// Runs the thermal analysis on a static recording with temperature readings.
@@ -248,7 +250,12 @@ pub fn analyze(
     let axes = thermal_axes(&bins, &x, bin_range, options);
     let confounding = confounding(&temps, &times, warmup.as_ref());
     let model_recommended = axes.iter().any(|a| a.model_warranted);
-    let recommendation = verdict::recommendation(&axes, bin_range, [tmin, tmax], options);
+    let recommendation = Recommendation {
+        axes: axes.clone(),
+        range_k: bin_range,
+        temp_range_c: [tmin, tmax],
+        options: options.clone(),
+    };
     Ok(ThermalReport {
         origin: series.origin.clone(),
         n_samples: series.len(),

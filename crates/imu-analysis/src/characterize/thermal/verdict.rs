@@ -77,9 +77,72 @@ fn name(a: &AxisThermal) -> String {
     format!("{} {}", a.sensor, a.axis)
 }
 
+/// Whether a thermal model is warranted, as data: the per-axis verdicts it is made of, the
+/// temperature range and the test's settings. Programs read [`Recommendation::codes`] (or the
+/// axes' [`ThermalVerdict`]s); the sentence is its `Display`. In JSON: `recommendation` (the
+/// sentence) and `recommendation_codes`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recommendation {
+    /// The axes and their verdicts.
+    pub axes: Vec<AxisThermal>,
+    /// Temperature range between the bins, K.
+    pub range_k: f64,
+    /// Lowest and highest temperature, deg C.
+    pub temp_range_c: [f64; 2],
+    /// The test's settings.
+    pub options: ThermalOptions,
+}
+
+impl Recommendation {
+    /// Stable codes: `range_too_small` alone, else `model_warranted` or `no_model_warranted`,
+    /// then `resolved_but_negligible` and `not_resolvable` when some axis is so.
+    pub fn codes(&self) -> Vec<&'static str> {
+        if self.range_k < 1.0 {
+            return vec!["range_too_small"];
+        }
+        let any = |f: fn(&ThermalVerdict) -> bool| self.axes.iter().any(|a| f(&a.verdict));
+        let mut v = vec![if any(|v| matches!(v, ThermalVerdict::Warranted)) {
+            "model_warranted"
+        } else {
+            "no_model_warranted"
+        }];
+        if any(|v| matches!(v, ThermalVerdict::ResolvedButNegligible)) {
+            v.push("resolved_but_negligible");
+        }
+        if any(|v| matches!(v, ThermalVerdict::NotResolvable { .. })) {
+            v.push("not_resolvable");
+        }
+        v
+    }
+}
+
+impl std::fmt::Display for Recommendation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&recommendation(
+            &self.axes,
+            self.range_k,
+            self.temp_range_c,
+            &self.options,
+        ))
+    }
+}
+
+/// `{"recommendation": sentence, "recommendation_codes": [code...]}`: use with
+/// `#[serde(flatten)]`.
+impl Serialize for Recommendation {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut s = serializer.serialize_struct("Recommendation", 2)?;
+        s.serialize_field("recommendation", &self.to_string())?;
+        s.serialize_field("recommendation_codes", &self.codes())?;
+        s.end()
+    }
+}
+
 /// The plain-language recommendation over `axes`, the temperature range `[tmin, tmax]` deg C
-/// (`range_k` K between the bins). Every sentence follows the per-axis verdicts.
-pub(super) fn recommendation(
+/// (`range_k` K between the bins): [`Recommendation`]'s words. Every sentence follows the
+/// per-axis verdicts.
+fn recommendation(
     axes: &[AxisThermal],
     range_k: f64,
     [tmin, tmax]: [f64; 2],

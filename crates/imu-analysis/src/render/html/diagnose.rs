@@ -432,7 +432,7 @@ fn candidate_row(c: &Candidate) -> Vec<Markup> {
         } else {
             text("no")
         },
-        text(&c.explanation),
+        text(c.explanation.to_string()),
     ]
 }
 
@@ -519,19 +519,23 @@ mod tests {
     use imu_model::{EffectKind, Triad};
 
     #[test]
-    fn the_separating_recording_is_escaped() {
+    fn an_ambiguity_names_the_recording_that_separates_the_pair() {
         let a = Ambiguity {
             triad: Triad::Gyro,
             effects: [EffectKind::GSensitivity, EffectKind::Scale],
             correlation: 0.95,
-            separating_recording: "<script>alert(1)</script> & a turn".into(),
+            separating_recording: crate::workbench::Separation::of(
+                EffectKind::GSensitivity,
+                EffectKind::Scale,
+            ),
         };
         let h = ambiguities(&[a]).into_string();
         assert_eq!(
             h,
             "<p>Ambiguous: g-sensitivity and scale explain the residual alike (pattern \
-             correlation 0.95); separate them with &lt;script&gt;alert(1)&lt;/script&gt; &amp; \
-             a turn.</p>"
+             correlation 0.95); separate them with more static orientations (each axis up and \
+             down, and at 45 degrees): the g-dependent bias follows the specific force, the other \
+             effect does not.</p>"
         );
     }
 }
