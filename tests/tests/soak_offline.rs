@@ -5,19 +5,27 @@
 //! device clock and a synthetic host clock), and nothing in it waits on the wall clock.
 //! Shared-memory publishing is not on this path (the real-time soak, `soak.rs`, covers it).
 //!
+//! The recording runs in a process of its own (`soak_offline_record`), so its resident memory
+//! is the recorder's alone; meanwhile this test reads back each rotated file as soon as the
+//! recorder has closed it, checks it and deletes it, so a day's 12 GB never sit on the disk at
+//! once: when two closed files wait for the read-back, the recording is paused (SIGSTOP, then
+//! SIGCONT once they are read; in scaled time the pipeline cannot tell), so at most three files
+//! are on the disk.
+//!
 //! `IMUD_SOAK_OFFLINE_S` seconds of scenario (600 by default: CI's short version; BENCHMARKS.md
 //! records the 24 h equivalent, 86,400 s). Checks: every sample of the truth (sample k at
 //! k ms of device time, k = 0..N-1) recorded exactly once, in order, none counted lost or
 //! dropped; resident memory flat after warm-up; every rotated file complete (summary, chunk
-//! index, statistics agreeing with a read of every record, by our reader and by Python `mcap`).
+//! index, statistics agreeing with a read of every record by our reader; Python `mcap` reads
+//! every file's summary and every message of the first and last file).
 
-use std::path::PathBuf;
-use std::process::Command;
+use std::io::Read;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use imu_bus::mcap_read::for_each_message;
-use imu_bus::recording::{RecordedMessage, for_each_record};
+use imu_bus::recording::{RecordedMessage, for_each_record, list_recordings};
 
 /// The simulated unit's rate.
 const RATE_HZ: f64 = 1000.0;
@@ -25,31 +33,52 @@ const RATE_HZ: f64 = 1000.0;
 /// reaching their working size); a leak of 8 bytes per sample would exceed it within 10 minutes
 /// of scenario time.
 const RSS_BOUND_KIB: u64 = 8192;
+/// The instance name, the recordings' file name prefix.
+const PREFIX: &str = "soak-offline";
+/// The recording is paused while this many files (the open one included) are on the disk.
+const MAX_FILES: usize = 3;
 
-fn rss_kib() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+fn rss_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
-/// Python `mcap` reads every file's summary (which fails without footer or summary) and chunk
-/// index, and every message of the first and last file through that index: the message count
-/// of each file (its statistics, or the messages read), or `None` when Python `mcap` is missing.
-fn python_counts(files: &[PathBuf]) -> Option<Vec<u64>> {
+/// Sends `signal` (`STOP`, `CONT`) to the recording process `pid`.
+fn signal(pid: u32, signal: &str) {
+    let status = Command::new("kill")
+        .arg(format!("-{signal}"))
+        .arg(pid.to_string())
+        .status()
+        .unwrap();
+    assert!(status.success(), "kill -{signal} {pid}: {status}");
+}
+
+/// Bytes of the files in `dir` now (a file deleted while listed counts nothing).
+fn disk_bytes(dir: &Path) -> u64 {
+    std::fs::read_dir(dir).map_or(0, |d| {
+        d.filter_map(|e| e.ok()?.metadata().ok())
+            .map(|m| m.len())
+            .sum()
+    })
+}
+
+/// Python `mcap` reads `file`'s summary (which fails without footer or summary) and chunk
+/// index, and with `whole` every message through that index: the file's message count (its
+/// statistics, or the messages read), or `None` when Python `mcap` is missing.
+fn python_count(file: &Path, whole: bool) -> Option<u64> {
     let script = "import sys\nfrom mcap.reader import make_reader\n\
-                  paths = sys.argv[1:]\n\
-                  for i, p in enumerate(paths):\n\
-                  \x20   with open(p, 'rb') as f:\n\
-                  \x20       r = make_reader(f)\n\
-                  \x20       s = r.get_summary()\n\
-                  \x20       assert s is not None and s.chunk_indexes, p + ': no summary or index'\n\
-                  \x20       whole = i == 0 or i == len(paths) - 1\n\
-                  \x20       n = sum(1 for _ in r.iter_messages()) if whole \
-                  else s.statistics.message_count\n\
-                  \x20       print(n)\n";
+                  p, whole = sys.argv[1], sys.argv[2] == 'whole'\n\
+                  with open(p, 'rb') as f:\n\
+                  \x20   r = make_reader(f)\n\
+                  \x20   s = r.get_summary()\n\
+                  \x20   assert s is not None and s.chunk_indexes, p + ': no summary or index'\n\
+                  \x20   print(sum(1 for _ in r.iter_messages()) if whole \
+                  else s.statistics.message_count)\n";
     let out = Command::new("python3")
         .args(["-c", script])
-        .args(files)
+        .arg(file)
+        .arg(if whole { "whole" } else { "summary" })
         .output()
         .ok()?;
     if !out.status.success() {
@@ -61,14 +90,95 @@ fn python_counts(files: &[PathBuf]) -> Option<Vec<u64>> {
             );
             return None;
         }
-        panic!("Python mcap: {err}");
+        panic!("Python mcap on {}: {err}", file.display());
     }
-    Some(
-        String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .map(|l| l.trim().parse().unwrap())
-            .collect(),
-    )
+    Some(String::from_utf8_lossy(&out.stdout).trim().parse().unwrap())
+}
+
+/// What the read-back has established so far, file by file in rotation order.
+#[derive(Debug, Default)]
+struct ReadBack {
+    /// The next sample expected (every one before it was recorded once, in order).
+    next_seq: u64,
+    /// Device time of sample 0, ns.
+    t0_device_ns: Option<u64>,
+    /// The most the daemon's status counted lost or dropped from the log.
+    lost: u64,
+    /// Each file read: its size and message count.
+    files: Vec<(u64, u64)>,
+    /// Files Python `mcap` read (0 when it is missing).
+    python_files: usize,
+}
+
+impl ReadBack {
+    /// Reads the closed file `f` with our reader (every record against the truth; its summary,
+    /// chunk index and statistics against that read) and Python `mcap` (every message when
+    /// `whole`), then deletes it.
+    fn check_and_delete(&mut self, f: &Path, whole: bool) {
+        let size = std::fs::metadata(f).unwrap().len();
+        let stats = {
+            let bytes = std::fs::read(f).unwrap();
+            let summary = mcap::Summary::read(&bytes)
+                .unwrap()
+                .unwrap_or_else(|| panic!("{}: no summary", f.display()));
+            assert!(
+                !summary.chunk_indexes.is_empty(),
+                "{}: no chunk index",
+                f.display()
+            );
+            summary.stats.expect("statistics")
+        };
+        let read = for_each_record(f, |m| match m {
+            RecordedMessage::Raw(r) => {
+                assert_eq!(
+                    r.seq,
+                    self.next_seq,
+                    "{}: samples recorded once, in order",
+                    f.display()
+                );
+                // The truth: sample k at k ms of the device's clock.
+                let t0 = *self.t0_device_ns.get_or_insert(r.t_device_ns);
+                // (within 1 us: the device clock is stamped from float seconds, rounded to ns;
+                // a missing or repeated sample is 1 ms off).
+                let off_ns = (r.t_device_ns - t0).abs_diff(r.seq * 1_000_000);
+                assert!(off_ns <= 1_000, "seq {}: {off_ns} ns off the truth", r.seq);
+                self.next_seq += 1;
+            }
+            RecordedMessage::Status { status, .. } => {
+                self.lost = self.lost.max(status.samples_lost + status.log_drops);
+            }
+            _ => {}
+        })
+        .unwrap();
+        assert!(
+            read.unfinished.is_none() && read.stopped_early.is_none(),
+            "{}: {read:?}",
+            f.display()
+        );
+        assert_eq!(stats.message_count, read.n_messages, "{}", f.display());
+        if let Some(n) = python_count(f, whole || self.files.is_empty()) {
+            assert_eq!(
+                n,
+                stats.message_count,
+                "{}: Python mcap's count",
+                f.display()
+            );
+            self.python_files += 1;
+        }
+        self.files.push((size, stats.message_count));
+        std::fs::remove_file(f).unwrap();
+    }
+}
+
+/// The recording process, killed if the test ends before it does (a failed check must not
+/// leave it filling the disk).
+struct Recording(Child);
+
+impl Drop for Recording {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }
 
 #[test]
@@ -80,6 +190,7 @@ fn a_scaled_day_at_1_khz_loses_nothing_keeps_its_memory_and_rotates_intact_files
     let n_samples = soak_s * RATE_HZ as u64;
     let tmp = tempfile::tempdir().unwrap();
     let logs = tmp.path().join("logs");
+    std::fs::create_dir_all(&logs).unwrap();
     // Rest and motion (random poses: 20 s still, 4 s moving) so the health monitor has still
     // windows to judge all day.
     let scenario = tmp.path().join("soak.toml");
@@ -92,37 +203,108 @@ fn a_scaled_day_at_1_khz_loses_nothing_keeps_its_memory_and_rotates_intact_files
         ),
     )
     .unwrap();
-    let sim = imu_sim::SimOptions::from_files(&scenario, None).unwrap();
     // A sample is about 1 KiB of records before compression (rotation counts the open chunk
     // uncompressed): about a dozen files at the short length, one every 9 minutes of the day.
     let rotate_mib = (soak_s / 12).clamp(8, 512);
-    let config = imud::config::Config::from_toml_str(
-        &format!(
-            "name = \"soak-offline\"\n[log]\ndir = \"{}\"\nrotate-size-mib = {rotate_mib}\n\
-         [health]\nenabled = true\n",
+    let config = tmp.path().join("soak-offline.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "name = \"{PREFIX}\"\n[log]\ndir = \"{}\"\nrotate-size-mib = {rotate_mib}\n\
+             [health]\nenabled = true\n",
             logs.display()
         ),
-        "soak-offline.toml",
     )
     .unwrap();
 
-    // Resident memory, sampled every second of the run (the channel's timeout is the tick).
-    let (stop, ticks) = mpsc::channel::<()>();
-    let sampler = std::thread::spawn(move || {
-        let start = Instant::now();
-        let mut rss = Vec::new();
-        while let Err(mpsc::RecvTimeoutError::Timeout) = ticks.recv_timeout(Duration::from_secs(1))
-        {
-            rss.push((start.elapsed().as_secs_f64(), rss_kib().unwrap_or(0)));
+    // The read-back: every file but the newest is closed (the recorder finishes a file before
+    // it opens the next); once the recording has ended, the newest is too.
+    let (ended, recording_ended) = mpsc::channel::<()>();
+    let (checker_alive, checker_gone) = mpsc::channel::<()>();
+    let checker_logs = logs.clone();
+    let checker = std::thread::spawn(move || {
+        let _alive = checker_alive;
+        let mut read_back = ReadBack::default();
+        loop {
+            let finished = !matches!(
+                recording_ended.recv_timeout(Duration::from_millis(500)),
+                Err(mpsc::RecvTimeoutError::Timeout)
+            );
+            let files = list_recordings(&checker_logs, PREFIX).unwrap();
+            let closed = if finished {
+                files.len()
+            } else {
+                files.len().saturating_sub(1)
+            };
+            for (i, f) in files[..closed].iter().enumerate() {
+                read_back.check_and_delete(f, finished && i + 1 == closed);
+            }
+            if finished {
+                return read_back;
+            }
         }
-        rss
     });
+
     let started = Instant::now();
-    let report = imud::offline::record(sim, &config).unwrap();
+    let mut recording = Recording(
+        Command::new(env!("CARGO_BIN_EXE_soak_offline_record"))
+            .arg(&scenario)
+            .arg(&config)
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let pid = recording.0.id();
+    // Resident memory and disk use, sampled every second of the run (the checker's channel's
+    // timeout is the tick; it closes early only if a check failed).
+    let (mut rss, mut peak_disk) = (Vec::new(), 0u64);
+    let (mut paused_since, mut paused_s) = (None::<Instant>, 0.0);
+    let status = loop {
+        if let Some(status) = recording.0.try_wait().unwrap() {
+            break status;
+        }
+        if let Some(kib) = rss_kib(pid) {
+            rss.push((started.elapsed().as_secs_f64(), kib));
+        }
+        peak_disk = peak_disk.max(disk_bytes(&logs));
+        let on_disk = list_recordings(&logs, PREFIX).unwrap().len();
+        match paused_since {
+            None if on_disk >= MAX_FILES => {
+                signal(pid, "STOP");
+                paused_since = Some(Instant::now());
+            }
+            Some(t) if on_disk < MAX_FILES => {
+                signal(pid, "CONT");
+                paused_s += t.elapsed().as_secs_f64();
+                paused_since = None;
+            }
+            _ => {}
+        }
+        if !matches!(
+            checker_gone.recv_timeout(Duration::from_secs(1)),
+            Err(mpsc::RecvTimeoutError::Timeout)
+        ) {
+            // A check failed: stop the recording and report the failure.
+            drop(recording);
+            std::panic::resume_unwind(checker.join().unwrap_err());
+        }
+    };
     let run_s = started.elapsed().as_secs_f64();
-    drop(stop);
-    let rss = sampler.join().unwrap();
-    assert_eq!(report.samples, n_samples);
+    let mut out = String::new();
+    recording
+        .0
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    assert!(status.success(), "the recording failed: {status}");
+    assert_eq!(out.trim(), format!("samples {n_samples}"));
+    drop(ended);
+    let read_back = checker
+        .join()
+        .unwrap_or_else(|e| std::panic::resume_unwind(e));
+    let checked_s = started.elapsed().as_secs_f64();
 
     // Flat after warm-up (the first quarter of the run).
     let after: Vec<u64> = rss
@@ -141,67 +323,35 @@ fn a_scaled_day_at_1_khz_loses_nothing_keeps_its_memory_and_rotates_intact_files
     );
 
     // Every file complete; together every sample of the truth once, in order.
-    let files: Vec<PathBuf> = report.files.clone();
-    assert!(files.len() >= 2, "no rotation: {files:?}");
-    let (mut next_seq, mut t0_device_ns) = (0u64, None::<u64>);
-    let mut lost = 0;
-    let mut counts = Vec::new();
-    for f in &files {
-        let bytes = std::fs::read(f).unwrap();
-        let summary = mcap::Summary::read(&bytes)
-            .unwrap()
-            .unwrap_or_else(|| panic!("{}: no summary", f.display()));
-        assert!(
-            !summary.chunk_indexes.is_empty(),
-            "{}: no chunk index",
-            f.display()
-        );
-        let stats = summary.stats.expect("statistics");
-        drop(bytes);
-        let read = for_each_record(f, |m| match m {
-            RecordedMessage::Raw(r) => {
-                assert_eq!(
-                    r.seq,
-                    next_seq,
-                    "{}: samples recorded once, in order",
-                    f.display()
-                );
-                // The truth: sample k at k ms of the device's clock.
-                let t0 = *t0_device_ns.get_or_insert(r.t_device_ns);
-                // (within 1 us: the device clock is stamped from float seconds, rounded to ns;
-                // a missing or repeated sample is 1 ms off).
-                let off_ns = (r.t_device_ns - t0).abs_diff(r.seq * 1_000_000);
-                assert!(off_ns <= 1_000, "seq {}: {off_ns} ns off the truth", r.seq);
-                next_seq += 1;
-            }
-            RecordedMessage::Status { status, .. } => {
-                lost = lost.max(status.samples_lost + status.log_drops);
-            }
-            _ => {}
-        })
-        .unwrap();
-        assert!(read.unfinished.is_none(), "{}: {read:?}", f.display());
-        let all = for_each_message(f, |_, _, _| Ok(())).unwrap();
-        assert_eq!(stats.message_count, all.n_messages, "{}", f.display());
-        counts.push(stats.message_count);
-    }
-    let python = python_counts(&files);
-    if let Some(p) = &python {
-        assert_eq!(p, &counts, "Python mcap's message counts");
-    }
-    assert_eq!(next_seq, n_samples, "every sample of the truth recorded");
+    assert!(read_back.files.len() >= 2, "no rotation: {read_back:?}");
     assert_eq!(
-        lost, 0,
+        read_back.next_seq, n_samples,
+        "every sample of the truth recorded"
+    );
+    assert_eq!(
+        read_back.lost, 0,
         "the daemon's status counted samples lost or log drops"
     );
+    let total_bytes: u64 = read_back.files.iter().map(|f| f.0).sum();
+    // RSS every tenth of the run, for the record.
+    let step = (rss.len() / 10).max(1);
+    let timeline: Vec<String> = rss
+        .iter()
+        .step_by(step)
+        .map(|(t, kib)| format!("{t:.0} s: {:.1}", *kib as f64 / 1024.0))
+        .collect();
     eprintln!(
-        "offline soak: {soak_s} s of scenario ({n_samples} samples at 1 kHz) in {run_s:.0} s, \
-         {} files (read by Python mcap: {}), RSS {:?} -> {:?} KiB (spread {spread:?} \
-         KiB after {:.0} s)",
-        files.len(),
-        python.is_some(),
-        rss.first().map(|r| r.1),
-        rss.last().map(|r| r.1),
+        "offline soak: {soak_s} s of scenario ({n_samples} samples at 1 kHz) recorded in \
+         {run_s:.0} s (paused {paused_s:.0} s for the read-back), all read back by \
+         {checked_s:.0} s; {} files, {:.2} GB, {} messages \
+         (Python mcap read {} of them); peak disk {:.2} GB; recorder RSS (MiB) {}; spread \
+         {spread:?} KiB after {:.0} s",
+        read_back.files.len(),
+        total_bytes as f64 / 1e9,
+        read_back.files.iter().map(|f| f.1).sum::<u64>(),
+        read_back.python_files,
+        peak_disk as f64 / 1e9,
+        timeline.join(", "),
         run_s / 4.0
     );
 }
