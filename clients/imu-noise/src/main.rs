@@ -48,7 +48,7 @@ struct Cli {
     /// Deviations to compute, comma-separated: adev, oadev, mdev, hdev, ohdev, tdev, totdev,
     /// theo1, theoh. Theo1 reaches averaging times to 75 % of the record (tau = 0.75 m tau0);
     /// TheoH is OADEV to 10 % of it and bias-removed Theo1 beyond. Both read --taus as averaging
-    /// times. Theo1 costs O(N m) per tau, TheoH's bias ratio O(N^3/900) (seconds at 20k samples).
+    /// times. Theo1 costs O(N m) per tau, TheoH's bias ratio O(N^2/7.5) (see BENCHMARKS.md).
     #[arg(long, value_delimiter = ',', default_value = "oadev")]
     kind: Vec<Kind>,
     /// Two-sided confidence level of the bounds (0.683 is "1 sigma", Stable32's default).

@@ -34,6 +34,7 @@ mod passes;
 mod streaming;
 mod taus;
 mod theo;
+mod theo_lags;
 
 use serde::Serialize;
 use thiserror::Error;
@@ -526,8 +527,12 @@ fn theo_points(
             } else {
                 deviation_points(Kind::Oadev, x, tau0_s, &below)
             };
-            let ratio = theo::theo_br_ratio(x, |m| {
-                variance_at(Kind::Oadev, x, m, 1.0).map_or(f64::NAN, |v| v.0)
+            let ratio = theo::theo_br_ratio(x, |ms| {
+                oadev_sums(x, ms)
+                    .into_iter()
+                    .zip(ms)
+                    .map(|(sum, &m)| variance_from_sum(Kind::Oadev, x, m, sum, 1.0).0)
+                    .collect()
             })
             .ok_or(AllanError::TooShort {
                 n_samples: n - 1,
