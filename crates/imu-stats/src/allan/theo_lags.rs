@@ -14,6 +14,10 @@
 //! any m whose bound exceeds 1e-13 of its sum is summed directly instead (the small m, cheap to
 //! sum directly, are the ones that can fail it). Results therefore equal the direct double sum
 //! to about 1e-13 relative.
+//!
+//! The double-double arithmetic is written here rather than taken from a crate (`twofloat`):
+//! only the error-free sum and product are needed, inlined into the lag passes' lanes, and the
+//! product must be Dekker's (no FMA on the baseline x86-64 target) to be the same on every CPU.
 
 /// Lags per pass: one pass reads `x` once for this many lags (independent accumulator lanes, so
 /// the double-double additions' dependency chains overlap).
