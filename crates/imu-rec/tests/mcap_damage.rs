@@ -267,3 +267,21 @@ fn an_attachment_too_short_for_its_crc_is_damage_not_a_panic() {
     assert_eq!(repaired.n_messages, 3, "{repaired:?}");
     assert!(repaired.reason.contains("undecodable"), "{repaired:?}");
 }
+
+#[test]
+fn a_chunk_claiming_more_than_the_record_limit_uncompressed_is_damage() {
+    // The uncompressed size bounds decompression: a damaged one is refused before any of the
+    // chunk is expanded.
+    let mut file = mcap::MAGIC.to_vec();
+    file.extend_from_slice(&header());
+    file.extend_from_slice(&chunk(&records(3), Compression::Zstd, None));
+    let mut second = chunk(&[3, 4].map(message).concat(), Compression::Zstd, None);
+    // The uncompressed size follows the record prefix (9 bytes) and two u64 times.
+    second[9 + 16..9 + 24].copy_from_slice(&(1u64 << 40).to_le_bytes());
+    file.extend_from_slice(&second);
+    finish(&mut file);
+    let (seqs, report) = read(&file);
+    assert_eq!(seqs, [0, 1, 2]);
+    let reason = report.stopped_early.expect("the damage is named");
+    assert!(reason.contains("uncompressed bytes"), "{reason}");
+}

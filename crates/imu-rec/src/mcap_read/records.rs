@@ -259,6 +259,17 @@ impl<R: Read> RecordStream<R> {
             }
         };
         let remaining = header.uncompressed_size;
+        if remaining > RECORD_LENGTH_LIMIT {
+            // Decompression is bounded by this size: a damaged one must not let a small chunk
+            // expand without limit.
+            return Ok(stop(
+                format!(
+                    "damaged chunk at byte {at}: it claims {remaining} uncompressed bytes (limit \
+                     {RECORD_LENGTH_LIMIT})"
+                ),
+                false,
+            ));
+        }
         let content = if cut || header.uncompressed_crc == 0 {
             // A chunk cut by the file's end (its CRC cannot be checked) or written without a CRC:
             // its records are streamed, every one before the cut delivered.
