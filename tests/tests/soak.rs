@@ -14,6 +14,7 @@ use imu_bus::RawSample;
 use imu_bus::mcap_read::for_each_message;
 use imu_bus::recording::read_recording;
 use imu_bus::shm::Subscription;
+use imud_e2e::{rss_kib, summary_with_chunk_index};
 
 /// The simulated unit's rate.
 const RATE_HZ: f64 = 1000.0;
@@ -31,12 +32,6 @@ fn imud() -> PathBuf {
         path.display()
     );
     path
-}
-
-fn rss_kib(pid: u32) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 struct Daemon(Child);
@@ -250,15 +245,7 @@ fn imud_at_1_khz_loses_nothing_keeps_its_memory_and_rotates_intact_files() {
     );
     let mut seqs = Vec::new();
     for f in &files {
-        let bytes = std::fs::read(f).unwrap();
-        let summary = mcap::Summary::read(&bytes)
-            .unwrap()
-            .unwrap_or_else(|| panic!("{}: no summary", f.display()));
-        assert!(
-            !summary.chunk_indexes.is_empty(),
-            "{}: no chunk index",
-            f.display()
-        );
+        let summary = summary_with_chunk_index(f);
         let report = for_each_message(f, |_, _, _| Ok(())).unwrap();
         assert!(report.unfinished.is_none(), "{}: {report:?}", f.display());
         let stats = summary.stats.expect("statistics");

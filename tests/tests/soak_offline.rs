@@ -26,6 +26,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use imu_bus::recording::{RecordedMessage, for_each_record, list_recordings};
+use imud_e2e::{rss_kib, summary_with_chunk_index};
 
 /// The simulated unit's rate.
 const RATE_HZ: f64 = 1000.0;
@@ -37,12 +38,6 @@ const RSS_BOUND_KIB: u64 = 8192;
 const PREFIX: &str = "soak-offline";
 /// The recording is paused while this many files (the open one included) are on the disk.
 const MAX_FILES: usize = 3;
-
-fn rss_kib(pid: u32) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
 
 /// Sends `signal` (`STOP`, `CONT`) to the recording process `pid`.
 fn signal(pid: u32, signal: &str) {
@@ -116,18 +111,7 @@ impl ReadBack {
     /// `whole`), then deletes it.
     fn check_and_delete(&mut self, f: &Path, whole: bool) {
         let size = std::fs::metadata(f).unwrap().len();
-        let stats = {
-            let bytes = std::fs::read(f).unwrap();
-            let summary = mcap::Summary::read(&bytes)
-                .unwrap()
-                .unwrap_or_else(|| panic!("{}: no summary", f.display()));
-            assert!(
-                !summary.chunk_indexes.is_empty(),
-                "{}: no chunk index",
-                f.display()
-            );
-            summary.stats.expect("statistics")
-        };
+        let stats = summary_with_chunk_index(f).stats.expect("statistics");
         let read = for_each_record(f, |m| match m {
             RecordedMessage::Raw(r) => {
                 assert_eq!(
