@@ -19,7 +19,8 @@ pub const IN_MEMORY: &str = "<memory>";
 /// Iteration budget of the accel/gyro coupling solve in [`Calibration::correct`].
 pub const MAX_COUPLING_ITERATIONS: usize = 20;
 
-/// Relative change below which the coupling solve counts as converged.
+/// Relative change below which the coupling solve counts as converged: relative to the larger
+/// of the iterate and the measurement it is computed from.
 pub const COUPLING_TOLERANCE: f64 = 1e-13;
 
 /// Where a calibration came from. Every field is optional so hand-written truth files stay short.
@@ -352,7 +353,7 @@ impl Calibration {
     /// The general inverse, for any calibration (what [`Calibration::correct`] does for a model
     /// the prepared inverse does not cover): each triad's effect chain undone stage by stage, the
     /// accel/gyro coupling solved by fixed-point iteration until both change by less than 1e-13
-    /// relative, at most [`MAX_COUPLING_ITERATIONS`] rounds (`converged` reports the outcome).
+    /// relative (to the larger of the iterate and its measurement), at most [`MAX_COUPLING_ITERATIONS`] rounds (`converged` reports the outcome).
     /// Without lever arm or g-sensitivity one round suffices.
     pub fn correct_iterative(
         &self,
@@ -396,7 +397,8 @@ impl Calibration {
             };
             c.specific_force_m_s2 = accel_next;
             let gyro_next = self.gyro.inverse(m.gyro_rad_s, &c);
-            let settled = small_change(accel_next, accel) && small_change(gyro_next, gyro);
+            let settled = small_change(accel_next, accel, m.accel_m_s2.amax())
+                && small_change(gyro_next, gyro, m.gyro_rad_s.amax());
             accel = accel_next;
             gyro = gyro_next;
             if !coupled || (round > 0 && settled) {
@@ -414,12 +416,17 @@ impl Calibration {
     }
 }
 
-/// max|next - prev| <= tol * max|next| (component-wise maxima: a Euclidean norm would overflow
-/// to inf on a diverging iteration and make inf <= inf look converged), with a tiny absolute
-/// floor so that zero vectors converge.
-pub(crate) fn small_change(next: Vec3, prev: Vec3) -> bool {
+/// max|next - prev| <= tol * max(max|next|, `measured_scale`) (component-wise maxima: a
+/// Euclidean norm would overflow to inf on a diverging iteration and make inf <= inf look
+/// converged), with a tiny absolute floor so that zero vectors converge.
+///
+/// `measured_scale` is the largest component of the measured vector the iterate is computed
+/// from. A corrected component near zero is the difference of terms as large as the
+/// measurement, so it carries rounding of that size and may alternate by an ulp of the
+/// measurement forever; relative to the tiny result alone such an iterate would never settle.
+pub(crate) fn small_change(next: Vec3, prev: Vec3, measured_scale: f64) -> bool {
     let d = (next - prev).amax();
-    d.is_finite() && d <= COUPLING_TOLERANCE * next.amax().max(1e-9)
+    d.is_finite() && d <= COUPLING_TOLERANCE * next.amax().max(measured_scale).max(1e-9)
 }
 
 /// FNV-1a, 64 bit.

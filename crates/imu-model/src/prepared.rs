@@ -323,8 +323,8 @@ impl PreparedInverse {
             None => {
                 c.specific_force_m_s2 = accel_partial;
                 let gyro = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, &c);
-                let settled =
-                    small_change(accel_partial, accel_partial) && small_change(gyro, gyro);
+                let settled = small_change(accel_partial, accel_partial, 0.0)
+                    && small_change(gyro, gyro, 0.0);
                 (accel_partial, gyro, !g_sensitivity || settled)
             }
             // The rate does not depend on the specific force: one pass.
@@ -335,7 +335,7 @@ impl PreparedInverse {
                 (
                     accel,
                     gyro,
-                    small_change(accel, accel) && small_change(gyro, gyro),
+                    small_change(accel, accel, 0.0) && small_change(gyro, gyro, 0.0),
                 )
             }
             Some(lever) => self.iterate(m, accel_partial, lever, &mut c),
@@ -367,7 +367,8 @@ impl PreparedInverse {
             let accel_next = accel_partial - lever.term_m_s2(c);
             c.specific_force_m_s2 = accel_next;
             let gyro_next = self.gyro.undo_offsets_and_gain(m.gyro_rad_s, c);
-            let settled = small_change(accel_next, accel) && small_change(gyro_next, gyro);
+            let settled = small_change(accel_next, accel, m.accel_m_s2.amax())
+                && small_change(gyro_next, gyro, m.gyro_rad_s.amax());
             accel = accel_next;
             gyro = gyro_next;
             if round > 0 && settled {
