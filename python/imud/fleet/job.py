@@ -254,6 +254,6 @@ def _noise(rec: Any, check: Any, options: JobOptions, row: Dict[str, Any]) -> No
         for a in schema.AXES:
             fit = res.axis(t_name, a).fit
             for stem, key, _ in schema.NOISE_TERMS:
-                term = fit.get(key)
-                value = term.get("value") if isinstance(term, dict) else term
-                row[schema.noise(t_name, stem, a)] = _f(value)
+                term = fit.get(key) or {}
+                row[schema.noise(t_name, stem, a)] = _f(term.get("value"))
+                row[schema.noise_std(t_name, stem, a)] = _f(term.get("sigma"))

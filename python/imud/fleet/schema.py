@@ -79,6 +79,14 @@ def noise(triad: str, term: str, axis: str) -> str:
     raise KeyError(f"no noise term {term!r}; terms: {[t[0] for t in NOISE_TERMS]}")
 
 
+def noise_std(triad: str, term: str, axis: str) -> str:
+    """The noise fit's standard uncertainty of that term, same unit."""
+    for stem, _, suffix in NOISE_TERMS:
+        if stem == term:
+            return f"{triad}_{stem}_std_{axis}_{_unit(triad)}{suffix}"
+    raise KeyError(f"no noise term {term!r}; terms: {[t[0] for t in NOISE_TERMS]}")
+
+
 def _unit(triad: str) -> str:
     return dict(TRIADS)[triad]
 
@@ -122,6 +130,8 @@ def _recording_fields() -> List[pa.Field]:
         for stem, _, _ in NOISE_TERMS:
             for a in AXES:
                 out.append(f(noise(t, stem, a), pa.float64()))
+            for a in AXES:
+                out.append(f(noise_std(t, stem, a), pa.float64()))
     out += [f(c, pa.float64()) for c in TIMING_COLUMNS]
     return out
 

@@ -7,7 +7,8 @@ truth at day 0, written once (``calibrations/UNIT.toml``) and given to every rec
 (``imud --calibration``). Each recording is a few minutes at 100 Hz made by imud's offline
 pipeline (``imud --sim SCEN --offline``), dated by the scenario's UTC of time 0 (``[device]
 gnss-epoch-utc-s``): a rest, rests in random orientations with moves between them, and in every
-other recording one long rest (noise terms). Its truth model is the unit's with biases =
+other recording one long rest (noise terms); the second and fourth lose replies on the link
+(``[[dropout]]``: samples missing, counted by the reader). Its truth model is the unit's with biases =
 base + a turn-on jitter (seeded, each power-up) + drift x days for the drifting units: one
 with an accelerometer bias drift, one with a gyro bias drift, alternately.
 
@@ -95,14 +96,31 @@ def _base(text: str, triad: str) -> np.ndarray:
     return np.array([float(x) for x in m[1].split(",")])
 
 
+#: The scenario of an ordinary recording: a rest, rests in random orientations with moves
+#: between them (s), and in every other recording one long rest for the noise terms.
+FIRST_REST_S, POSES, DWELL_S, MOVE_S, LONG_REST_S = 10.0, 6, 15.0, 2.0, 70.0
+
+
+def _duration_s(long_rest: bool) -> float:
+    return FIRST_REST_S + POSES * (DWELL_S + MOVE_S) + (LONG_REST_S if long_rest else 0.0)
+
+
 def _scenario(
-    name: str, truth: Path, serial: int, epoch_utc_s: float, long_rest: bool, motion_only: bool
+    name: str,
+    truth: Path,
+    serial: int,
+    epoch_utc_s: float,
+    long_rest: bool,
+    motion_only: bool,
+    dropouts: List[tuple],
 ) -> str:
     head = (
         f'name = "{name}"\nrate-hz = {RATE_HZ}\nlatitude-deg = {LATITUDE_DEG}\n'
         f'truth = "{truth}"\n\n[device]\nserial-number = {serial}\n'
         f"gnss-epoch-utc-s = {epoch_utc_s:.1f}\n"
     )
+    for at_s, dur_s in dropouts:
+        head += f"\n[[dropout]]\nat-s = {at_s}\nduration-s = {dur_s}\n"
     if motion_only:
         # Turns about alternating axes with no rest between them: nothing is still.
         turns = "".join(
@@ -112,12 +130,18 @@ def _scenario(
         )
         return head + turns
     segs = (
-        '\n[[segment]]\nkind = "static"\nduration-s = 10.0\n'
-        '\n[[segment]]\nkind = "random-poses"\ncount = 6\ndwell-s = 15.0\nmove-s = 2.0\n'
+        f'\n[[segment]]\nkind = "static"\nduration-s = {FIRST_REST_S}\n'
+        f'\n[[segment]]\nkind = "random-poses"\ncount = {POSES}\ndwell-s = {DWELL_S}\n'
+        f"move-s = {MOVE_S}\n"
     )
     if long_rest:
-        segs += '\n[[segment]]\nkind = "static"\nduration-s = 70.0\n'
+        segs += f'\n[[segment]]\nkind = "static"\nduration-s = {LONG_REST_S}\n'
     return head + segs
+
+
+#: Dropouts (replies lost on the link: at s, for s) of the second and fourth recording of
+#: each unit: 50 samples, then 30 and 100.
+DROPOUTS = {1: [(30.0, 0.5)], 3: [(40.0, 0.3), (80.0, 1.0)]}
 
 
 def _run_imud(imud: str, scen: Path, cal: Path, seed: int, name: str, log: Path) -> Path:
@@ -145,6 +169,7 @@ def simulate(
     seed: int = 1,
     jobs: Optional[int] = None,
     model: Optional[os.PathLike] = None,
+    dropouts: bool = True,
 ) -> dict:
     """Writes the fleet (see the module's doc) and returns ``truth.json``'s document."""
     if units < 1 or recordings < 2 or drifting > units or months <= 0:
@@ -193,7 +218,8 @@ def simulate(
                 (accel if drift[0] == "accel" else gyro)[drift[1]] += drift[2] * day
             jobs_list.append(
                 dict(unit=unit, serial=serial, j=j, day=day, accel=accel, gyro=gyro,
-                     cal=cal_path, long_rest=j % 2 == 0, motion_only=False)
+                     cal=cal_path, long_rest=j % 2 == 0, motion_only=False,
+                     dropouts=DROPOUTS.get(j, []) if dropouts else [])
             )
         doc["units"][str(serial)] = unit
     # The messy ones: an all-motion recording of the first unit that does not drift, mid-span;
@@ -205,7 +231,7 @@ def simulate(
         dict(unit=mu, serial=FIRST_SERIAL + motion_unit, j=recordings, day=span_days / 2,
              accel=np.array(mu["base"]["accel_bias_m_s2"]),
              gyro=np.array(mu["base"]["gyro_bias_rad_s"]),
-             cal=Path(mu["calibration"]), long_rest=False, motion_only=True)
+             cal=Path(mu["calibration"]), long_rest=False, motion_only=True, dropouts=[])
     )
     cut_unit = steady[1] if len(steady) > 1 else motion_unit
     for k, job in enumerate(jobs_list):
@@ -219,7 +245,8 @@ def simulate(
         scen = truth_dir / f"{name}.toml"
         epoch = EPOCH_UTC_S + job["day"] * 86_400.0
         scen.write_text(
-            _scenario(name, truth, job["serial"], epoch, job["long_rest"], job["motion_only"])
+            _scenario(name, truth, job["serial"], epoch, job["long_rest"], job["motion_only"],
+                      job["dropouts"])
         )
         log = truth_dir / name
         path = _run_imud(imud, scen, job["cal"], job["seed"], name, log)
@@ -237,6 +264,12 @@ def simulate(
             "accel_bias_m_s2": job["accel"].tolist(),
             "gyro_bias_rad_s": job["gyro"].tolist(),
             "motion_only": job["motion_only"],
+            "dropouts": [list(d) for d in job["dropouts"]],
+            # Samples the simulated unit made (the truth's): a recording without losses has
+            # all of them.
+            "nominal_samples": None
+            if job["motion_only"]
+            else int(round(_duration_s(job["long_rest"]) * RATE_HZ)),
             "truncated": False,
         }
 
@@ -269,13 +302,14 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument("--imud", default=shutil.which("imud") or "imud", help="the imud binary")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--jobs", type=int, help="imud processes at once (default: CPUs)")
+    p.add_argument("--no-dropouts", action="store_true", help="no lost replies")
     p.add_argument("--model", help="the units' error model (default: the workspace's "
                    "config/models/example-3dm-gx1.toml)")
     a = p.parse_args(argv)
     doc = simulate(
         a.outdir, units=a.units, recordings=a.recordings, months=a.months, drifting=a.drifting,
         imud=a.imud, seed=a.seed, jobs=a.jobs,
-        model=a.model,
+        model=a.model, dropouts=not a.no_dropouts,
     )
     n = sum(len(u["recordings"]) for u in doc["units"].values())
     print(f"{n} recordings of {len(doc['units'])} units in {Path(a.outdir) / 'recordings'}")
