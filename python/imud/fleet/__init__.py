@@ -117,9 +117,5 @@ def analyze(
     rows = run(specs, options, engine=engine, ray_address=ray_address)
     table = schema.recordings_table(rows)
     tol = tolerances if tolerances is not None else Tolerances()
-    units = drift.analyze_units(table, tol, alpha=alpha, now_utc=now_utc)
-    try:
-        units = schema.conform(units, schema.UNITS)
-    except (ValueError, pa.ArrowInvalid, pa.ArrowNotImplementedError):
-        pass  # the drift module's own columns, kept as it made them
+    units = schema.conform(drift.analyze_units(table, tol, alpha=alpha, now_utc=now_utc), schema.UNITS)
     return FleetResult(recordings=table, units=units, flagged=drift.flagged_units(units))

@@ -150,8 +150,8 @@ RECORDINGS = pa.schema(_recording_fields(), metadata=_metadata("recordings"))
 
 UNITS = pa.schema(
     [
-        pa.field("unit", pa.string(), nullable=False),
-        pa.field("parameter", pa.string(), nullable=False),
+        pa.field("unit", pa.string()),
+        pa.field("parameter", pa.string()),
         pa.field("quantity_unit", pa.string()),
         pa.field("n", pa.int32()),
         pa.field("first_utc", UTC),
@@ -185,12 +185,19 @@ def recordings_table(rows: List[dict]) -> pa.Table:
 
 
 def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
-    """``table`` with ``schema``'s columns in its order, cast to its types, and its metadata.
-    Raises ValueError naming the columns missing."""
-    missing = [n for n in schema.names if n not in table.column_names]
-    if missing:
-        raise ValueError(f"the table lacks the schema's columns {missing}")
-    return table.select(schema.names).cast(schema)
+    """``table`` checked against ``schema`` (same column names, order and types; ValueError
+    naming the differences otherwise), with the schema's metadata added to its own (the drift
+    test's parameters stay)."""
+    got = [(f.name, f.type) for f in table.schema]
+    want = [(f.name, f.type) for f in schema]
+    if got != want:
+        raise ValueError(
+            f"the table's columns differ from schema version {SCHEMA_VERSION}'s: missing "
+            f"{[w for w in want if w not in got]}, unexpected {[g for g in got if g not in want]}"
+        )
+    meta = dict(table.schema.metadata or {})
+    meta.update(schema.metadata or {})
+    return table.replace_schema_metadata(meta)
 
 
 def without_timings(table: pa.Table) -> pa.Table:
