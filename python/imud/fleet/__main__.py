@@ -77,9 +77,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     rec = result.recordings
-    errors = rec.column("error").null_count
+    with_evidence = rec.column("error").null_count
     print(
-        f"{rec.num_rows} recordings ({rec.num_rows - errors} with evidence), "
+        f"{rec.num_rows} recordings ({with_evidence} with evidence), "
         f"{len(set(rec.column('unit').to_pylist()) - {None})} units; "
         f"to recalibrate: {', '.join(result.flagged) if result.flagged else 'none'}"
     )
