@@ -50,6 +50,8 @@ __all__ = [
     "DriftFit",
     "fit_drift",
     "unit_points",
+    "spec_of",
+    "display_scale",
     "analyze_units",
     "flagged_units",
     "UNITS_SCHEMA",
@@ -313,14 +315,16 @@ class _Columns:
         return rows[np.argsort(self.start_ns[rows], kind="stable")]
 
     def points(self, rows: np.ndarray, spec: ParameterSpec):
-        """(start_ns, value, std) of the rows that carry evidence on ``spec``."""
+        """(start_ns, value, std, calibration in force) of the rows that carry evidence on ``spec``."""
         if spec.value_column not in self.columns or spec.std_column not in self.columns:
             empty = np.zeros(0)
-            return np.zeros(0, dtype=np.int64), empty, empty
+            return np.zeros(0, dtype=np.int64), empty, empty, empty
         v = self.columns[spec.value_column][rows]
         s = self.columns[spec.std_column][rows]
         keep = self.ok[rows] & np.isfinite(v) & np.isfinite(s) & (s > 0)
-        return self.start_ns[rows][keep], v[keep], s[keep]
+        cal = self.columns.get(spec.cal_column)
+        cal = np.full(rows.size, spec.default_calibration) if cal is None else cal[rows]
+        return self.start_ns[rows][keep], v[keep], s[keep], cal[keep]
 
     def calibration(self, rows: np.ndarray, spec: ParameterSpec) -> float:
         """The calibration in force at the unit's latest recording that says which one it had."""
@@ -339,18 +343,16 @@ def _float_column(column: pa.ChunkedArray) -> np.ndarray:
 
 
 def unit_points(recordings: pa.Table, unit: str, parameter: str):
-    """One unit's evidence on one parameter: (start_ns int64, value, std) in date order, the rows
-    :func:`analyze_units` fits (no error, finite value, positive finite std)."""
+    """One unit's evidence on one parameter in date order, the rows :func:`analyze_units` fits (no
+    error, finite value, positive finite std): (start_ns int64, value, std, calibration in force,
+    NaN where a recording does not say)."""
     cols = _Columns(recordings)
     return cols.points(cols.rows_of(unit), _SPEC_BY_NAME[parameter])
 
 
-def fit_unit_parameter(recordings: pa.Table, unit: str, parameter: str) -> Optional[DriftFit]:
-    """The drift fit :func:`analyze_units` makes for ``unit`` x ``parameter`` (None: too few points)."""
-    start_ns, v, s = unit_points(recordings, unit, parameter)
-    if v.size < 3 or np.ptp(start_ns) <= 0:
-        return None
-    return fit_drift(start_ns / _NS_PER_DAY, v, s)
+def spec_of(parameter: str) -> ParameterSpec:
+    """The :class:`ParameterSpec` of a parameter name of the units table."""
+    return _SPEC_BY_NAME[parameter]
 
 
 UNITS_SCHEMA = pa.schema(
@@ -386,6 +388,13 @@ _DISPLAY = {"m/s^2": (1.0, "m/s^2"), "rad/s": (180.0 / math.pi, "deg/s"), "1": (
 def display_scale(quantity_unit: str):
     """(factor, unit text) turning a value in ``quantity_unit`` into what a reason or plot shows."""
     return _DISPLAY[quantity_unit]
+
+
+def short(x: float) -> str:
+    """A number in three significant digits, without an exponent where it reads as a plain
+    number (1000 rather than 1e+03)."""
+    text = f"{x:.3g}"
+    return f"{x:.0f}" if "e+" in text and abs(x) < 1e6 else text
 
 
 def _fmt_p(p: float) -> str:
@@ -443,7 +452,7 @@ def analyze_units(
     for unit in sorted(set(cols.units.tolist())):
         rows = cols.rows_of(unit)
         for spec in PARAMETERS:
-            start_ns, v, s = cols.points(rows, spec)
+            start_ns, v, s, _ = cols.points(rows, spec)
             if not spec.required and v.size == 0:
                 continue  # no recording of this unit calibrates this scale
             fit = None
@@ -550,8 +559,8 @@ def _unit_row(unit, spec, cal, tol, start_ns, v, s, fit, threshold, now_ns, hori
         )
     if row["out_of_tolerance"]:
         parts.append(
-            f"out of tolerance: {value * factor:.3g} {shown_unit} at {_date(start_ns[-1])} against "
-            f"calibration {cal * factor:.3g} +- {tol * factor:.3g} {shown_unit}"
+            f"out of tolerance: {short(value * factor)} {shown_unit} at {_date(start_ns[-1])} against "
+            f"calibration {short(cal * factor)} ± {short(tol * factor)} {shown_unit}"
         )
     row["flagged"] = bool(row["out_of_tolerance"] or (row["drifting"] and row["crossing_utc"] is not None))
     row["reason"] = "; ".join(parts)
