@@ -49,6 +49,7 @@ __all__ = [
     "PARAMETERS",
     "DriftFit",
     "fit_drift",
+    "Evidence",
     "unit_points",
     "spec_of",
     "display_scale",
@@ -276,8 +277,9 @@ def fit_drift(t_day, value, std) -> DriftFit:
     )
 
 
-class _Columns:
-    """The recordings table's columns as numpy arrays, read once."""
+class Evidence:
+    """The recordings table's columns the drift test reads, as numpy arrays read once, and the
+    rows of each unit in date order."""
 
     def __init__(self, recordings: pa.Table):
         names = set(recordings.column_names)
@@ -309,10 +311,25 @@ class _Columns:
                 if col in names and col not in self.columns:
                     self.columns[col] = _float_column(recordings.column(col))
 
+        # Rows grouped by unit, each group in date order (stable: equal dates keep the table's
+        # order, so "latest" is well defined); one sort for the whole table.
+        names, inverse = np.unique(self.units.astype(str), return_inverse=True)
+        order = np.lexsort((self.start_ns, inverse))
+        bounds = np.searchsorted(inverse[order], np.arange(names.size + 1))
+        self._rows = {str(name): order[bounds[i]:bounds[i + 1]] for i, name in enumerate(names)}
+
+    @property
+    def unit_names(self) -> list:
+        """The units, sorted."""
+        return sorted(self._rows)
+
     def rows_of(self, unit: str) -> np.ndarray:
-        rows = np.flatnonzero(self.units == unit)
-        # Date order (stable, so equal dates keep the table's order): "latest" is well defined.
-        return rows[np.argsort(self.start_ns[rows], kind="stable")]
+        """Row indices of ``unit`` in date order (empty for an unknown unit)."""
+        return self._rows.get(unit, np.zeros(0, dtype=np.int64))
+
+    def unit_points(self, unit: str, parameter: str):
+        """See :func:`unit_points`."""
+        return self.points(self.rows_of(unit), _SPEC_BY_NAME[parameter])
 
     def points(self, rows: np.ndarray, spec: ParameterSpec):
         """(start_ns, value, std, calibration in force) of the rows that carry evidence on ``spec``."""
@@ -346,8 +363,7 @@ def unit_points(recordings: pa.Table, unit: str, parameter: str):
     """One unit's evidence on one parameter in date order, the rows :func:`analyze_units` fits (no
     error, finite value, positive finite std): (start_ns int64, value, std, calibration in force,
     NaN where a recording does not say)."""
-    cols = _Columns(recordings)
-    return cols.points(cols.rows_of(unit), _SPEC_BY_NAME[parameter])
+    return Evidence(recordings).unit_points(unit, parameter)
 
 
 def spec_of(parameter: str) -> ParameterSpec:
@@ -446,10 +462,10 @@ def analyze_units(
     if not (horizon_days >= 0):
         raise ValueError(f"horizon_days must be >= 0, not {horizon_days}")
     now_ns = None if now_utc is None else _to_ns(now_utc)
-    cols = _Columns(recordings)
+    cols = Evidence(recordings)
 
     pending = []
-    for unit in sorted(set(cols.units.tolist())):
+    for unit in cols.unit_names:
         rows = cols.rows_of(unit)
         for spec in PARAMETERS:
             start_ns, v, s, _ = cols.points(rows, spec)

@@ -61,6 +61,7 @@ def render_report(recordings: pa.Table, units: pa.Table, flagged: Sequence[str],
         by_unit.setdefault(row["unit"], []).append(row)
     # Most urgent first: already out of tolerance, then by the earliest crossing date.
     flagged.sort(key=lambda u: (_urgency(by_unit.get(u, [])), u))
+    evidence = drift.Evidence(recordings) if flagged else None
     figures = []
     recalibrate = []
     for unit in flagged:
@@ -68,7 +69,7 @@ def render_report(recordings: pa.Table, units: pa.Table, flagged: Sequence[str],
         recalibrate.append({"unit": unit, "reasons": [r["reason"] for r in unit_rows]})
         plots = []
         for row in unit_rows:
-            svg = _plot(recordings, row, salt=f"imud-fleet-{len(figures)}-{len(plots)}")
+            svg = _plot(evidence, row, salt=f"imud-fleet-{len(figures)}-{len(plots)}")
             plots.append({"svg": markupsafe.Markup(svg), "reason": row["reason"],
                           "parameter": row["parameter"]})
         figures.append({"unit": unit, "plots": plots})
@@ -197,10 +198,10 @@ def _failures(recordings: pa.Table) -> list:
     return out
 
 
-def _plot(recordings: pa.Table, row: dict, salt: str) -> str:
+def _plot(evidence: "drift.Evidence", row: dict, salt: str) -> str:
     """One flagged parameter of one unit over time, as an SVG element."""
     spec = drift.spec_of(row["parameter"])
-    start_ns, v, s, cal = drift.unit_points(recordings, row["unit"], row["parameter"])
+    start_ns, v, s, cal = evidence.unit_points(row["unit"], row["parameter"])
     factor, shown = drift.display_scale(spec.quantity_unit)
     # Scales are shown as parts per million off 1, biases as they are (gyro in deg/s).
     shift = 1.0 if spec.quantity_unit == "1" else 0.0
