@@ -196,11 +196,11 @@ def test_scale_parameters_when_recordings_calibrate_them():
     rng = np.random.default_rng(12)
     days = np.linspace(0, 120, 9)
     rows = unit_rows(rng, "GX1 6", days)
-    rows["accel_scale_z"] = 1.0 + 2e-5 * days + rng.normal(0, 5e-5, days.size)
+    rows["accel_scale_z"] = 2e-5 * days + rng.normal(0, 5e-5, days.size)
     rows["accel_scale_std_z"] = np.full(days.size, 5e-5)
     units = rows_by_key(drift.analyze_units(table(rows)))
     row = units[("GX1 6", "accel_scale_z")]
-    assert row["quantity_unit"] == "1" and row["calibration_value"] == 1.0
+    assert row["quantity_unit"] == "1" and row["calibration_value"] == 0.0
     assert abs(row["slope_per_day"] - 2e-5) <= 3 * row["slope_std_per_day"]
     assert row["drifting"] and row["flagged"] and "ppm per 30 days" in row["reason"]
     assert ("GX1 6", "accel_scale_x") not in units  # no recording calibrates it

@@ -103,3 +103,13 @@ def test_report_without_flags_and_through_a_pyarrow_filesystem(tmp_path):
     checker = Checker()
     checker.feed(html)
     assert checker.errors == [] and checker.stack == []
+
+
+def test_report_of_a_units_table_without_its_metadata(tmp_path):
+    # A units table cast to another schema loses analyze_units' metadata; the report still says
+    # how many tests the threshold was shared over.
+    rng = np.random.default_rng(4)
+    recordings = sample(rng)
+    units = drift.analyze_units(recordings).replace_schema_metadata(None)
+    html = report.render_report(recordings, units, drift.flagged_units(units))
+    assert "alpha shared over the fleet's 36 tests" in html

@@ -163,12 +163,13 @@ def _specs() -> list:
                     quantity_unit="1",
                     value_column=f"{sensor}_scale_{axis}",
                     std_column=f"{sensor}_scale_std_{axis}",
-                    # Schema 1 has no column for the calibration's scale: a calibrated stream's
-                    # scale is nominally 1 (the column is read when a later schema adds it).
+                    # Schema 1's scale is the scale factor error (dimensionless, 0 when the
+                    # calibration holds) and has no column for the calibration's own: the band
+                    # sits around 0 (the column is read when a later schema adds it).
                     cal_column=f"cal_{sensor}_scale_{axis}",
-                    default_calibration=1.0,
+                    default_calibration=0.0,
                     required=False,
-                    label=f"{sensor} scale {axis}",
+                    label=f"{sensor} scale error {axis}",
                 )
             )
     return specs

@@ -87,10 +87,13 @@ def render_report(recordings: pa.Table, units: pa.Table, flagged: Sequence[str],
     meta = units.schema.metadata or {}
     def number(key):
         raw = meta.get(b"imud.fleet.drift." + key)
-        return "?" if raw is None else f"{float(raw):.2g}"
+        return None if raw is None else drift.short(float(raw))
 
-    test = {"alpha": number(b"alpha"), "tests": number(b"tests"),
-            "threshold": number(b"p-threshold"), "horizon": number(b"horizon-days")}
+    # The test's settings travel in the units table's metadata (analyze_units); a table whose
+    # metadata was replaced still says how many tests the threshold was shared over.
+    test = {"alpha": number(b"alpha"), "threshold": number(b"p-threshold"),
+            "horizon": number(b"horizon-days"),
+            "tests": sum(1 for r in rows if r["p_value"] is not None)}
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     return env.from_string(_TEMPLATE).render(
         title=title,
@@ -203,12 +206,11 @@ def _plot(evidence: "drift.Evidence", row: dict, salt: str) -> str:
     spec = drift.spec_of(row["parameter"])
     start_ns, v, s, cal = evidence.unit_points(row["unit"], row["parameter"])
     factor, shown = drift.display_scale(spec.quantity_unit)
-    # Scales are shown as parts per million off 1, biases as they are (gyro in deg/s).
-    shift = 1.0 if spec.quantity_unit == "1" else 0.0
-    ylabel = (f"{spec.label} − 1 ({shown})" if shift else f"{spec.label} ({shown.replace('^2', '²')})")
+    # Scale errors in parts per million, gyro biases in deg/s.
+    ylabel = f"{spec.label} ({shown.replace('^2', '²')})"
 
     def y(x):
-        return (np.asarray(x, dtype=float) - shift) * factor
+        return np.asarray(x, dtype=float) * factor
 
     def when(ns):
         return np.asarray(ns, dtype=np.int64).astype("datetime64[ns]")
@@ -294,9 +296,12 @@ td.cell { white-space: nowrap; font-variant-numeric: tabular-nums; }
 {% endfor %}</dl>
 <p class="small">Drift test per unit and parameter: weighted straight line through the recordings'
 estimates, allowing for scatter between recordings beyond their own uncertainties (Paule-Mandel),
-t test of the slope. A slope is drifting when p &lt; {{ test.threshold }} (alpha {{ test.alpha }}
-over {{ test.tests }} tests); a unit is flagged when a drifting line leaves the calibration's
-tolerance within {{ test.horizon }} days, or already lies outside it.</p>
+t test of the slope. A slope is drifting when its p-value is below
+{% if test.threshold %}{{ test.threshold }} (alpha {{ test.alpha }} shared over the fleet's
+{{ test.tests }} tests){% else %}alpha shared over the fleet's {{ test.tests }} tests{% endif %};
+a unit is flagged when a drifting line leaves the calibration's tolerance
+{% if test.horizon %}within {{ test.horizon }} days{% else %}within the horizon{% endif %},
+or lies outside it at its last recording.</p>
 
 <h2>Units to recalibrate ({{ recalibrate | length }})</h2>
 {% if recalibrate %}<table>
