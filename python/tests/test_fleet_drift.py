@@ -160,8 +160,12 @@ def test_crossing_date_of_a_noiseless_line():
     assert crossing_ns(units, "GX1 1", "gyro_bias_z") is None
     # Measured from a later "now", 10 days reach it.
     now = dt.datetime(2026, 2, 15, tzinfo=dt.timezone.utc)
-    units = drift.analyze_units(table(rows), horizon_days=10, now_utc=now)
-    assert abs(crossing_ns(units, "GX1 1", "gyro_bias_z") - expected_ns) <= 10**9
+    for when in (now, np.datetime64("2026-02-15T00:00:00"),
+                 pa.scalar(now, type=pa.timestamp("ns", tz="UTC"))):
+        units = drift.analyze_units(table(rows), horizon_days=10, now_utc=when)
+        assert abs(crossing_ns(units, "GX1 1", "gyro_bias_z") - expected_ns) <= 10**9
+    with pytest.raises(ValueError, match="timezone-aware"):
+        drift.analyze_units(table(rows), now_utc=dt.datetime(2026, 2, 15))
 
 
 def test_too_few_recordings_gives_the_reason():

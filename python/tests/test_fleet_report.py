@@ -5,7 +5,6 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pyarrow as pa
-import pytest
 
 from imud.fleet import drift, report
 from drift_tables import fleet, table, unit_rows

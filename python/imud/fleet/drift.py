@@ -36,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import math
-from typing import Iterable, Optional, Sequence, Union
+from typing import Optional
 
 import numpy as np
 import pyarrow as pa

@@ -8,7 +8,7 @@ import datetime as _dt
 import io
 import math
 import os
-from typing import Optional, Sequence
+from typing import Sequence
 
 import jinja2
 import markupsafe
