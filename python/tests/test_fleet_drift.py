@@ -210,8 +210,14 @@ def test_scale_parameters_when_recordings_calibrate_them():
     assert ("GX1 6", "accel_scale_x") not in units  # no recording calibrates it
 
 
-def test_missing_columns_are_named():
+def test_bad_tables_are_named_and_an_empty_one_is_empty():
     rng = np.random.default_rng(1)
-    t = table(unit_rows(rng, "GX1 1", [0, 10, 20])).drop_columns(["gyro_bias_std_y_rad_s"])
+    t = table(unit_rows(rng, "GX1 1", [0, 10, 20]))
     with pytest.raises(ValueError, match="gyro_bias_std_y_rad_s"):
-        drift.analyze_units(t)
+        drift.analyze_units(t.drop_columns(["gyro_bias_std_y_rad_s"]))
+    i = t.schema.get_field_index("accel_bias_x_m_s2")
+    with pytest.raises(ValueError, match="accel_bias_x_m_s2 is string, not a number"):
+        drift.analyze_units(t.set_column(i, "accel_bias_x_m_s2", pa.array(["1", "2", "3"])))
+    empty = drift.analyze_units(t.slice(0, 0))
+    assert empty.num_rows == 0 and empty.schema.equals(drift.UNITS_SCHEMA)
+    assert drift.flagged_units(empty) == []

@@ -112,3 +112,7 @@ def test_report_of_a_units_table_without_its_metadata(tmp_path):
     units = drift.analyze_units(recordings).replace_schema_metadata(None)
     html = report.render_report(recordings, units, drift.flagged_units(units))
     assert "alpha shared over the fleet's 36 tests" in html
+    # An empty fleet still gives a page.
+    empty = recordings.slice(0, 0)
+    html = report.render_report(empty, drift.analyze_units(empty), [])
+    assert "<dt>Recordings</dt><dd>0</dd>" in html

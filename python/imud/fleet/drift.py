@@ -310,7 +310,7 @@ class Evidence:
         for spec in PARAMETERS:
             for col in (spec.value_column, spec.std_column, spec.cal_column):
                 if col in names and col not in self.columns:
-                    self.columns[col] = _float_column(recordings.column(col))
+                    self.columns[col] = _float_column(recordings.column(col), col)
 
         # Rows grouped by unit, each group in date order (stable: equal dates keep the table's
         # order, so "latest" is well defined); one sort for the whole table.
@@ -354,9 +354,9 @@ class Evidence:
         return float(values[-1]) if values.size else float("nan")
 
 
-def _float_column(column: pa.ChunkedArray) -> np.ndarray:
+def _float_column(column: pa.ChunkedArray, name: str) -> np.ndarray:
     if not (pa.types.is_floating(column.type) or pa.types.is_integer(column.type)):
-        raise ValueError(f"column of type {column.type} where a number was expected")
+        raise ValueError(f"the recordings table's {name} is {column.type}, not a number")
     return np.asarray(pc.cast(column, pa.float64()).to_numpy(zero_copy_only=False), dtype=float)
 
 
@@ -415,6 +415,8 @@ def short(x: float) -> str:
 
 
 def _fmt_p(p: float) -> str:
+    if p == 0:
+        return "0"
     if p < 1e-3:
         mantissa, exponent = f"{p:.0e}".split("e")
         return f"{mantissa}e{int(exponent)}"
