@@ -246,6 +246,16 @@ def _plot(evidence: "drift.Evidence", row: dict, salt: str) -> str:
             ax.plot(when(grid_ns[~inside]), y(value[~inside]), color="#1565c0", lw=1.6, ls=":")
         ax.errorbar(when(start_ns), y(v), yerr=s * factor, fmt="o", ms=4, color="#212121",
                     ecolor="#616161", elinewidth=1, capsize=2, label="recording ± 1σ", zorder=3)
+        # The vertical range follows the evidence, the line and the tolerance band; the line's
+        # 95 % band may run off it (with few recordings t(n-2) makes it many sigma wide).
+        shown_y = [y(v - s), y(v + s)]
+        if cal_now is not None:
+            shown_y.append(y([cal_now - tol, cal_now + tol]))
+        if row["slope_per_day"] is not None:
+            shown_y.append(y(value))
+        low, high = min(float(np.min(a)) for a in shown_y), max(float(np.max(a)) for a in shown_y)
+        pad = 0.08 * (high - low) if high > low else 1.0
+        ax.set_ylim(low - pad, high + pad)
         if row["crossing_utc"] is not None:
             ax.axvline(when(row["crossing_utc"]), color="#c62828", lw=1.4, ls="-.")
             verb = "crossed" if row["crossing_utc"] <= start_ns[-1] else "crosses"
@@ -284,6 +294,7 @@ figure { margin: 0.5em 0 1.5em 0; } figcaption { font-size: 0.95em; }
 svg { max-width: 100%; height: auto; }
 td.flag { background: #ffebee; } td.drift { background: #fff8e1; } td.ok { background: #f1f8e9; }
 td.few { background: #fafafa; color: #757575; }
+td.name { white-space: nowrap; }
 td.cell { white-space: nowrap; font-variant-numeric: tabular-nums; }
 .small { font-size: 0.85em; color: #616161; }
 .overview { overflow-x: auto; }
@@ -306,7 +317,7 @@ or lies outside it at its last recording.</p>
 <h2>Units to recalibrate ({{ recalibrate | length }})</h2>
 {% if recalibrate %}<table>
 <tr><th>Unit</th><th>Why</th></tr>
-{% for item in recalibrate %}<tr><td><a href="#unit-{{ loop.index }}">{{ item.unit }}</a></td>
+{% for item in recalibrate %}<tr><td class="name"><a href="#unit-{{ loop.index }}">{{ item.unit }}</a></td>
 <td>{% for reason in item.reasons %}{{ reason }}{% if not loop.last %}<br>{% endif %}{% endfor %}</td></tr>
 {% endfor %}</table>
 {% else %}<p>None: every unit's calibration holds.</p>
