@@ -147,6 +147,16 @@ def test_crossing_date_of_a_noiseless_line():
     assert abs(crossing_ns(units, "GX1 1", "gyro_bias_z") - expected_ns) <= 10**9
     assert "crosses tolerance 2026-02-20" in row["reason"]
     assert drift.flagged_units(units) == ["GX1 1"]
+    # Recalibrated on day 25 to the bias of then (2.5e-4): the band moves with the calibration
+    # in force, and the line leaves 2.5e-4 +- 5e-4 on day 75.
+    days_r = np.linspace(0, 60, 7)
+    recal = unit_rows(rng, "GX1 1", days_r, slope_per_day={"gyro_bias_z": 1e-5},
+                      calibration={"gyro_bias_z": np.where(days_r < 25, 0.0, 2.5e-4)},
+                      tau={p: 0.0 for p in PARAMETERS}, sigma=tiny)
+    units = drift.analyze_units(table(recal))
+    row = rows_by_key(units)[("GX1 1", "gyro_bias_z")]
+    assert row["calibration_value"] == 2.5e-4 and row["flagged"] and not row["out_of_tolerance"]
+    assert abs(crossing_ns(units, "GX1 1", "gyro_bias_z") - expected_ns - 25 * NS_PER_DAY) <= 10**9
     # Downwards from the calibration at 1e-3: the lower edge 0.5e-3 on day 50 again.
     rows = unit_rows(rng, "GX1 1", days, slope_per_day={"gyro_bias_z": -1e-5},
                      offset={"gyro_bias_z": 1e-3}, calibration={"gyro_bias_z": 1e-3},
