@@ -26,6 +26,13 @@ slope test's level near nominal for small n (Knapp and Hartung 2003; Veroniki et
 Synth. Methods 7:55). The Monte Carlo tests in python/tests/test_fleet_drift.py check that level and
 the slope interval's coverage.
 
+The price is power where tau is small against the sigma_i and a unit has few recordings: t(n - 2)
+allows for a tau the data cannot rule out. With recordings spread evenly over the span, tau = 0 and
+the Bonferroni threshold of a 48-test fleet (alpha 0.01), a drift over the span must exceed ~28
+sigma with 5 recordings, ~5 sigma with 12 (a known-variance z test would need ~5 sigma with 5 but
+is anti-conservative once tau > 0; so is the untruncated Knapp-Hartung variance, measured 2x the
+nominal rate at p = 1e-3 with tau = sigma and 12 recordings).
+
 A slope is ``drifting`` when its two-sided p-value is below alpha / m, m the number of slope tests in
 the whole fleet (Bonferroni: the chance that any unit of a drift-free fleet is called drifting is at
 most alpha).
