@@ -78,11 +78,13 @@ def table(*unit_row_dicts) -> pa.Table:
     return pa.table(merged)
 
 
-def fleet(rng, n_units=8, per_unit=6, span_days=180.0, slopes=None):
+def fleet(rng, n_units=8, per_unit=6, span_days=180.0, slopes=None, tau=None):
     """A fleet of ``n_units`` units with ``per_unit`` recordings each, uniformly over
-    ``span_days``; ``slopes``: {unit index: {parameter: slope per day}}."""
+    ``span_days``; ``slopes``: {unit index: {parameter: slope per day}}; ``tau``: {parameter:
+    between-recording scatter} (default :data:`TAU`)."""
     units = []
     for u in range(n_units):
         days = np.sort(rng.uniform(0.0, span_days, per_unit))
-        units.append(unit_rows(rng, f"GX1 {1000 + u}", days, slope_per_day=(slopes or {}).get(u)))
+        units.append(unit_rows(rng, f"GX1 {1000 + u}", days, slope_per_day=(slopes or {}).get(u),
+                               tau=tau))
     return table(*units)
