@@ -312,3 +312,15 @@ def test_an_unreadable_recording_is_an_error_row(tmp_path):
     (row,) = _rows(res.recordings)
     assert row["path"] == str(bad) and "junk.mcap" in row["error"]
     assert row["samples"] is None
+
+
+def test_the_drift_test_reads_and_writes_the_schema_s_columns():
+    """The drift module names its columns itself; they are schema version 1's."""
+    from imud.fleet import drift
+
+    assert [(f.name, f.type) for f in drift.UNITS_SCHEMA] == [(f.name, f.type) for f in schema.UNITS]
+    names = set(schema.RECORDINGS.names)
+    for spec in drift.PARAMETERS:
+        assert {spec.value_column, spec.std_column} <= names, spec
+        if spec.kind != "scale":
+            assert spec.cal_column in names, spec
