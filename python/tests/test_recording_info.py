@@ -68,3 +68,28 @@ def test_without_a_calibration_or_metadata_nothing_is_said(bins, tmp_path):
     assert arrays.device == {} and arrays.calibration_in_force is None
     assert arrays.info["started_utc"] is None
     assert arrays.info["missing_samples"] == 5
+
+
+def test_offline_recordings_are_dated_by_their_scenarios(bins, tmp_path):
+    # Two recordings of one unit 90 days apart: stamps, started_utc, the recorder's
+    # started-utc metadata and the file names all follow the scenarios' gnss-epoch-utc-s.
+    from mcap.reader import make_reader
+
+    day_s = 86_400
+    epochs = [DEFAULT_EPOCH_S + 17 * day_s + 3_600, DEFAULT_EPOCH_S + 107 * day_s + 3_600]
+    got = []
+    for i, epoch in enumerate(epochs):
+        path = record(bins, tmp_path, f"d{i}", scenario(7, device_extra=f"gnss-epoch-utc-s = {epoch}"))
+        rec = imud.read(path)
+        start = datetime.fromtimestamp(epoch, timezone.utc)
+        assert rec.info["t0_ns"] == epoch * 10**9
+        assert datetime.fromisoformat(rec.info["started_utc"]) == start
+        stamp = start.strftime("%Y%m%dT%H%M%SZ")
+        assert path.name == f"d{i}-{stamp}-0000.mcap"
+        with open(path, "rb") as f:
+            meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+        assert meta["imud.recording"]["started-utc"] == stamp
+        got.append(rec)
+    assert got[1].info["t0_ns"] - got[0].info["t0_ns"] == 90 * day_s * 10**9
+    a, b = (datetime.fromisoformat(r.info["started_utc"]) for r in got)
+    assert (b - a).total_seconds() == 90 * day_s
