@@ -6,6 +6,8 @@ that client's ``--json``:
 
 - :func:`read` -- any recording the offline tools read (imud MCAP, rosbag2, ROS 1 bag, text);
 - :func:`noise` -- ``imu-noise``: Allan-family deviations and IEEE noise terms per axis;
+- :func:`health_check` -- ``imu-analyze health``: the daemon's live calibration health checks
+  (still windows against gravity and Earth's rate) offline, and the calibration's offset;
 - :func:`calibrate` -- ``imu-calibrate``: calibration fits against references or reference-free;
 - :func:`diagnose`, :func:`ladder` -- ``imu-diagnose``: the model workbench;
 - :class:`Calibration` -- imud's calibration file, and its correction vectorised over arrays.
@@ -15,10 +17,12 @@ Errors are raised as :class:`ImudError` with the client's message (file, line, w
 
 from ._imud import ImudError, Calibration, __version__
 from ._recording import Recording, read
-from ._analyses import noise, calibrate, diagnose, ladder
+from ._analyses import noise, health_check, calibrate, diagnose, ladder
 from ._results import (
     NoiseResult,
     NoiseAxis,
+    HealthCheck,
+    StillWindowCheck,
     CalibrationResult,
     TriadFit,
     Diagnosis,
@@ -33,11 +37,14 @@ __all__ = [
     "Recording",
     "read",
     "noise",
+    "health_check",
     "calibrate",
     "diagnose",
     "ladder",
     "NoiseResult",
     "NoiseAxis",
+    "HealthCheck",
+    "StillWindowCheck",
     "CalibrationResult",
     "TriadFit",
     "Diagnosis",

@@ -1,5 +1,6 @@
-"""The analyses: :func:`noise`, :func:`calibrate`, :func:`diagnose`, :func:`ladder`, each the
-library call its command-line client makes, with the client's options."""
+"""The analyses: :func:`noise`, :func:`health_check`, :func:`calibrate`, :func:`diagnose`,
+:func:`ladder`, each the library call its command-line client makes, with the client's
+options."""
 
 from __future__ import annotations
 
@@ -12,10 +13,12 @@ from ._recording import PathLike, Recording, as_recordings
 from ._results import (
     CalibrationResult,
     Diagnosis,
+    HealthCheck,
     LadderResult,
     NoiseResult,
     calibration_result,
     diagnosis,
+    health_check_result,
     ladder_result,
     noise_result,
 )
@@ -62,6 +65,45 @@ def noise(
     tau_arg = taus if isinstance(taus, str) else ",".join(repr(float(t)) for t in taus)
     doc = json.loads(_imud.noise_json(rec._series, kinds, tau_arg, edf, float(confidence)))
     return noise_result(doc)
+
+
+def health_check(
+    recording: Any,
+    calibration: Any = None,
+    *,
+    latitude_deg: Optional[float] = None,
+    height_m: float = 0.0,
+    gravity_m_s2: Optional[float] = None,
+    false_alarm_p: float = 1e-4,
+    source: str = "corrected",
+    **read_kw: Any,
+) -> HealthCheck:
+    """The daemon's live calibration health checks, offline: ``imu-analyze health --json``.
+
+    ``recording``: a :class:`Recording` or a path (or the files of one session; read from
+    ``source`` with ``read_kw``) holding the stream the calibration's health sees (imud's
+    corrected stream). ``calibration``: the :class:`imud.Calibration` in force (or its file):
+    its noise tables give the expected scatter; None: the scatter is learned from the first
+    still windows, as the daemon does without tables. Gravity: ``gravity_m_s2`` if given, else
+    normal gravity at ``latitude_deg`` and ``height_m``, else learned from the first still
+    windows (then only changes are seen). ``latitude_deg`` also gives Earth's rate's vertical
+    part. ``false_alarm_p``: the false-alarm rate per still window and triad. Every still
+    window is tested as the daemon would have live (same detector, tests and states), and the
+    offset of the calibrated stream from physics is estimated over all of them.
+    """
+    rec = _one(recording, source, read_kw)
+    cal = calibration
+    if cal is not None and not isinstance(cal, _imud.Calibration):
+        cal = _imud.Calibration.load(os.fspath(cal))
+    doc = _imud.health_check_json(
+        rec._series,
+        cal,
+        None if latitude_deg is None else float(latitude_deg),
+        float(height_m),
+        None if gravity_m_s2 is None else float(gravity_m_s2),
+        float(false_alarm_p),
+    )
+    return health_check_result(json.loads(doc))
 
 
 def _references(

@@ -229,6 +229,104 @@ class LadderResult(_Doc):
         return f"LadderResult({len(self.steps)} steps, added {self.added})"
 
 
+def _floats(v: Optional[List[Optional[float]]]) -> np.ndarray:
+    """A JSON number array (null: NaN, as serde writes a NaN) as float64."""
+    return np.array([np.nan if x is None else x for x in (v or [])], dtype=float)
+
+
+def _float(v: Optional[float]) -> float:
+    return float("nan") if v is None else float(v)
+
+
+@dataclass(repr=False)
+class StillWindowCheck(_Doc):
+    """One still window held against gravity and Earth's rate, as the daemon's live health
+    reports it: ``start_s`` (from the recording's first sample), ``duration_s``, ``up`` (3,)
+    in the sensor frame, ``|f| - g`` (``accel_residual_m_s2``) with its expected scatter
+    (``accel_std_m_s2``), the rate minus Earth's rate as far as it is known
+    (``gyro_residual_rad_s`` (3,)) with its scatter per axis (``gyro_std_rad_s``), ``p_value``
+    (the smaller of the accel and gyro tests' in ``extra``; NaN while the noise or gravity was
+    being learned) and ``state`` after the window (the worse of the two triads': ``ok``,
+    ``degraded``, ``stale``, or ``unknown`` before the first test)."""
+
+    start_s: float = float("nan")
+    duration_s: float = float("nan")
+    up: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    accel_residual_m_s2: float = float("nan")
+    accel_std_m_s2: float = float("nan")
+    gyro_residual_rad_s: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    gyro_std_rad_s: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    p_value: float = float("nan")
+    state: str = ""
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"StillWindowCheck({self.start_s:.1f} s + {self.duration_s:.1f} s, {self.state})"
+
+    @classmethod
+    def _from(cls, d: dict) -> "StillWindowCheck":
+        return _build(
+            cls,
+            d,
+            start_s=_float(d.get("start_s")),
+            duration_s=_float(d.get("duration_s")),
+            up=_floats(d.get("up")),
+            accel_residual_m_s2=_float(d.get("accel_residual_m_s2")),
+            accel_std_m_s2=_float(d.get("accel_std_m_s2")),
+            gyro_residual_rad_s=_floats(d.get("gyro_residual_rad_s")),
+            gyro_std_rad_s=_floats(d.get("gyro_std_rad_s")),
+            p_value=_float(d.get("p_value")),
+        )
+
+
+@dataclass(repr=False)
+class HealthCheck(_Doc):
+    """A recording's calibration health (``imu-analyze health --json``): every still window
+    (:class:`StillWindowCheck`), the final ``state``, ``rejections`` (windows where a triad
+    rejected the calibration), ``noise_source`` (``tables`` or ``estimated``), the gravity
+    held against, and the offset of the calibrated stream from physics over ALL still
+    windows (weighted least squares): ``accel_offset_m_s2`` (3,) with ``accel_offset_std_m_s2``
+    (NaN for an axis no window observes; ``accel_offset_3d`` when several orientations were
+    seen, else along gravity only), ``gyro_offset_rad_s`` with ``gyro_offset_std_rad_s``. For
+    a linear model the true bias is the calibration's bias plus the offset. ``still_s`` is the
+    total still time; ``longest_still_s`` and ``longest_still_span_s`` (start, end) the longest
+    continuous rest (for noise terms)."""
+
+    windows: List[StillWindowCheck] = field(default_factory=list)
+    accel_offset_m_s2: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    accel_offset_std_m_s2: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    accel_offset_3d: bool = False
+    gyro_offset_rad_s: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    gyro_offset_std_rad_s: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    state: str = ""
+    rejections: int = 0
+    noise_source: str = ""
+    gravity_m_s2: float = float("nan")
+    latitude_deg: Optional[float] = None
+    still_s: float = 0.0
+    longest_still_s: float = 0.0
+    longest_still_span_s: "tuple[float, float]" = (float("nan"), float("nan"))
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"HealthCheck({len(self.windows)} still windows, {self.state})"
+
+
+def health_check_result(doc: dict) -> HealthCheck:
+    span = _floats(doc.get("longest_still_span_s"))
+    return _build(
+        HealthCheck,
+        doc,
+        windows=[StillWindowCheck._from(w) for w in doc.get("windows", [])],
+        accel_offset_m_s2=_floats(doc.get("accel_offset_m_s2")),
+        accel_offset_std_m_s2=_floats(doc.get("accel_offset_std_m_s2")),
+        gyro_offset_rad_s=_floats(doc.get("gyro_offset_rad_s")),
+        gyro_offset_std_rad_s=_floats(doc.get("gyro_offset_std_rad_s")),
+        gravity_m_s2=_float(doc.get("gravity_m_s2")),
+        longest_still_span_s=(float(span[0]), float(span[1])),
+    )
+
+
 def noise_result(doc: list) -> NoiseResult:
     r = NoiseResult(axes=[_build(NoiseAxis, a) for a in doc])
     r._doc = {"axes": doc}

@@ -6,13 +6,15 @@
 //! released while the libraries work.
 //!
 //! Modules: `error` (the exception and the message chain), `series` (recordings: read through
-//! imu-analysis's input module over imu-rec, and numpy views), `noise`, `calibrate`,
+//! imu-analysis's input module over imu-rec, and numpy views), `noise`, `health` (the
+//! calibration health check, as `imu-analyze health`), `calibrate`,
 //! `workbench` (diagnose and the ladder), `calibration` (the calibration file and its
 //! vectorised correction).
 
 mod calibrate;
 mod calibration;
 mod error;
+mod health;
 mod noise;
 mod series;
 mod workbench;
@@ -27,6 +29,7 @@ fn _imud(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<calibration::Calibration>()?;
     m.add_function(wrap_pyfunction!(series::read_series, m)?)?;
     m.add_function(wrap_pyfunction!(noise::noise_json, m)?)?;
+    m.add_function(wrap_pyfunction!(health::health_check_json, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate_json, m)?)?;
     m.add_function(wrap_pyfunction!(workbench::diagnose_json, m)?)?;
     m.add_function(wrap_pyfunction!(workbench::ladder_json, m)?)?;

@@ -15,7 +15,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIOS = REPO / "config" / "scenarios"
-TOOLS = ("imud", "imu-noise", "imu-calibrate", "imu-diagnose")
+TOOLS = ("imud", "imu-noise", "imu-calibrate", "imu-diagnose", "imu-analyze")
 
 
 def _missing(reason):

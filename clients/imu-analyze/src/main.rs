@@ -1,5 +1,6 @@
 //! imu-analyze: the thermal, impact and dynamic tests of Aslan & Saranli (3.1.3/3.2.3, 3.3,
-//! 3.4) on a recording, printed as text or JSON, with optional SVG plots and an HTML section.
+//! 3.4) on a recording, printed as text or JSON, with optional SVG plots and an HTML section;
+//! and `health`, the daemon's live calibration health checks run offline over a recording.
 
 use std::io::{self, IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -9,6 +10,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use imu_analysis::characterize::units::DisplayUnit;
 use imu_analysis::characterize::{dynamic, impact, thermal};
+use imu_analysis::health::{CheckOptions, HealthCheck, check_series};
 use imu_analysis::input::{ImuSeries, Source};
 use imu_analysis::render::html::{self, Section};
 use imu_analysis::render::number::{number, p_value};
@@ -130,6 +132,41 @@ enum Command {
         #[command(flatten)]
         output: Output,
     },
+    /// Calibration health: the daemon's live health checks run offline (each still window held
+    /// against gravity and Earth's rate, the sequential tests and their states), and the offset
+    /// of the calibrated stream from physics over all still windows (true bias = the
+    /// calibration's bias + offset).
+    Health {
+        /// The recording (one or more files of one session, or a directory).
+        #[arg(required = true)]
+        recording: Vec<PathBuf>,
+        /// Which stream of an imud recording to check (the corrected one is what the daemon's
+        /// health sees).
+        #[arg(long, value_enum, default_value = "corrected")]
+        source: SourceArg,
+        /// The calibration in force: its noise tables give the expected scatter (without it
+        /// the scatter is learned from the first still windows).
+        #[arg(long, value_name = "FILE")]
+        calibration: Option<PathBuf>,
+        /// Latitude, deg: normal gravity and the vertical part of Earth's rate (without it and
+        /// --gravity-m-s2, gravity is learned from the first still windows: changes only).
+        #[arg(long, value_parser = finite_f64, allow_hyphen_values = true)]
+        latitude_deg: Option<f64>,
+        /// Height above the ellipsoid, m (normal gravity's free-air term) [default: 0].
+        #[arg(long, value_parser = finite_f64, allow_hyphen_values = true)]
+        height_m: Option<f64>,
+        /// Local gravity, m/s^2, when known better than normal gravity.
+        #[arg(long, value_parser = finite_f64)]
+        gravity_m_s2: Option<f64>,
+        /// False-alarm rate per still window and triad [default: 1e-4, the daemon's].
+        #[arg(long, value_parser = finite_f64)]
+        false_alarm_p: Option<f64>,
+        #[command(flatten)]
+        csv: imu_cli::CsvArgs,
+        /// Print the full result as JSON on stdout instead of a text summary.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 fn main() -> std::process::ExitCode {
@@ -212,7 +249,7 @@ fn emit(
     stem: &str,
     notes: ReadNotes,
 ) -> Result<()> {
-    let json = &WithInput {
+    let with_input = &WithInput {
         result: json,
         input: &notes.input,
     };
@@ -228,9 +265,20 @@ fn emit(
         let page = html::page(&section.title, std::slice::from_ref(&section));
         std::fs::write(path, page).with_context(|| format!("writing {}", path.display()))?;
     }
+    print(output.json, with_input, text, notes.unfinished)
+}
+
+/// The result on stdout: its JSON (with the input's note when it was read without its footer)
+/// or the text.
+fn print(
+    as_json: bool,
+    json: &impl serde::Serialize,
+    text: &str,
+    unfinished: Option<serde_json::Value>,
+) -> Result<()> {
     let mut out = io::stdout().lock();
-    if output.json {
-        if let Some(note) = notes.unfinished {
+    if as_json {
+        if let Some(note) = unfinished {
             // Only then through a Value (whose map sorts the keys): a complete input's document
             // keeps its field order.
             let mut value = serde_json::to_value(json).context("encoding the result as JSON")?;
@@ -279,7 +327,122 @@ fn run(args: &Args) -> Result<()> {
             };
             run_dynamic(recording, reference, *source, &options, output)
         }
+        Command::Health {
+            recording,
+            source,
+            calibration,
+            latitude_deg,
+            height_m,
+            gravity_m_s2,
+            false_alarm_p,
+            csv,
+            json,
+        } => {
+            let defaults = CheckOptions::default();
+            let options = CheckOptions::at(
+                *latitude_deg,
+                height_m.unwrap_or(defaults.height_m),
+                *gravity_m_s2,
+                false_alarm_p.unwrap_or(defaults.false_alarm_p),
+            );
+            options.validate().map_err(imu_cli::UsageError)?;
+            run_health(
+                recording,
+                (*source).into(),
+                calibration.as_deref(),
+                &options,
+                csv,
+                *json,
+            )
+        }
     }
+}
+
+/// `imu-analyze health`.
+fn run_health(
+    recording: &[PathBuf],
+    source: Source,
+    calibration: Option<&Path>,
+    options: &CheckOptions,
+    csv: &imu_cli::CsvArgs,
+    json: bool,
+) -> Result<()> {
+    let calibration = calibration
+        .map(|p| {
+            imu_model::Calibration::load(p).with_context(|| format!("loading {}", p.display()))
+        })
+        .transpose()?;
+    let mut notes = ReadNotes::default();
+    let series = read(recording, source, csv, &mut notes)?;
+    let r = check_series(&series, calibration.as_ref(), options);
+    let with_input = WithInput {
+        result: &r,
+        input: &notes.input,
+    };
+    print(json, &with_input, &health_text(&r), notes.unfinished)
+}
+
+/// The text summary of a health check: a table of the still windows, then the state and the
+/// offsets with their standard deviations.
+fn health_text(r: &HealthCheck) -> String {
+    let mut text = format!(
+        "{} still windows ({:.0} s still, longest rest {:.0} s), {} plateaus skipped; noise from {}, gravity {} m/s^2{}\n",
+        r.windows.len(),
+        r.still_s,
+        r.longest_still_s,
+        r.plateaus,
+        r.noise_source,
+        number(r.gravity_m_s2),
+        if r.gravity_learned {
+            " (learned: changes only)"
+        } else {
+            ""
+        }
+    );
+    text.push_str(&format!(
+        "{:>9} {:>6} {:>12} {:>10} {:>12} {:>10} {:>9} {:>9}  state\n",
+        "start s", "dur s", "|f|-g m/s2", "std", "|w-W| rad/s", "std", "accel p", "gyro p"
+    ));
+    for w in &r.windows {
+        let g = imu_model::Vec3::from(w.gyro_residual_rad_s).norm();
+        let gs = (w.gyro_std_rad_s.iter().map(|s| s * s).sum::<f64>() / 3.0).sqrt();
+        text.push_str(&format!(
+            "{:>9.1} {:>6.1} {:>+12.3e} {:>10.2e} {:>12.3e} {:>10.2e} {:>9} {:>9}  {}\n",
+            w.start_s,
+            w.duration_s,
+            w.accel_residual_m_s2,
+            w.accel_std_m_s2,
+            g,
+            gs,
+            p_value(w.accel_p),
+            p_value(w.gyro_p),
+            w.state
+        ));
+    }
+    text.push_str(&format!(
+        "state {} (accel {}, gyro {}), {} rejecting windows\n",
+        r.state, r.accel_state, r.gyro_state, r.rejections
+    ));
+    let axes = |v: &[f64; 3], s: &[f64; 3]| {
+        (0..3)
+            .map(|i| format!("{} {:+.3e} +/- {:.1e}", ["x", "y", "z"][i], v[i], s[i]))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    text.push_str(&format!(
+        "accel offset ({}), m/s^2: {}\n",
+        if r.accel_offset_3d {
+            "3-D"
+        } else {
+            "along gravity only"
+        },
+        axes(&r.accel_offset_m_s2, &r.accel_offset_std_m_s2)
+    ));
+    text.push_str(&format!(
+        "gyro offset, rad/s: {}\n",
+        axes(&r.gyro_offset_rad_s, &r.gyro_offset_std_rad_s)
+    ));
+    text
 }
 
 /// `imu-analyze thermal`.

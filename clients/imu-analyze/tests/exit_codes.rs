@@ -30,3 +30,21 @@ fn non_finite_float_flags_are_usage_errors() {
     assert!(stderr.contains("not a finite number"), "{stderr}");
     assert_eq!(run(&["--help"]).0, Some(0));
 }
+
+#[test]
+fn health_options_out_of_range_are_usage_errors_and_a_missing_calibration_is_named() {
+    let (code, stderr) = run(&["health", "/nonexistent/rec.mcap", "--latitude-deg", "95"]);
+    assert_eq!(code, Some(64), "{stderr}");
+    assert!(stderr.contains("latitude 95 deg"), "{stderr}");
+    let (code, stderr) = run(&["health", "/nonexistent/rec.mcap", "--false-alarm-p", "1.5"]);
+    assert_eq!(code, Some(64), "{stderr}");
+    assert!(stderr.contains("false-alarm p 1.5"), "{stderr}");
+    let (code, stderr) = run(&[
+        "health",
+        "/nonexistent/rec.mcap",
+        "--calibration",
+        "/nonexistent/cal.toml",
+    ]);
+    assert_eq!(code, Some(66), "{stderr}");
+    assert!(stderr.contains("/nonexistent/cal.toml"), "{stderr}");
+}
