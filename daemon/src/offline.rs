@@ -8,6 +8,10 @@
 //! gnss-epoch-utc-s`, which also dates the file names and their `started-utc`). This is how hours of data for the offline
 //! tools' accuracy tests are produced in seconds: `imud --sim SCENARIO --offline`.
 //!
+//! The scenario's link dropouts (`[[dropout]]`, `[random-dropouts]`) lose the unit's replies
+//! in their windows before the decoder sees them (the truth keeps every sample); the session
+//! then counts losses from the device clock, as a streaming unit's does.
+//!
 //! Whatever the scenario's device speaks (`[device] protocol`, or `--protocol`), its simulated
 //! unit (`drivers::OfflineUnit`, one per protocol folder) is configured directly and its bytes
 //! are decoded by its driver, as on a live link.
@@ -22,13 +26,18 @@ use imu_sim::{DeviceCore, SimOptions};
 
 use crate::config::Config;
 use crate::drivers::{DriverEvent, FrameSlot, OfflineUnit, offline_unit};
-use crate::pipeline::{ActiveCalibration, Pipeline, SampleClock, Sinks, log_rejected};
+use crate::pipeline::{Acquisition, ActiveCalibration, Pipeline, SampleClock, Sinks, log_rejected};
 
 /// What an offline run produced.
 #[derive(Debug, Clone)]
 pub struct OfflineReport {
     /// Data samples recorded.
     pub samples: u64,
+    /// Data samples the link lost in the scenario's dropouts (the truth file has them).
+    pub dropped: u64,
+    /// Samples the pipeline counted as lost on the link from the device clock's gaps (the
+    /// status's `samples_lost`): `dropped`, when the unit's clock shows every gap.
+    pub samples_lost: u64,
     /// Temperature readings recorded.
     pub temperatures: u64,
     /// The recording files written.
@@ -166,6 +175,8 @@ impl Run {
             queue_capacity: config.log.queue_capacity,
             report: OfflineReport {
                 samples: 0,
+                dropped: 0,
+                samples_lost: 0,
                 temperatures: 0,
                 files: Vec::new(),
                 truth: sim.truth_out.clone(),
@@ -201,6 +212,10 @@ fn open_truth(sim: &SimOptions, device: &DeviceCore) -> anyhow::Result<Option<Tr
         ("seed".to_string(), sim.seed.to_string()),
         ("rate-hz".to_string(), sim.scenario.rate_hz.to_string()),
         ("pacing".to_string(), "offline".to_string()),
+        (
+            imu_sim::DROPOUTS_KEY.to_string(),
+            imu_sim::dropouts_text(device.timeline()),
+        ),
     ]);
     let mut w = TruthWriter::create(path, &run, &sim.scenario_text, &sim.truth.to_toml_string())?;
     for s in device.timeline().segments() {
@@ -257,7 +272,13 @@ fn start_pipeline(
         ))),
         None => None,
     };
-    let mut pipeline = Pipeline::new(unit.session(), None);
+    let mut session = unit.session();
+    if !unit.core().timeline().dropouts().is_empty() {
+        // Samples lost on the link are counted from the device clock's gaps, as for a
+        // streaming unit (a poll-paced session counts none).
+        session.acquisition = Acquisition::Streaming;
+    }
+    let mut pipeline = Pipeline::new(session, None);
     // The synthetic host time is the scenario's exact sample time: stamp with it (the clock fit
     // would place samples on whole 6.5536 ms ticks, coarser than a 100 Hz sample interval).
     pipeline.set_sample_clock(SampleClock::Host);
@@ -305,6 +326,11 @@ impl Run {
             (MONO_ORIGIN_NS + t_ns, self.wall_origin_ns + t_ns)
         };
         self.unit.step(k, t_s, bytes, &mut truths);
+        let lost = self.unit.core().timeline().link_lost_at(t_s);
+        if lost {
+            // A dropout: the unit sent its replies, the link lost them; the truth keeps them.
+            bytes.clear();
+        }
         let driver = self.unit.driver();
         driver.handle_input(bytes, std::time::Instant::now());
         while let Some(ev) = driver.poll_event(&mut self.slot) {
@@ -326,7 +352,12 @@ impl Run {
             }
         }
         self.report.temperatures = self.pipeline.counters().temperatures;
-        self.report.samples += 1;
+        self.report.samples_lost = self.pipeline.counters().samples_lost;
+        if lost {
+            self.report.dropped += 1;
+        } else {
+            self.report.samples += 1;
+        }
         if let Some(w) = &mut self.truth {
             for t in &truths {
                 w.write_sample(t)?;

@@ -3,10 +3,9 @@
 the scenario's date of time 0 and the samples its dropouts lost, each against the scenario
 that made the recording."""
 
+import json
 import subprocess
 from datetime import datetime, timezone
-
-import pytest
 
 import imud
 from conftest import SCENARIOS
@@ -93,3 +92,31 @@ def test_offline_recordings_are_dated_by_their_scenarios(bins, tmp_path):
     assert got[1].info["t0_ns"] - got[0].info["t0_ns"] == 90 * day_s * 10**9
     a, b = (datetime.fromisoformat(r.info["started_utc"]) for r in got)
     assert (b - a).total_seconds() == 90 * day_s
+
+
+def test_dropouts_lose_exactly_their_samples_and_the_reader_counts_them(bins, tmp_path):
+    # Two dropouts: every sample of the truth inside them is missing from the recording and
+    # the reader's missing_samples counts exactly those (the daemon's own loss counter:
+    # daemon/tests/offline_dropouts.rs).
+    from collections import Counter
+
+    from mcap.reader import make_reader
+
+    windows = [(12.0, 0.5), (40.005, 1.0)]
+    extra = "".join(f"[[dropout]]\nat-s = {a}\nduration-s = {d}\n" for a, d in windows)
+    path = record(bins, tmp_path, "lossy", scenario(31, extra=extra))
+    truth = path.parent / "lossy-truth.mcap"
+    with open(truth, "rb") as f:
+        samples = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(
+            topics=["/truth/sample"])]
+    # The data command's truth (a GX1 also answers temperature polls, with truth of their own).
+    data_cmd, _ = Counter(s["command"] for s in samples).most_common(1)[0]
+    t_truth = [s["t_s"] for s in samples if s["command"] == data_cmd]
+    assert len(t_truth) == 6000
+    dropped = sum(any(a <= t < a + d for a, d in windows) for t in t_truth)
+    assert dropped == 150
+    rec = imud.read(path)
+    assert len(rec) == len(t_truth) - dropped
+    assert rec.info["missing_samples"] == dropped
+    raw = imud.read(path, source="raw")
+    assert len(raw) == len(rec) and raw.info["missing_samples"] == dropped

@@ -212,6 +212,21 @@ pub fn segment_record(s: &motion::SegmentInfo) -> TruthSegment {
     }
 }
 
+/// The truth file's run metadata key of the link's dropout windows ([`dropouts_text`]).
+pub const DROPOUTS_KEY: &str = "dropouts-s";
+
+/// The link's dropout windows of `timeline` as the truth's run metadata says them:
+/// `start..end` in scenario seconds, comma-separated (empty without any); the data samples of
+/// the truth inside them never reached the host.
+pub fn dropouts_text(timeline: &motion::Timeline) -> String {
+    timeline
+        .dropouts()
+        .iter()
+        .map(|d| format!("{}..{}", d.start_s, d.end_s))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
 /// The run identity stored in the truth file.
 fn run_metadata(opts: &SimOptions, device_path: &Path) -> BTreeMap<String, String> {
     let s = &opts.scenario;
@@ -337,9 +352,11 @@ fn open_truth(
     let Some(path) = &opts.truth_out else {
         return Ok(None);
     };
+    let mut run = run_metadata(opts, device_path);
+    run.insert(DROPOUTS_KEY.into(), dropouts_text(core.timeline()));
     let mut w = TruthWriter::create(
         path,
-        &run_metadata(opts, device_path),
+        &run,
         &opts.scenario_text,
         &opts.truth.to_toml_string(),
     )?;

@@ -11,6 +11,9 @@
 //!   unit's USB virtual serial port is not paced);
 //! - fast: a virtual clock advances one sample period per data reply and bytes go out as fast as
 //!   the host reads them, so hours of scenario run in seconds with identical content.
+//!
+//! In the scenario's dropouts (`Timeline::link_lost_at`) data replies, streamed or polled, are
+//! made and their truth written, but their bytes never reach the host.
 
 use std::fs::File;
 use std::io::{ErrorKind, Read, Write};
@@ -131,6 +134,8 @@ pub struct LinkReport {
     /// Continuous-mode samples the device could not send because the link was still busy
     /// (real-time mode only: the data rate exceeds what the baud rate carries).
     pub samples_skipped_link_busy: u64,
+    /// Data replies the link lost in the scenario's dropouts (their truth is kept).
+    pub data_replies_lost: u64,
     /// Scenario time reached, seconds.
     pub scenario_time_s: f64,
     /// True if the scenario ran to its end (false: stopped from outside).
@@ -287,7 +292,12 @@ impl Loop<'_> {
             if let Some(truth) = answer.truth {
                 self.emit_truth(truth)?;
             }
-            self.queue_answer(answer.bytes, answer.delay_s);
+            if is_data && self.device.core().timeline().link_lost_at(t_s) {
+                // A dropout: the poll's answer never reaches the host.
+                self.report.data_replies_lost += 1;
+            } else {
+                self.queue_answer(answer.bytes, answer.delay_s);
+            }
             match (was_streaming, self.device.is_streaming()) {
                 (false, true) => {
                     // The first sample follows the acknowledgement one period later.
@@ -347,8 +357,14 @@ impl Loop<'_> {
                 }
             }
             self.take_injected();
+            let before = self.out.len();
             if let Some(truth) = self.device.stream_sample(t, &mut self.out) {
                 self.emit_truth(truth)?;
+            }
+            if self.device.core().timeline().link_lost_at(t) && self.out.len() > before {
+                // A dropout: the sample is made (and its truth kept) but never reaches the host.
+                self.out.truncate(before);
+                self.report.data_replies_lost += 1;
             }
             self.next_sample_t_s = Some(t + period);
             self.report.scenario_time_s = t;

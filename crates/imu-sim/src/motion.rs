@@ -8,6 +8,7 @@
 
 use imu_model::nalgebra::{Unit, UnitQuaternion, Vector3};
 
+use crate::scenario::LinkDropout;
 use crate::tremor::Tremor;
 
 /// A train of half-sine specific-force shocks along a sensor axis.
@@ -115,6 +116,8 @@ pub struct Timeline {
     earth_rate_enu_rad_s: Vector3<f64>,
     mag_enu_gauss: Vector3<f64>,
     tremor: Option<Tremor>,
+    /// Windows whose data replies the link loses, in time order, not overlapping.
+    dropouts: Vec<LinkDropout>,
 }
 
 impl Timeline {
@@ -133,7 +136,25 @@ impl Timeline {
             earth_rate_enu_rad_s,
             mag_enu_gauss,
             tremor: None,
+            dropouts: Vec::new(),
         }
+    }
+
+    /// The same motion with link dropouts (in time order, not overlapping).
+    pub fn with_dropouts(mut self, dropouts: Vec<LinkDropout>) -> Self {
+        self.dropouts = dropouts;
+        self
+    }
+
+    /// The link's dropout windows, in time order.
+    pub fn dropouts(&self) -> &[LinkDropout] {
+        &self.dropouts
+    }
+
+    /// True if the link loses the device's data reply at scenario time `t_s`.
+    pub fn link_lost_at(&self, t_s: f64) -> bool {
+        let i = self.dropouts.partition_point(|d| d.start_s <= t_s);
+        i > 0 && self.dropouts[i - 1].contains(t_s)
     }
 
     /// The same motion with hand tremor on top (see [`Tremor`]).

@@ -12,8 +12,8 @@ impl Scenario {
     }
 
     /// Builds the motion timeline. `seed` drives the random poses and, for a hand-held
-    /// scenario, the tilts of its poses and its tremor (each from its own stream, so a
-    /// scenario without `[hand]` is unchanged).
+    /// scenario, the tilts of its poses and its tremor, and the random link dropouts (each
+    /// from its own stream, so a scenario without `[hand]` or dropouts is unchanged).
     pub fn compile(&self, seed: u64) -> Timeline {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_0f7a_61e5);
         let mut tilts = Tilts {
@@ -51,6 +51,8 @@ impl Scenario {
             self.earth_rate_enu_rad_s(),
             Vector3::from(self.mag_field_enu_gauss),
         );
+        let dropouts = self.dropouts(seed, timeline.duration_s());
+        let timeline = timeline.with_dropouts(dropouts);
         if self.hand.tremor_deg > 0.0 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7e3e_0b1e_5eed);
             let tremor = Tremor::new(

@@ -3,8 +3,9 @@
 //! A scenario is a list of segments run in order (static positions, index-table steps, rate-table
 //! plateaus, single rotations, impacts, random poses) plus the environment (latitude, gravity,
 //! magnetic field, temperature profile) and the device's identity, and for a unit held by hand
-//! (`[hand]`, [`HandSpec`]) its tremor and the tilt noise of its poses. [`Scenario::compile`]
-//! turns it into a [`crate::motion::Timeline`] of analytic motion phases.
+//! (`[hand]`, [`HandSpec`]) its tremor and the tilt noise of its poses, and the link's
+//! dropouts (`[[dropout]]`, `[random-dropouts]`: `dropout.rs`). [`Scenario::compile`] turns it
+//! into a [`crate::motion::Timeline`] of analytic motion phases.
 //!
 //! Every key is kebab-case and unknown keys are errors that name the file and line, so a typo
 //! never silently changes a test.
@@ -21,9 +22,11 @@ use crate::motion::{ImpactTrain, Phase, SegmentInfo, Timeline};
 
 mod builder;
 mod compile;
+mod dropout;
 mod validate;
 
 use builder::*;
+pub use dropout::{DropoutSpec, LinkDropout, RandomDropouts};
 
 /// Errors loading or checking a scenario.
 #[derive(Debug, thiserror::Error)]
@@ -47,6 +50,18 @@ pub enum ScenarioError {
         /// 1-based column.
         column: usize,
         /// What is wrong.
+        message: String,
+    },
+    /// A table's values make no sense, at its line.
+    #[error("{file}:{line}: {context}: {message}")]
+    InvalidAt {
+        /// The scenario file.
+        file: String,
+        /// 1-based line of the table.
+        line: usize,
+        /// Which table (e.g. `dropout 2`).
+        context: String,
+        /// What is wrong and how to fix it.
         message: String,
     },
     /// The values parse but make no physical sense.
@@ -111,6 +126,14 @@ pub struct Scenario {
     /// The motion, in order.
     #[serde(rename = "segment", default)]
     pub segments: Vec<SegmentSpec>,
+    /// Link dropouts (`[[dropout]]`, `at-s`, `duration-s`): windows whose data replies the
+    /// host never gets (offline and on the pty); the truth keeps every sample.
+    #[serde(rename = "dropout", default)]
+    pub dropouts: Vec<DropoutSpec>,
+    /// Random link dropouts (`[random-dropouts]`, `per-hour`, `mean-duration-s`), drawn from
+    /// the seed.
+    #[serde(default)]
+    pub random_dropouts: Option<RandomDropouts>,
 }
 
 /// A unit held by hand (`[hand]`), off by default. `tremor-deg`: RMS angle of the hand's
@@ -750,6 +773,7 @@ impl Scenario {
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, ScenarioError> {
         let s: Scenario = toml::from_str(text).map_err(|e| toml_error(file, text, &e))?;
         s.validate(file)?;
+        s.validate_dropouts(file, text)?;
         Ok(s)
     }
 

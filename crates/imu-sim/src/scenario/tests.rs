@@ -210,3 +210,107 @@ fn gnss_time_and_its_outages_parse_and_a_backwards_outage_is_named() {
     );
     assert!(e.contains("start-s 5 must come before end-s 2"), "{e}");
 }
+
+/// A still `duration_s` with `extra` tables after the segment.
+fn with_dropouts(duration_s: f64, extra: &str) -> String {
+    format!("name = \"t\"\n[[segment]]\nkind = \"static\"\nduration-s = {duration_s}\n{extra}")
+}
+
+#[test]
+fn written_dropouts_lose_their_windows_only() {
+    let text = with_dropouts(
+        60.0,
+        "[[dropout]]\nat-s = 30.0\nduration-s = 0.5\n[[dropout]]\nat-s = 10.0\nduration-s = 2.0\n",
+    );
+    let s = Scenario::from_toml_str(&text, "d.toml").unwrap();
+    let t = s.compile(1);
+    let windows: Vec<(f64, f64)> = t.dropouts().iter().map(|d| (d.start_s, d.end_s)).collect();
+    assert_eq!(windows, [(10.0, 12.0), (30.0, 30.5)]);
+    let lost: Vec<bool> = [9.99, 10.0, 11.99, 12.0, 30.2, 30.5, 59.0]
+        .iter()
+        .map(|&t_s| t.link_lost_at(t_s))
+        .collect();
+    assert_eq!(lost, [false, true, true, false, true, false, false]);
+    // No dropouts: the same timeline as before they existed.
+    assert!(
+        Scenario::from_toml_str(MINIMAL, "t.toml")
+            .unwrap()
+            .compile(1)
+            .dropouts()
+            .is_empty()
+    );
+}
+
+#[test]
+fn bad_dropouts_name_file_line_and_problem() {
+    let err = |extra: &str, duration_s: f64| {
+        Scenario::from_toml_str(&with_dropouts(duration_s, extra), "d.toml")
+            .unwrap_err()
+            .to_string()
+    };
+    // The second table starts on line 8 (the segment takes lines 2 to 4).
+    let e = err(
+        "[[dropout]]\nat-s = 10.0\nduration-s = 5.0\n[[dropout]]\nat-s = 12.0\nduration-s = 1.0\n",
+        60.0,
+    );
+    assert!(
+        e.starts_with("d.toml:8: dropout 2:") && e.contains("overlaps dropout 1"),
+        "{e}"
+    );
+    let e = err("[[dropout]]\nat-s = 58.0\nduration-s = 5.0\n", 60.0);
+    assert!(
+        e.starts_with("d.toml:5: dropout 1:") && e.contains("not inside"),
+        "{e}"
+    );
+    let e = err("[[dropout]]\nat-s = 5.0\nduration-s = 0.0\n", 60.0);
+    assert!(
+        e.contains("d.toml:5:") && e.contains("must be positive"),
+        "{e}"
+    );
+    let e = err("[[dropout]]\nat-s = -1.0\nduration-s = 1.0\n", 60.0);
+    assert!(e.contains("d.toml:5:") && e.contains(">= 0"), "{e}");
+    let e = err(
+        "[random-dropouts]\nper-hour = 2.0\nmean-duration-s = -1.0\n",
+        60.0,
+    );
+    assert!(e.starts_with("d.toml:5: random-dropouts:"), "{e}");
+    let endless = "name = \"t\"\n[[segment]]\nkind = \"static\"\n\
+                   [random-dropouts]\nper-hour = 2.0\nmean-duration-s = 1.0\n";
+    let e = Scenario::from_toml_str(endless, "d.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("d.toml:4:") && e.contains("scenario that ends"),
+        "{e}"
+    );
+    let e = err("[[dropout]]\nat-s = 5.0\nlength-s = 1.0\n", 60.0);
+    assert!(e.contains("d.toml:") && e.contains("length-s"), "{e}");
+}
+
+/// Random dropouts are a Poisson process of starts with exponential lengths, reproducible
+/// from the seed: over 200 h at 6 an hour, 1200 expected (sd 35) of mean length 2 s (the
+/// mean of 1200 exponentials is within 0.12 s at 2 sd).
+#[test]
+fn random_dropouts_follow_their_rate_and_mean_length_from_the_seed() {
+    let text = with_dropouts(
+        200.0 * 3600.0,
+        "[random-dropouts]\nper-hour = 6.0\nmean-duration-s = 2.0\n",
+    );
+    let s = Scenario::from_toml_str(&text, "r.toml").unwrap();
+    let a = s.compile(7);
+    assert_eq!(a.dropouts(), s.compile(7).dropouts());
+    assert_ne!(a.dropouts(), s.compile(8).dropouts());
+    let d = a.dropouts();
+    let n = d.len() as f64;
+    assert!((n - 1200.0).abs() < 4.0 * 1200f64.sqrt(), "{n} dropouts");
+    let mean_s = d.iter().map(|w| w.end_s - w.start_s).sum::<f64>() / n;
+    assert!(
+        (mean_s - 2.0).abs() < 4.0 * 2.0 / n.sqrt(),
+        "mean length {mean_s} s"
+    );
+    assert!(d.windows(2).all(|w| w[0].end_s < w[1].start_s));
+    assert!(
+        d.iter()
+            .all(|w| w.start_s > 0.0 && w.end_s <= 200.0 * 3600.0)
+    );
+}
