@@ -76,6 +76,7 @@ def analyze(
     alpha: float = 0.01,
     min_noise_span_s: float = DEFAULT_MIN_NOISE_SPAN_S,
     latitude_deg: Optional[float] = None,
+    gravity_m_s2: Optional[float] = None,
     filesystem: Any = None,
     now_utc: Any = None,
 ) -> FleetResult:
@@ -90,7 +91,8 @@ def analyze(
     else group 1, else the match). ``tolerances``, ``alpha``: the drift test's
     (:class:`Tolerances`; the fleet's false-alarm rate). ``min_noise_span_s``: shortest rest
     the noise terms are computed on. ``latitude_deg``: where the recordings were made (Earth
-    rate in the gyro check; unknown: as :func:`imud.health_check` treats it).
+    rate in the gyro check, normal gravity; unknown: as :func:`imud.health_check` treats it);
+    ``gravity_m_s2``: the local gravity where known (default: normal gravity at the latitude).
     ``filesystem``: a pyarrow filesystem the paths are on.
 
     Raises FileNotFoundError naming a path that does not exist; a recording that cannot be
@@ -107,6 +109,7 @@ def analyze(
         unit_pattern=unit_pattern,
         min_noise_span_s=float(min_noise_span_s),
         latitude_deg=latitude_deg,
+        gravity_m_s2=gravity_m_s2,
     )
     if calibration is not None:
         if not isinstance(calibration, Calibration):

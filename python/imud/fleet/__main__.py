@@ -47,7 +47,9 @@ def parser() -> argparse.ArgumentParser:
                    help=f"shortest rest the noise terms are computed on, s (default "
                    f"{DEFAULT_MIN_NOISE_SPAN_S:g})")
     p.add_argument("--latitude-deg", type=float,
-                   help="latitude of the recordings (Earth rate in the gyro check)")
+                   help="latitude of the recordings (Earth rate in the gyro check, normal gravity)")
+    p.add_argument("--gravity-m-s2", type=float,
+                   help="local gravity, m/s^2 (default: normal gravity at --latitude-deg)")
     return p
 
 
@@ -69,6 +71,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             alpha=args.alpha,
             min_noise_span_s=args.min_noise_span_s,
             latitude_deg=args.latitude_deg,
+            gravity_m_s2=args.gravity_m_s2,
         )
         result.write(args.out)
         if args.report:

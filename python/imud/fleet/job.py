@@ -51,6 +51,9 @@ class JobOptions:
     unit_pattern: Optional[str] = None
     min_noise_span_s: float = DEFAULT_MIN_NOISE_SPAN_S
     latitude_deg: Optional[float] = None
+    #: Local gravity, m/s^2 (None: normal gravity at the latitude, else learned, as
+    #: :func:`imud.health_check` does).
+    gravity_m_s2: Optional[float] = None
 
 
 def analyze_recording(spec: RecordingSpec, options: JobOptions) -> Dict[str, Any]:
@@ -204,7 +207,9 @@ def _calibration(rec: Any, options: JobOptions) -> Any:
 def _health(rec: Any, cal: Any, options: JobOptions) -> Any:
     import imud
 
-    return imud.health_check(rec, cal, latitude_deg=options.latitude_deg)
+    return imud.health_check(
+        rec, cal, latitude_deg=options.latitude_deg, gravity_m_s2=options.gravity_m_s2
+    )
 
 
 def _f(v: Any) -> Optional[float]:

@@ -59,6 +59,10 @@ EPOCH_UTC_S = 1_767_571_200.0
 FIRST_SERIAL = 3001
 RATE_HZ = 100.0
 LATITUDE_DEG = 40.0
+#: The scenarios' gravity: WGS-84 normal gravity at LATITUDE_DEG on the ellipsoid (what imud's
+#: health check and imu-calibrate take at that latitude; the simulator's default is standard
+#: gravity, 4.97e-3 m/s^2 more, which would read as a 0.5 mg bias error in every rest).
+GRAVITY_M_S2 = 9.80169686
 
 
 def _model_path() -> Path:
@@ -116,6 +120,7 @@ def _scenario(
 ) -> str:
     head = (
         f'name = "{name}"\nrate-hz = {RATE_HZ}\nlatitude-deg = {LATITUDE_DEG}\n'
+        f"gravity-m-s2 = {GRAVITY_M_S2}\n"
         f'truth = "{truth}"\n\n[device]\nserial-number = {serial}\n'
         f"gnss-epoch-utc-s = {epoch_utc_s:.1f}\n"
     )
