@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import posixpath
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, List, Optional, Sequence, Tuple
 
 #: Files a directory search takes as recordings (every reader tells the format by content; a
@@ -34,7 +34,6 @@ class RecordingSpec:
     filesystem: Any = None
     #: Set for a rosbag2 directory: the files keep their names inside one directory.
     directory: Optional[str] = None
-    extra: dict = field(default_factory=dict)
 
 
 def _open(arg: str, filesystem: Any) -> Tuple[Any, str, bool]:
@@ -66,8 +65,10 @@ def find_recordings(args: Sequence[Any], filesystem: Any = None) -> List[Recordi
         if info.type == pafs.FileType.NotFound:
             raise FileNotFoundError(f"no such recording or directory: {arg}")
         fs_kept = f if remote else None
+        # A URI's recordings are reported under their URI (the filesystem's paths drop the scheme).
+        scheme = arg.split("://", 1)[0] + "://" if remote and filesystem is None else ""
         if info.type == pafs.FileType.File:
-            out += _group([p], fs_kept)
+            out += _named(_group([p], fs_kept), scheme)
             continue
         listing = f.get_file_info(pafs.FileSelector(p, recursive=True))
         files = sorted(i.path for i in listing if i.type == pafs.FileType.File)
@@ -90,8 +91,14 @@ def find_recordings(args: Sequence[Any], filesystem: Any = None) -> List[Recordi
                 f"{arg}: a directory without recordings (files ending in "
                 f"{', '.join(RECORDING_SUFFIXES)}, or rosbag2 directories)"
             )
-        out += sorted(found, key=lambda s: s.path)
+        out += _named(sorted(found, key=lambda s: s.path), scheme)
     return out
+
+
+def _named(specs: List[RecordingSpec], scheme: str) -> List[RecordingSpec]:
+    for s in specs:
+        s.path = scheme + s.path
+    return specs
 
 
 def _group(files: List[str], fs: Any) -> List[RecordingSpec]:
