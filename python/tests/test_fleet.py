@@ -10,14 +10,12 @@ flagged, their drift rates within 3 reported sigmas, the offsets of every record
 samples lost; the Ray result equal to the local one.
 """
 
-import json
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from conftest import REPO, _missing
