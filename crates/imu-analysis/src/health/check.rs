@@ -342,7 +342,7 @@ mod tests {
     #[test]
     fn a_series_without_a_still_window_gives_no_windows_and_nan_offsets() {
         let n = 60 * 100;
-        let shake = |k: usize| if k % 2 == 0 { 3.0 } else { -3.0 };
+        let shake = |k: usize| if k.is_multiple_of(2) { 3.0 } else { -3.0 };
         let series = ImuSeries {
             t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
             accel_m_s2: (0..n).map(|k| [shake(k), 0.0, 9.8]).collect(),
