@@ -4,7 +4,8 @@
 //! The bytes are the simulator's replies, encoded and decoded by the same codec as on a serial
 //! line, and the recording is written by the same `Recorder`, so a file made here is exactly what
 //! `imud` would have logged for the same scenario, seed and truth model (host timestamps are
-//! synthetic: the scenario clock plus a fixed offset). This is how hours of data for the offline
+//! synthetic: the scenario clock from the scenario's UTC of time 0, `[device]
+//! gnss-epoch-utc-s`, which also dates the file names and their `started-utc`). This is how hours of data for the offline
 //! tools' accuracy tests are produced in seconds: `imud --sim SCENARIO --offline`.
 //!
 //! Whatever the scenario's device speaks (`[device] protocol`, or `--protocol`), its simulated
@@ -105,8 +106,13 @@ pub fn record_session_text(
     )
 }
 
-/// Host wall-clock time the synthetic timestamps start at (2026-01-01T00:00:00Z), ns.
-const WALL_ORIGIN_NS: u64 = 1_767_225_600_000_000_000;
+/// Host wall-clock time the synthetic timestamps start at, Unix epoch ns: the scenario's UTC of
+/// its time 0 (`[device] gnss-epoch-utc-s`, validated after 1980), so a fleet's simulated
+/// recordings are dated as the scenarios say, months apart if they say so.
+fn wall_origin_ns(sim: &SimOptions) -> u64 {
+    (sim.scenario.device.gnss_epoch_utc_s * 1e9).round() as u64
+}
+
 /// Synthetic host monotonic time at scenario start, ns.
 const MONO_ORIGIN_NS: u64 = 1_000_000_000_000;
 
@@ -152,6 +158,7 @@ impl Run {
         let unit = offline_unit(sim.scenario.device.protocol, core, config)?;
         let pipeline = start_pipeline(&sim, config, unit.as_ref(), period_s, &mut sinks)?;
         Ok(Run {
+            wall_origin_ns: wall_origin_ns(&sim),
             unit,
             pipeline,
             sinks,
@@ -213,6 +220,9 @@ fn start_recorder(sim: &SimOptions, config: &Config) -> anyhow::Result<Recorder>
             rotate_interval_s: 0.0,
             queue_capacity: config.log.queue_capacity,
             frame_id: config.log.frame_id.clone(),
+            // Files are dated by the synthetic clock: names and `started-utc` say the
+            // scenario's date, not the day the simulation ran.
+            synthetic_start_wall_ns: Some(wall_origin_ns(sim)),
             ..RecordingConfig::default()
         },
         vec![
@@ -254,7 +264,7 @@ fn start_pipeline(
     pipeline.set_health(Some(config.health.clone()));
     if let Some(cal) = calibration {
         pipeline.set_calibration(Some(cal.clone()));
-        sinks.log_calibration(WALL_ORIGIN_NS, &cal, Some(1.0 / period_s));
+        sinks.log_calibration(wall_origin_ns(sim), &cal, Some(1.0 / period_s));
     }
     if let Some(r) = &sinks.recorder {
         let mut metadata = BTreeMap::from([
@@ -272,6 +282,8 @@ fn start_pipeline(
 
 /// One offline run: the simulated unit, the pipeline and the outputs.
 struct Run {
+    /// Host wall time of scenario time 0, ns.
+    wall_origin_ns: u64,
     unit: Box<dyn OfflineUnit>,
     pipeline: Pipeline,
     sinks: Sinks,
@@ -290,7 +302,7 @@ impl Run {
         let mut truths = Vec::with_capacity(2);
         let (mono, wall) = {
             let t_ns = (t_s * 1e9) as u64;
-            (MONO_ORIGIN_NS + t_ns, WALL_ORIGIN_NS + t_ns)
+            (MONO_ORIGIN_NS + t_ns, self.wall_origin_ns + t_ns)
         };
         self.unit.step(k, t_s, bytes, &mut truths);
         let driver = self.unit.driver();

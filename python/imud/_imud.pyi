@@ -30,7 +30,11 @@ class Series:
     def temperature_readings(
         self,
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
-    def info_json(self) -> str: ...
+    def info_json(self) -> str:
+        """JSON object: ``origin``, ``input`` (files, topic, gaps), ``t0_ns``, ``started_utc``
+        (ISO 8601 or null), ``sample_rate_hz``, ``missing_samples``, ``stopped_early``,
+        ``unfinished``, ``motion_warning``, ``device`` (the ``imud.device`` metadata, ``{}``
+        without) and ``calibration_in_force`` (``{"id", "toml", "file"}`` or null)."""
 
 class Calibration:
     """An imud calibration: the file imud loads, its parameters and its correction."""

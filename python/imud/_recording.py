@@ -71,7 +71,14 @@ class Recording:
         gyro_rad_s: (N, 3) angular rate, sensor frame, rad/s.
         temperature_c: (N,) temperature at each sample, degC (the latest reading at or before
             it; NaN before the first or without any).
-        info: origin, files, topic, gaps between files, sample rate, unfinished file.
+        info: origin, files, topic, gaps between files, sample rate, unfinished file, and
+            what the recording says about itself: ``started_utc`` (ISO 8601 UTC of the first
+            sample, None when unknown), ``missing_samples`` (samples lost, judged by the time
+            gaps against the sample interval, gaps between a session's files included),
+            ``device`` (an imud recording's ``imud.device`` metadata: ``model``,
+            ``serial-number``, firmware, gains...; ``{}`` without) and
+            ``calibration_in_force`` (``{"id", "toml", "file"}`` of the ``imud.calibration``
+            metadata, the one put in force last; None without).
         source: ``"corrected"`` or ``"raw"``: which stream of an imud recording was read.
     """
 
@@ -129,6 +136,22 @@ class Recording:
     @property
     def sample_rate_hz(self) -> float:
         return self.info["sample_rate_hz"]
+
+    @property
+    def device(self) -> dict:
+        """The device an imud recording says it recorded (its ``imud.device`` metadata, as
+        the daemon writes it: ``model``, ``serial-number``...); ``{}`` for other inputs."""
+        return dict(self.info["device"])
+
+    @cached_property
+    def calibration_in_force(self) -> "Optional[_imud.Calibration]":
+        """The :class:`imud.Calibration` the recording says was in force (its
+        ``imud.calibration`` metadata; the one put in force last), or None. Raises
+        :class:`ImudError` naming the recording file if that text is not a valid calibration."""
+        cal = self.info["calibration_in_force"]
+        if cal is None:
+            return None
+        return _imud.Calibration.from_toml(cal["toml"], source=f"{cal['file']} (imud.calibration)")
 
     def to_arrow(self) -> Any:
         """The samples as a ``pyarrow.Table`` (columns time_s, accel_x/y/z_m_s2,

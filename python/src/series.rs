@@ -246,13 +246,20 @@ impl Series {
     }
 
     /// Where the series came from, as JSON: origin, the files, topic and gaps (`input`), the
-    /// absolute time of t = 0, the sample rate, an early stop and an unfinished file.
+    /// absolute time of t = 0 (ns, and ISO 8601 `started_utc`), the sample rate, samples lost
+    /// in time gaps, an early stop and an unfinished file, and what an imud recording says of
+    /// itself: the device (`imud.device` metadata, `{}` without) and the calibration in force
+    /// (`{"id", "toml", "file"}` or null).
     fn info_json(&self) -> PyResult<String> {
         let s = &self.inner;
         let v = serde_json::json!({
             "origin": s.origin,
             "input": s.input,
             "t0_ns": s.t0_ns,
+            "started_utc": s.started_utc(),
+            "missing_samples": s.missing_samples(),
+            "device": s.input.device,
+            "calibration_in_force": s.input.calibration,
             "sample_rate_hz": s.sample_rate_hz(),
             "stopped_early": s.stopped_early,
             "unfinished": s.unfinished,

@@ -23,8 +23,9 @@ fn truth(k: u64) -> ([f64; 3], [f64; 3]) {
     )
 }
 
-/// One daemon run: samples `ks` on the corrected stream, rotated into files of ~24 KiB.
-fn record_run(dir: &Path, ks: std::ops::Range<u64>) {
+/// One daemon run of unit 4242 with calibration `cal_id` in force: samples `ks` on the
+/// corrected stream, rotated into files of ~24 KiB.
+fn record_run(dir: &Path, ks: std::ops::Range<u64>, cal_id: &str) {
     let config = RecordingConfig {
         dir: dir.to_path_buf(),
         prefix: "imud".into(),
@@ -32,7 +33,14 @@ fn record_run(dir: &Path, ks: std::ops::Range<u64>) {
         rotate_interval_s: 0.0,
         ..RecordingConfig::default()
     };
-    let rec = Recorder::start(config, vec![("imud.device".into(), BTreeMap::new())]).unwrap();
+    let device = BTreeMap::from([("serial-number".to_string(), "4242".to_string())]);
+    let rec = Recorder::start(config, vec![("imud.device".into(), device)]).unwrap();
+    assert!(rec.log(LogRecord::Calibration {
+        t_wall_ns: T0_NS + ks.start * DT_NS,
+        id: cal_id.into(),
+        toml: format!("# {cal_id}\n"),
+        noise: None,
+    }));
     for k in ks {
         let (a, g) = truth(k);
         let t = T0_NS + k * DT_NS;
@@ -51,12 +59,12 @@ fn record_run(dir: &Path, ks: std::ops::Range<u64>) {
 #[test]
 fn rotated_imud_files_are_one_recording_with_the_gap_reported() {
     let dir = tempfile::tempdir().unwrap();
-    record_run(dir.path(), 0..600);
+    record_run(dir.path(), 0..600, "cal-a");
     let first_run = list_recordings(dir.path(), "imud").unwrap();
     assert!(first_run.len() >= 3, "rotation made {first_run:?}");
     // The daemon restarted one second later: samples 700.. in new files (index from 0 again).
     std::thread::sleep(std::time::Duration::from_millis(1100));
-    record_run(dir.path(), 700..900);
+    record_run(dir.path(), 700..900, "cal-b");
     let all = list_recordings(dir.path(), "imud").unwrap();
     assert!(all.len() > first_run.len());
     let options = InputOptions::default();
@@ -87,6 +95,21 @@ fn rotated_imud_files_are_one_recording_with_the_gap_reported() {
     assert_eq!(gap.missing_samples, 100);
     assert!((gap.gap_s - 1.01).abs() < 1e-9 && (gap.at_s - 5.99).abs() < 1e-9);
     assert_eq!(gap.after, *first_run.last().unwrap());
+    assert_eq!(s.missing_samples(), 100);
+    // What the session says about itself: its device, and the calibration put in force last
+    // (the second run's), from the latest file.
+    assert_eq!(s.input.device["serial-number"], "4242");
+    let cal = s
+        .input
+        .calibration
+        .as_ref()
+        .expect("a calibration in force");
+    assert_eq!((cal.id.as_str(), cal.toml.as_str()), ("cal-b", "# cal-b\n"));
+    assert_eq!(cal.file, *all.last().unwrap());
+    assert_eq!(
+        s.started_utc().as_deref(),
+        Some("2023-11-14T22:13:20.000000000Z")
+    );
     // Files of one session that overlap in time are refused.
     let twice = [all[0].clone(), all[0].clone()];
     let e = read_input(&twice, &options, &mut |_, _| {}).unwrap_err();

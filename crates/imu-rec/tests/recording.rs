@@ -231,6 +231,48 @@ fn size_rotation_gives_complete_files_whose_union_is_every_record_once() {
     assert_same_messages(&all, &expected(&records, "imu_link"));
 }
 
+/// An offline simulation's recorder: its files are dated by the records' synthetic clock (a
+/// scenario in 2031, one sample every 10 minutes), not by the system clock: the first file at
+/// the configured start, each rotated one at its first record, in the name and `started-utc`.
+#[test]
+fn a_synthetic_clock_dates_the_files_by_their_records() {
+    const START_NS: u64 = 1_940_000_000_000_000_000; // 2031-06-22T12:26:40Z
+    const STEP_NS: u64 = 600_000_000_000;
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = test_config(dir.path());
+    config.rotate_size_bytes = 4 * 1024;
+    config.synthetic_start_wall_ns = Some(START_NS);
+    let rec = Recorder::start(config, Vec::new()).unwrap();
+    for k in 0..200u64 {
+        let t = START_NS + k * STEP_NS;
+        assert!(rec.log(LogRecord::Corrected(imu_rec::CorrectedSample {
+            seq: k,
+            t_sample_ns: t,
+            t_wall_ns: t,
+            accel_m_s2: [k as f64, 0.5, 9.8],
+            ..imu_rec::CorrectedSample::default()
+        })));
+    }
+    rec.finish().unwrap();
+    let files = list_recordings(dir.path(), "test").unwrap();
+    assert!(files.len() >= 3, "{files:?}");
+    let stamp =
+        |ns: u64| imu_rec::recording::utc_stamp(std::time::UNIX_EPOCH + Duration::from_nanos(ns));
+    let mut seen = 0;
+    for (i, file) in files.iter().enumerate() {
+        let got = read_recording(file).unwrap();
+        let first_ns = got.imu[0].header.stamp.to_ns();
+        assert_eq!(first_ns, START_NS + seen * STEP_NS, "{file:?}");
+        seen += got.imu.len() as u64;
+        let started = stamp(if i == 0 { START_NS } else { first_ns });
+        assert!(started.starts_with("2031"), "{started}");
+        assert_eq!(got.metadata[RECORDING_METADATA]["started-utc"], started);
+        let name = file.file_name().unwrap().to_str().unwrap();
+        assert_eq!(name, format!("test-{started}-{i:04}.mcap"));
+    }
+    assert_eq!(seen, 200);
+}
+
 #[test]
 fn time_rotation_starts_a_new_file_for_records_after_the_interval() {
     let dir = tempfile::tempdir().unwrap();

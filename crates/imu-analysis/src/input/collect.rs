@@ -16,7 +16,9 @@ use imu_rec::Unfinished;
 use imu_rec::ros2::{Imu, RawSampleMsg};
 use imu_rec::sample::raw_flags;
 
-use super::{G0, IMU_SCHEMA, ImuSeries, ImudFile, InputError, InputInfo, Source};
+use super::{
+    CalibrationInForce, G0, IMU_SCHEMA, ImuSeries, ImudFile, InputError, InputInfo, Source,
+};
 
 /// What a read has gathered so far.
 #[derive(Default)]
@@ -63,6 +65,8 @@ pub(super) struct ReadEnd {
     pub unfinished: Option<Unfinished>,
     /// An imud recording's place in its session.
     pub imud_file: Option<ImudFile>,
+    /// The calibration an imud recording says was in force.
+    pub calibration: Option<CalibrationInForce>,
 }
 
 impl Collector {
@@ -167,7 +171,7 @@ impl Collector {
     }
 
     /// The series: the topic checked, raw counts converted with `device` (the recording's
-    /// `imud.device` metadata), times from the first sample.
+    /// `imud.device` metadata, which the series keeps), times from the first sample.
     pub(super) fn finish(
         mut self,
         path: &Path,
@@ -179,7 +183,7 @@ impl Collector {
         } else {
             self.check_topic(path)?;
         }
-        self.into_series(path, end)
+        self.into_series(path, device, end)
     }
 
     /// The IMU topic read is named: the one asked for must exist, and several IMU topics
@@ -259,7 +263,12 @@ impl Collector {
     }
 
     /// Times from the first sample, the temperatures on the same base, what was read.
-    fn into_series(self, path: &Path, end: ReadEnd) -> Result<ImuSeries, InputError> {
+    fn into_series(
+        self,
+        path: &Path,
+        device: Option<&BTreeMap<String, String>>,
+        end: ReadEnd,
+    ) -> Result<ImuSeries, InputError> {
         let mut series = self.series;
         let Some(&t0) = self.abs_ns.first() else {
             return Err(InputError::NoData {
@@ -281,6 +290,8 @@ impl Collector {
             gaps: Vec::new(),
             unfinished_file: series.unfinished.as_ref().map(|_| path.to_path_buf()),
             imud_file: end.imud_file,
+            device: device.cloned().unwrap_or_default(),
+            calibration: end.calibration,
         };
         Ok(series)
     }

@@ -36,6 +36,7 @@ pub fn read_db3_with_progress(
         stopped_early: None,
         unfinished: None,
         imud_file: None,
+        calibration: None,
     };
     collect.finish(shown, None, end)
 }

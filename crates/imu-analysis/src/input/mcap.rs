@@ -47,6 +47,7 @@ pub fn read_mcap_with_progress(
         stopped_early: report.stopped_early.clone(),
         unfinished: report.unfinished.clone(),
         imud_file: imud_file(&report),
+        calibration: calibration_in_force(path, &report),
     };
     collect.finish(path, report.metadata.get("imud.device"), end)
 }
@@ -86,10 +87,19 @@ fn imud_file(report: &ReadReport) -> Option<super::ImudFile> {
     Some(super::ImudFile {
         prefix: rec.get("prefix")?.clone(),
         file_index: rec.get("file-index")?.parse().ok()?,
-        device: report
-            .metadata
-            .get("imud.device")
-            .cloned()
-            .unwrap_or_default(),
+    })
+}
+
+/// The calibration in force in an imud recording file (the last `imud.calibration` record
+/// read: the reader keeps the latest of each name); `None` without one, or with a record that
+/// lacks its id or text.
+fn calibration_in_force(path: &Path, report: &ReadReport) -> Option<super::CalibrationInForce> {
+    let cal = report
+        .metadata
+        .get(imu_rec::recording::CALIBRATION_METADATA)?;
+    Some(super::CalibrationInForce {
+        id: cal.get("id")?.clone(),
+        toml: cal.get("toml")?.clone(),
+        file: path.to_path_buf(),
     })
 }

@@ -15,6 +15,7 @@
 //! counts with offsets), `session.rs` (several files as one, each told by content),
 //! `series.rs` (what a series says about itself).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use imu_rec::McapReadError;
@@ -181,19 +182,39 @@ pub struct InputInfo {
     /// the files of one session from separate recordings ([`group_sessions`]).
     #[serde(skip)]
     pub imud_file: Option<ImudFile>,
+    /// The device an imud recording says it recorded: its whole `imud.device` metadata (model,
+    /// serial number, firmware, gains...; the latest file's of a session); empty for other
+    /// inputs. (Said at the top of a series' description, not under `input`.)
+    #[serde(skip)]
+    pub device: BTreeMap<String, String>,
+    /// The calibration an imud recording says was in force (`imud.calibration` metadata; the
+    /// one put in force last, in the latest file holding one); `None` when none was.
+    #[serde(skip)]
+    pub calibration: Option<CalibrationInForce>,
 }
 
 /// An imud recording file's place in its session, from its metadata: the recorder's file
-/// prefix and index (`imud.recording`: 0 at each start of imud, one more at each rotation) and
-/// the device it recorded (`imud.device`).
+/// prefix and index (`imud.recording`: 0 at each start of imud, one more at each rotation).
+/// Files of one session also record the same device ([`InputInfo::device`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ImudFile {
     /// `prefix` of `imud.recording`.
     pub prefix: String,
     /// `file-index` of `imud.recording`.
     pub file_index: u32,
-    /// The whole `imud.device` record (model, serial, firmware, gains...).
-    pub device: std::collections::BTreeMap<String, String>,
+}
+
+/// The calibration in force in an imud recording: its `imud.calibration` metadata record,
+/// which the recorder rewrites whenever a calibration is put in force and repeats in every
+/// file started after that.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CalibrationInForce {
+    /// The calibration's content id (`imu_model::Calibration::content_id`).
+    pub id: String,
+    /// The calibration file's text.
+    pub toml: String,
+    /// The recording file it was read from.
+    pub file: PathBuf,
 }
 
 /// An IMU time series in SI units.

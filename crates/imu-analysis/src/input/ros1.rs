@@ -60,6 +60,7 @@ pub fn read_ros1_bag_with_progress(
         stopped_early: report.stopped_early,
         unfinished: report.unfinished,
         imud_file: None,
+        calibration: None,
     };
     collect.finish(path, None, end)
 }

@@ -1,5 +1,5 @@
-//! What a series says about itself: length, data rate, temperature at a time, and whether the
-//! sensor moved (the noise tools' warning).
+//! What a series says about itself: length, data rate, start date, samples lost in time gaps,
+//! temperature at a time, and whether the sensor moved (the noise tools' warning).
 
 use super::ImuSeries;
 
@@ -21,6 +21,20 @@ impl ImuSeries {
     /// number of ticks (or 0); see [`interval_s`].
     pub fn sample_rate_hz(&self) -> f64 {
         1.0 / interval_s(&self.t_s)
+    }
+
+    /// When the series started, ISO 8601 UTC (`2026-01-01T00:00:00.000000000Z`): `t0_ns` of a
+    /// recording format (MCAP, bags: Unix-epoch stamps), or of a text file whose time column
+    /// is Unix time (an origin after 2001-09-09: no relative clock of a recording has run for
+    /// 31 years). `None` when unknown: no samples, `t0_ns` 0, or a text file's relative times.
+    pub fn started_utc(&self) -> Option<String> {
+        /// 1e9 s after the Unix epoch (2001-09-09T01:46:40Z), ns.
+        const UNIX_TIME_AFTER_NS: u64 = 1_000_000_000_000_000_000;
+        let dated = match self.input.topic {
+            Some(_) => self.t0_ns > 0,
+            None => self.t0_ns >= UNIX_TIME_AFTER_NS,
+        };
+        (dated && !self.is_empty()).then(|| imu_rec::recording::utc_iso8601_ns(self.t0_ns))
     }
 
     /// Temperature at `t_s`, linearly interpolated (held at the ends); NaN without readings.
@@ -49,10 +63,16 @@ const GAP_INTERVALS: f64 = 1.5;
 /// that spread, and the interval is the time over the gap-free stretches divided by their
 /// steps: each stretch's error is that of its two end stamps only.
 fn interval_s(t_s: &[f64]) -> f64 {
+    interval_and_gap_limit_s(t_s).0
+}
+
+/// [`interval_s`] and the step beyond which a step is a gap (NaN, NaN with fewer than two
+/// samples).
+fn interval_and_gap_limit_s(t_s: &[f64]) -> (f64, f64) {
     const K: usize = 64;
     let n = t_s.len();
     if n < 2 {
-        return f64::NAN;
+        return (f64::NAN, f64::NAN);
     }
     let k = K.min(n - 1);
     let first = median(
@@ -72,9 +92,29 @@ fn interval_s(t_s: &[f64]) -> f64 {
         }
     }
     if count == 0 || time <= 0.0 {
-        return if first > 0.0 { first } else { f64::NAN };
+        return (if first > 0.0 { first } else { f64::NAN }, limit);
     }
-    time / count as f64
+    (time / count as f64, limit)
+}
+
+impl ImuSeries {
+    /// Samples lost, judged by the time gaps against the series' own interval (that of
+    /// [`sample_rate_hz`](Self::sample_rate_hz)): a step `dt` beyond `GAP_INTERVALS` (1.5)
+    /// intervals (plus the stamps' own spread: a tick of quantised stamps, host jitter) counts
+    /// `round(dt / interval) - 1` samples. Gaps between a session's files count too: they are
+    /// steps of the joined series. 0 with fewer than two samples.
+    pub fn missing_samples(&self) -> u64 {
+        let (interval, limit) = interval_and_gap_limit_s(&self.t_s);
+        if !(interval > 0.0 && limit.is_finite()) {
+            return 0;
+        }
+        self.t_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|&dt| dt > limit)
+            .map(|dt| ((dt / interval).round() as u64).saturating_sub(1))
+            .sum()
+    }
 }
 
 /// The median of `v` (not empty).
@@ -192,6 +232,14 @@ mod tests {
                 (got / rate_hz - 1.0).abs() < 5e-4,
                 "{rate_hz} Hz read as {got} Hz"
             );
+            // The hole, to within the tick of the stamps on either side of it in samples.
+            let lost = gap.len() as i64;
+            let said = s.missing_samples() as i64;
+            let tick_samples = (TICK_S * rate_hz).ceil() as i64;
+            assert!(
+                (said - lost).abs() <= tick_samples,
+                "{rate_hz} Hz: {said} lost, truth {lost}"
+            );
         }
     }
 
@@ -212,10 +260,13 @@ mod tests {
         };
         let got = jittered.sample_rate_hz();
         assert!((got / 100.0 - 1.0).abs() < 3e-4, "{got}");
+        assert_eq!(jittered.missing_samples(), 300);
+        assert_eq!(exact.missing_samples(), 0);
         let one = ImuSeries {
             t_s: vec![1.0],
             ..ImuSeries::default()
         };
         assert!(one.sample_rate_hz().is_nan());
+        assert_eq!(one.missing_samples(), 0);
     }
 }

@@ -173,7 +173,7 @@ fn continues(last: &ImuSeries, next: &ImuSeries) -> bool {
     };
     let end_ns = |s: &ImuSeries| s.t0_ns as f64 + s.t_s.last().copied().unwrap_or(0.0) * 1e9;
     a.prefix == b.prefix
-        && a.device == b.device
+        && last.input.device == next.input.device
         && b.file_index == a.file_index.wrapping_add(1)
         && next.t0_ns as f64 > end_ns(last)
 }
@@ -297,6 +297,13 @@ fn join(mut parts: Vec<ImuSeries>) -> Result<ImuSeries, InputError> {
             out.input.unfinished_file = part.input.unfinished_file;
         }
         label_parts.push(part.labels);
+        // What the session says about itself: the latest file's word.
+        if !part.input.device.is_empty() {
+            out.input.device = part.input.device;
+        }
+        if part.input.calibration.is_some() {
+            out.input.calibration = part.input.calibration;
+        }
         out.input.files.extend(part.input.files);
     }
     out.labels = join_labels(label_parts);
@@ -378,8 +385,8 @@ mod tests {
                 imud_file: Some(ImudFile {
                     prefix: prefix.into(),
                     file_index: index,
-                    device: [("serial".to_string(), serial.to_string())].into(),
                 }),
+                device: [("serial".to_string(), serial.to_string())].into(),
                 ..InputInfo::default()
             },
             ..ImuSeries::default()

@@ -217,6 +217,21 @@ pub enum LogRecord {
     },
 }
 
+impl LogRecord {
+    /// The record's host wall-clock time, Unix epoch ns.
+    pub fn t_wall_ns(&self) -> u64 {
+        match self {
+            LogRecord::RawFrame { t_host_wall_ns, .. } => *t_host_wall_ns,
+            LogRecord::Sample { raw, .. } | LogRecord::Raw(raw) => raw.t_host_wall_ns,
+            LogRecord::Corrected(c) => c.t_wall_ns,
+            LogRecord::Temperature { t_wall_ns, .. }
+            | LogRecord::Status { t_wall_ns, .. }
+            | LogRecord::Calibration { t_wall_ns, .. } => *t_wall_ns,
+            LogRecord::Health(h) => h.t_wall_ns,
+        }
+    }
+}
+
 /// How and where the recorder writes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordingConfig {
@@ -244,6 +259,12 @@ pub struct RecordingConfig {
     /// keeps up with 58 kHz of frames on a shared 2-core machine at level 1, not at 3 (measured
     /// with `cargo bench -p imud --bench link`, BENCHMARKS.md), for files 2.3 % larger.
     pub compression_level: u32,
+    /// `None` (live): files are named and `started-utc` stamped by the system clock.
+    /// `Some(ns)`: the records' host clock is synthetic (an offline simulation dated by its
+    /// scenario): the first file starts at this Unix-epoch time, ns, and a later file (rotation,
+    /// retry) at the host wall time of the last record logged before it, so names and
+    /// `started-utc` follow the records' own dates.
+    pub synthetic_start_wall_ns: Option<u64>,
 }
 
 impl Default for RecordingConfig {
@@ -258,6 +279,7 @@ impl Default for RecordingConfig {
             retry_interval: Duration::from_secs(5),
             frame_id: "imu_link".into(),
             compression_level: 1,
+            synthetic_start_wall_ns: None,
         }
     }
 }
@@ -470,6 +492,7 @@ impl Recorder {
             retry_at: None,
             noise: None,
             calibration: None,
+            last_wall_ns: None,
             scratch: Vec::with_capacity(1024),
         };
         // The first file is started before returning, so stats() is meaningful at once.

@@ -18,6 +18,21 @@ pub fn utc_stamp(t: SystemTime) -> String {
     )
 }
 
+/// ISO 8601 `YYYY-MM-DDTHH:MM:SS.nnnnnnnnnZ` of a Unix-epoch time in ns, UTC (what a
+/// recording's start is said as to programs: Python's `datetime.fromisoformat` reads it).
+pub fn utc_iso8601_ns(t_ns: u64) -> String {
+    let secs = t_ns / 1_000_000_000;
+    let (y, m, d) = civil_from_days((secs / 86_400) as i64);
+    let s = secs % 86_400;
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:09}Z",
+        s / 3600,
+        s % 3600 / 60,
+        s % 60,
+        t_ns % 1_000_000_000
+    )
+}
+
 /// Proleptic Gregorian date of a day count since 1970-01-01 (H. Hinnant's algorithm).
 pub(super) fn civil_from_days(days: i64) -> (i64, u32, u32) {
     let z = days + 719_468;

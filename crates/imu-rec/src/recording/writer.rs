@@ -179,6 +179,9 @@ pub(super) struct WriterThread {
     pub(super) noise: Option<ImuNoiseVariances>,
     /// The calibration in force, as metadata for every new file.
     pub(super) calibration: Option<BTreeMap<String, String>>,
+    /// Host wall time of the last record handled, ns: when a file starts on a synthetic clock
+    /// ([`RecordingConfig::synthetic_start_wall_ns`]).
+    pub(super) last_wall_ns: Option<u64>,
     pub(super) scratch: Vec<u8>,
 }
 
@@ -287,6 +290,9 @@ impl WriterThread {
     }
 
     pub(super) fn handle(&mut self, record: LogRecord) {
+        if self.config.synthetic_start_wall_ns.is_some() {
+            self.last_wall_ns = Some(record.t_wall_ns());
+        }
         if let LogRecord::Calibration {
             id, toml, noise, ..
         } = &record
@@ -424,8 +430,17 @@ impl WriterThread {
         }
     }
 
+    /// When a file starting now starts: the system clock, or on a synthetic one the last
+    /// record's time (the configured start before any).
+    fn file_start(&self) -> SystemTime {
+        match self.config.synthetic_start_wall_ns {
+            None => SystemTime::now(),
+            Some(start) => UNIX_EPOCH + Duration::from_nanos(self.last_wall_ns.unwrap_or(start)),
+        }
+    }
+
     pub(super) fn open_file(&mut self) -> Result<OpenFile, RecordingError> {
-        let started = SystemTime::now();
+        let started = self.file_start();
         let stamp = utc_stamp(started);
         let mut index = self.next_index;
         let (path, sink) = loop {

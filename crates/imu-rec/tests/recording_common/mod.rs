@@ -368,6 +368,7 @@ pub fn test_config(dir: &Path) -> RecordingConfig {
         retry_interval: Duration::from_millis(20),
         frame_id: "imu_link".into(),
         compression_level: 0,
+        synthetic_start_wall_ns: None,
     }
 }
 

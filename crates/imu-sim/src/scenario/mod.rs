@@ -215,7 +215,10 @@ pub struct DeviceSpec {
     /// valid, an MTi's UtcTime the true time from 2026-01-01 (valid) and a VN-200/300's GPS
     /// time the true time (valid).
     pub gnss_time: bool,
-    /// UTC of scenario time 0, s since the Unix epoch (default 2026-01-01T00:00:00Z).
+    /// UTC of scenario time 0, s since the Unix epoch (default 2026-01-01T00:00:00Z): the
+    /// scenario's date. A GNSS unit's true time is this plus scenario time, and so is the host
+    /// wall clock of an offline recording (`imud --sim --offline`: its stamps, file name and
+    /// `started-utc`), so simulated recordings of a fleet can be months apart.
     pub gnss_epoch_utc_s: f64,
     /// Windows of scenario time with no valid GNSS time.
     pub gnss_outage: Vec<GnssOutage>,
