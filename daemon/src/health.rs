@@ -448,6 +448,15 @@ mod tests {
         }
     }
 
+    /// The `[health]` defaults are the library's options' defaults (their one home).
+    #[test]
+    fn the_configurations_defaults_are_the_checks_defaults() {
+        assert_eq!(
+            HealthConfig::default().check_options(),
+            imu_analysis::health::CheckOptions::default()
+        );
+    }
+
     /// The log level follows the typed target state, never the words of the line.
     #[test]
     fn only_a_return_to_ok_is_a_recovery() {

@@ -331,3 +331,39 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
         ),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A recording that never rests (always shaking, far above what the noise tables allow a
+    /// still unit) is a valid result: no window, NaN offsets, nothing tested; and an empty one
+    /// too.
+    #[test]
+    fn a_series_without_a_still_window_gives_no_windows_and_nan_offsets() {
+        let n = 60 * 100;
+        let shake = |k: usize| if k.is_multiple_of(2) { 3.0 } else { -3.0 };
+        let series = ImuSeries {
+            t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
+            accel_m_s2: (0..n).map(|k| [shake(k), 0.0, 9.8]).collect(),
+            gyro_rad_s: (0..n).map(|k| [0.0, 0.1 * shake(k), 0.0]).collect(),
+            origin: "shaking".into(),
+            ..ImuSeries::default()
+        };
+        let tables = Calibration::from_toml_str(
+            "format = \"imud-calibration/1\"\n\
+             [accel.noise]\nwhite-density = [1e-3, 1e-3, 1e-3]\n\
+             [gyro.noise]\nwhite-density = [1e-4, 1e-4, 1e-4]\n",
+            "tables",
+        )
+        .unwrap();
+        for s in [&series, &ImuSeries::default()] {
+            let c = check_series(s, Some(&tables), &CheckOptions::default());
+            assert!(c.windows.is_empty(), "{:?}", c.windows);
+            assert!(c.accel_offset_m_s2.iter().all(|v| v.is_nan()));
+            assert!(c.gyro_offset_std_rad_s.iter().all(|v| v.is_nan()));
+            assert_eq!((c.state, c.rejections, c.still_s), ("unknown", 0, 0.0));
+            assert_eq!(c.samples, s.t_s.len());
+        }
+    }
+}
