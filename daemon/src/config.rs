@@ -8,6 +8,8 @@
 
 use std::path::{Path, PathBuf};
 
+use imu_analysis::health::still::StillOptions;
+use imu_analysis::health::{CheckOptions, Gravity};
 use serde::{Deserialize, Serialize};
 
 /// Errors loading the configuration.
@@ -324,8 +326,8 @@ impl Default for CalibrationConfig {
 }
 
 /// Live calibration health: the calibration held against gravity and Earth's rate whenever the
-/// unit is still (see `health/mod.rs`). The still detector's settings are the offline
-/// segmentation's defaults (`imu_analysis::segment::SegmentOptions`).
+/// unit is still (see `health.rs`, over `imu_analysis::health`). The defaults are
+/// `imu_analysis::health::CheckOptions`'s (the still detector's, the offline segmentation's).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields, rename_all = "kebab-case")]
 pub struct HealthConfig {
@@ -367,23 +369,51 @@ pub struct HealthConfig {
 }
 
 impl Default for HealthConfig {
+    /// The defaults of `imu_analysis::health::CheckOptions` (their one home), health on and
+    /// bias tracking off.
     fn default() -> Self {
+        let o = CheckOptions::default();
+        let gravity_m_s2 = match o.gravity {
+            Gravity::Known(g) => Some(g),
+            Gravity::Normal | Gravity::Learned => None,
+        };
         Self {
             enabled: true,
-            latitude_deg: None,
-            height_m: 0.0,
-            gravity_m_s2: None,
-            block_s: 1.0,
-            threshold_factor: 2.0,
-            floor_quantile: 0.1,
-            min_still_s: 1.0,
-            max_window_s: 30.0,
-            plateau_min_rate_rad_s: 0.05,
-            max_rest_rate_rad_s: 20f64.to_radians(),
-            false_alarm_p: 1e-4,
+            latitude_deg: o.latitude_deg,
+            height_m: o.height_m,
+            gravity_m_s2,
+            block_s: o.still.block_s,
+            threshold_factor: o.still.threshold_factor,
+            floor_quantile: o.still.floor_quantile,
+            min_still_s: o.still.min_still_s,
+            max_window_s: o.still.max_window_s,
+            plateau_min_rate_rad_s: o.still.plateau_min_rate_rad_s,
+            max_rest_rate_rad_s: o.still.max_rest_rate_rad_s,
+            false_alarm_p: o.false_alarm_p,
             track_bias: false,
             track_bias_max_m_s2: 0.5,
             track_bias_max_rad_s: 0.05,
+        }
+    }
+}
+
+impl HealthConfig {
+    /// The health checks' options these settings give (`imu_analysis::health`).
+    pub fn check_options(&self) -> CheckOptions {
+        CheckOptions {
+            still: StillOptions {
+                block_s: self.block_s,
+                threshold_factor: self.threshold_factor,
+                floor_quantile: self.floor_quantile,
+                min_still_s: self.min_still_s,
+                max_window_s: self.max_window_s,
+                plateau_min_rate_rad_s: self.plateau_min_rate_rad_s,
+                max_rest_rate_rad_s: self.max_rest_rate_rad_s,
+            },
+            latitude_deg: self.latitude_deg,
+            height_m: self.height_m,
+            gravity: Gravity::from_settings(self.gravity_m_s2, self.latitude_deg),
+            false_alarm_p: self.false_alarm_p,
         }
     }
 }

@@ -6,6 +6,8 @@
 //! - [`segment`]: static intervals and rate plateaus, thresholds from the data.
 //! - [`reference`]: the true input of each segment: a test plan, a reference log or the
 //!   simulator's truth (leaves `segment_truth` and `direction` below `plan`, `log`, `truth`).
+//! - [`health`]: the calibration held against gravity and Earth's rate in still windows: the
+//!   daemon's live health checks, and the offline check of a recording.
 //! - [`calibrate`]: fits of the error model to segments (and reference-free, to still poses and
 //!   the moves between them); the calibration file imud loads.
 //! - [`characterize`]: thermal, impact and dynamic tests.
@@ -17,6 +19,7 @@
 
 pub mod calibrate;
 pub mod characterize;
+pub mod health;
 pub mod input;
 pub mod note;
 pub mod provenance;

@@ -17,6 +17,7 @@
 //! taken as the device (`ros2_input/`) is one more folder: its messages arrive as a byte stream
 //! of frames like a unit's, and nothing is sent.
 
+pub mod exchange;
 pub mod gx1;
 pub mod mip;
 pub mod probe;
@@ -46,7 +47,7 @@ pub const TRIES: u32 = 3;
 const BACKOFF: Duration = Duration::from_millis(200);
 
 /// The back-off before try `attempt` (none before the first).
-fn back_off(attempt: u32) -> Duration {
+pub(crate) fn back_off(attempt: u32) -> Duration {
     if attempt == 0 {
         Duration::ZERO
     } else {

@@ -25,8 +25,8 @@ use imu_proto::mip::{
 use tracing::{info, warn};
 
 use super::reading::MipTimebase;
+use crate::drivers::exchange::{Exchange, Request};
 use crate::drivers::streaming::StartupMachine;
-use crate::drivers::{TRIES, back_off};
 
 /// One message format to try: its clock and optional fields.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -152,63 +152,28 @@ pub fn preferred_mip_format(decimation: u16) -> MessageFormat {
     CHOICES[0].format(decimation)
 }
 
-/// One command out, tried [`TRIES`] times, until its reply (ack or nack) comes.
-#[derive(Debug)]
-struct Exchange {
-    cmd: MipCommand,
-    attempt: u32,
-    /// Backing off until, or awaiting the reply until.
-    until: Instant,
-    awaiting: bool,
-    timeout: Duration,
-}
-
-impl Exchange {
-    fn new(cmd: MipCommand, timeout: Duration, now: Instant, tx: &mut VecDeque<Vec<u8>>) -> Self {
-        tx.push_back(cmd.to_packet().as_bytes().to_vec());
-        Self {
-            cmd,
-            attempt: 0,
-            until: now + timeout,
-            awaiting: true,
-            timeout,
-        }
+impl Request for MipCommand {
+    fn wire(&self) -> Vec<u8> {
+        self.to_packet().as_bytes().to_vec()
     }
 
-    /// The reply to this command, if `packet` holds it.
+    fn unanswered(&self, timeout: Duration) -> anyhow::Error {
+        let (set, descriptor) = self.descriptor();
+        anyhow!(
+            "no reply to MIP command {set:02X} {descriptor:02X} within {:.1} s",
+            timeout.as_secs_f64()
+        )
+    }
+}
+
+impl Exchange<MipCommand> {
+    /// The reply (ack or nack) to this command, if `packet` holds it.
     fn reply(&self, packet: &Packet) -> Option<MipReply> {
-        if !self.awaiting {
-            return None;
-        }
-        let awaited = self.cmd.descriptor();
+        let awaited = self.awaited()?.descriptor();
         MipReply::decode_packet(packet).ok().and_then(|r| {
             r.into_iter()
                 .find(|r| (r.descriptor_set, r.command) == awaited)
         })
-    }
-
-    /// A deadline passed: the next try, or the error once all are used.
-    fn on_timeout(&mut self, now: Instant, tx: &mut VecDeque<Vec<u8>>) -> Option<anyhow::Error> {
-        if now < self.until {
-            return None;
-        }
-        if !self.awaiting {
-            tx.push_back(self.cmd.to_packet().as_bytes().to_vec());
-            self.awaiting = true;
-            self.until = now + self.timeout;
-            return None;
-        }
-        self.attempt += 1;
-        if self.attempt >= TRIES {
-            let (set, descriptor) = self.cmd.descriptor();
-            return Some(anyhow!(
-                "no reply to MIP command {set:02X} {descriptor:02X} within {:.1} s",
-                self.timeout.as_secs_f64()
-            ));
-        }
-        self.awaiting = false;
-        self.until = now + back_off(self.attempt);
-        None
     }
 }
 
@@ -265,7 +230,7 @@ pub struct Configured {
 #[derive(Debug)]
 pub struct Startup {
     stage: Option<Stage>,
-    ex: Exchange,
+    ex: Exchange<MipCommand>,
     timeout: Duration,
     /// Data rate to configure, Hz (none: the unit's).
     wanted_rate_hz: Option<f64>,
@@ -490,7 +455,7 @@ impl StartupMachine for Startup {
 
     /// When `on_timeout` is next due.
     fn deadline(&self) -> Option<Instant> {
-        self.stage.map(|_| self.ex.until)
+        self.stage.map(|_| self.ex.until())
     }
 
     fn transmit(&mut self) -> Option<Vec<u8>> {

@@ -20,8 +20,8 @@ use imu_proto::vectornav::{
 };
 
 use super::VnFrame;
+use crate::drivers::exchange::{Exchange, Request};
 use crate::drivers::streaming::StartupMachine;
-use crate::drivers::{TRIES, back_off};
 
 /// Serial port 1 and 2 both: the unit outputs on whichever port the host is on.
 pub const ASYNC_MODE_BOTH_PORTS: u16 = 3;
@@ -45,66 +45,29 @@ pub fn rate_divisor(rate_hz: f64) -> anyhow::Result<u16> {
     Ok(divisor.round() as u16)
 }
 
-/// One command out, tried [`TRIES`] times, until its reply (or a `$VNERR`) comes.
-#[derive(Debug)]
-struct Exchange {
-    cmd: VnCommand,
-    attempt: u32,
-    until: Instant,
-    awaiting: bool,
-    timeout: Duration,
-}
-
-fn wire(cmd: &VnCommand) -> Vec<u8> {
-    cmd.to_sentence(Check::Checksum8).as_bytes().to_vec()
-}
-
-impl Exchange {
-    fn new(cmd: VnCommand, timeout: Duration, now: Instant, tx: &mut VecDeque<Vec<u8>>) -> Self {
-        tx.push_back(wire(&cmd));
-        Self {
-            cmd,
-            attempt: 0,
-            until: now + timeout,
-            awaiting: true,
-            timeout,
-        }
+impl Request for VnCommand {
+    fn wire(&self) -> Vec<u8> {
+        self.to_sentence(Check::Checksum8).as_bytes().to_vec()
     }
 
+    fn unanswered(&self, timeout: Duration) -> anyhow::Error {
+        anyhow!(
+            "no reply to {} within {:.1} s",
+            String::from_utf8_lossy(self.wire().trim_ascii_end()),
+            timeout.as_secs_f64()
+        )
+    }
+}
+
+impl Exchange<VnCommand> {
     /// The register read or written, or the error code, if `reply` answers this command.
     fn reply(&self, reply: &VnReply) -> Option<Result<Register, u8>> {
-        if !self.awaiting {
-            return None;
-        }
-        match (&self.cmd, reply) {
+        match (self.awaited()?, reply) {
             (VnCommand::Read(id), VnReply::Read(r)) if r.id() == *id => Some(Ok(r.clone())),
             (VnCommand::Write(w), VnReply::Written(r)) if r.id() == w.id() => Some(Ok(r.clone())),
             (_, VnReply::Error(code)) => Some(Err(*code)),
             _ => None,
         }
-    }
-
-    fn on_timeout(&mut self, now: Instant, tx: &mut VecDeque<Vec<u8>>) -> Option<anyhow::Error> {
-        if now < self.until {
-            return None;
-        }
-        if !self.awaiting {
-            tx.push_back(wire(&self.cmd));
-            self.awaiting = true;
-            self.until = now + self.timeout;
-            return None;
-        }
-        self.attempt += 1;
-        if self.attempt >= TRIES {
-            return Some(anyhow!(
-                "no reply to {} within {:.1} s",
-                String::from_utf8_lossy(wire(&self.cmd).trim_ascii_end()),
-                self.timeout.as_secs_f64()
-            ));
-        }
-        self.awaiting = false;
-        self.until = now + back_off(self.attempt);
-        None
     }
 }
 
@@ -154,7 +117,7 @@ impl Configured {
 #[derive(Debug)]
 pub struct Startup {
     stage: Option<Stage>,
-    ex: Exchange,
+    ex: Exchange<VnCommand>,
     timeout: Duration,
     /// The divisor to configure (none: the unit's own, read before writing).
     wanted_divisor: Option<u16>,
@@ -215,7 +178,7 @@ impl Startup {
         now: Instant,
     ) -> Option<Outcome> {
         let stage = self.stage?;
-        let cmd = String::from_utf8_lossy(wire(&self.ex.cmd).trim_ascii_end()).into_owned();
+        let cmd = String::from_utf8_lossy(self.ex.cmd.wire().trim_ascii_end()).into_owned();
         let register = match result {
             Ok(Ok(r)) => r,
             Ok(Err(code)) => {
@@ -323,7 +286,7 @@ impl StartupMachine for Startup {
 
     /// When `on_timeout` is next due.
     fn deadline(&self) -> Option<Instant> {
-        self.stage.map(|_| self.ex.until)
+        self.stage.map(|_| self.ex.until())
     }
 
     fn transmit(&mut self) -> Option<Vec<u8>> {

@@ -23,8 +23,8 @@ use imu_proto::xsens::{
 use tracing::{info, warn};
 
 use super::reading::RawSource;
+use crate::drivers::exchange::{Exchange, Request};
 use crate::drivers::streaming::StartupMachine;
-use crate::drivers::{TRIES, back_off};
 
 /// The rate configured when neither the configuration nor the unit names one, Hz.
 const DEFAULT_RATE_HZ: u16 = 100;
@@ -169,70 +169,36 @@ fn reply_mid(cmd: &XsensCommand) -> u8 {
     cmd.to_message().mid().wrapping_add(1)
 }
 
-/// One request out, tried [`TRIES`] times, until its answer (or an `Error`) comes.
-#[derive(Debug)]
-struct Exchange {
-    cmd: XsensCommand,
-    attempt: u32,
-    /// Backing off until, or awaiting the reply until.
-    until: Instant,
-    awaiting: bool,
-    timeout: Duration,
-}
-
-impl Exchange {
-    fn new(cmd: XsensCommand, timeout: Duration, now: Instant, tx: &mut VecDeque<Vec<u8>>) -> Self {
-        tx.push_back(cmd.to_message().as_bytes().to_vec());
-        Self {
-            cmd,
-            attempt: 0,
-            until: now + timeout,
-            awaiting: true,
-            timeout,
-        }
+impl Request for XsensCommand {
+    fn wire(&self) -> Vec<u8> {
+        self.to_message().as_bytes().to_vec()
     }
 
+    fn unanswered(&self, timeout: Duration) -> anyhow::Error {
+        anyhow!(
+            "no answer to Xsens message 0x{:02X} within {:.1} s",
+            self.to_message().mid(),
+            timeout.as_secs_f64()
+        )
+    }
+}
+
+impl Exchange<XsensCommand> {
     /// The answer to this request, if `msg` is it: its reply, or `Err(code)` for an `Error`
     /// message (but not while entering config mode: a streaming unit may report a stream
     /// error then, which is no refusal of `GoToConfig`).
     fn reply(&self, msg: &Message) -> Option<Result<XsensReply, u8>> {
-        if !self.awaiting {
-            return None;
-        }
-        if msg.mid() == mid::ERROR && self.cmd != XsensCommand::GoToConfig {
+        let cmd = self.awaited()?;
+        if msg.mid() == mid::ERROR && *cmd != XsensCommand::GoToConfig {
             return match XsensReply::decode(msg) {
                 Ok(XsensReply::Error(code)) => Some(Err(code)),
                 _ => None,
             };
         }
-        if msg.mid() != reply_mid(&self.cmd) {
+        if msg.mid() != reply_mid(cmd) {
             return None;
         }
         XsensReply::decode(msg).ok().map(Ok)
-    }
-
-    /// A deadline passed: the next try, or the error once all are used.
-    fn on_timeout(&mut self, now: Instant, tx: &mut VecDeque<Vec<u8>>) -> Option<anyhow::Error> {
-        if now < self.until {
-            return None;
-        }
-        if !self.awaiting {
-            tx.push_back(self.cmd.to_message().as_bytes().to_vec());
-            self.awaiting = true;
-            self.until = now + self.timeout;
-            return None;
-        }
-        self.attempt += 1;
-        if self.attempt >= TRIES {
-            return Some(anyhow!(
-                "no answer to Xsens message 0x{:02X} within {:.1} s",
-                self.cmd.to_message().mid(),
-                self.timeout.as_secs_f64()
-            ));
-        }
-        self.awaiting = false;
-        self.until = now + back_off(self.attempt);
-        None
     }
 }
 
@@ -287,7 +253,7 @@ pub struct Configured {
 #[derive(Debug)]
 pub struct Startup {
     stage: Option<Stage>,
-    ex: Exchange,
+    ex: Exchange<XsensCommand>,
     timeout: Duration,
     /// Output rate to configure, Hz (none: the unit's).
     wanted_rate_hz: Option<f64>,
@@ -455,7 +421,7 @@ impl StartupMachine for Startup {
 
     /// When `on_timeout` is next due.
     fn deadline(&self) -> Option<Instant> {
-        self.stage.map(|_| self.ex.until)
+        self.stage.map(|_| self.ex.until())
     }
 
     fn transmit(&mut self) -> Option<Vec<u8>> {

@@ -1,5 +1,5 @@
 //! The still-period detector, running sample by sample: the offline segmentation's rules
-//! (`imu_analysis::segment`) made incremental and bounded in memory.
+//! (`crate::segment`) made incremental and bounded in memory.
 //!
 //! Samples are grouped in blocks of `block-s` (the offline moving window). A block is quiet when
 //! the root-summed standard deviation of its accel and of its gyro samples both lie below
@@ -17,7 +17,10 @@ use std::collections::VecDeque;
 use imu_model::Vec3;
 use imu_stats::descriptive::largest_agreeing_group;
 
-/// Settings of the detector (`[health]` in the daemon's configuration).
+use crate::segment::SegmentOptions;
+
+/// Settings of the detector (`[health]` in the daemon's configuration; the defaults are its
+/// defaults, the offline segmentation's `SegmentOptions` where they share a setting).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StillOptions {
     /// Block (window) length, s.
@@ -34,6 +37,22 @@ pub struct StillOptions {
     pub plateau_min_rate_rad_s: f64,
     /// Largest |mean rate| that can be the gyro's reading at rest, rad/s.
     pub max_rest_rate_rad_s: f64,
+}
+
+impl Default for StillOptions {
+    /// The offline segmentation's defaults, and a still window every 30 s of a long rest.
+    fn default() -> Self {
+        let s = SegmentOptions::default();
+        StillOptions {
+            block_s: s.window_s,
+            threshold_factor: s.threshold_factor,
+            floor_quantile: s.floor_quantile,
+            min_still_s: s.min_duration_s,
+            max_window_s: 30.0,
+            plateau_min_rate_rad_s: s.plateau_min_rate_rad_s,
+            max_rest_rate_rad_s: s.max_rest_rate_rad_s,
+        }
+    }
 }
 
 /// Blocks whose deviations make the data floor (one hour of 1 s blocks).

@@ -1,0 +1,333 @@
+//! The offline health check of a recording: the daemon's live checks fed every sample of the
+//! series in order (what imud would have reported on that stream), and the offset of the
+//! stream from physics over all of its still windows.
+//!
+//! The whole-recording offset is the weighted least squares of the live estimate
+//! ([`accel_offset`], [`gyro_offset`]) over every still window, each weighted by the part of
+//! its scatter that is its own (white noise averaged over the window; for the gyro also the
+//! part of Earth's rate an unknown heading hides), so the estimate averages down over the
+//! windows; the part every window shares (the bias-instability wander and random walk of the
+//! recording's mean, from the noise tables over the span of the still windows) is added to
+//! its covariance. The calibration's own bias error is what is estimated, so it is not noise
+//! here. Sign: the offset is what the calibrated stream reads minus physics, so for a linear
+//! model the true bias is the calibration's bias plus the offset.
+
+use serde::Serialize;
+
+use super::*;
+use crate::ImuSeries;
+use imu_model::earth::unknown_heading_variance_rad2_s2;
+
+/// An axis is observed along gravity by a single orientation when up lies within 25 deg of it.
+const OBSERVED_ALONG_UP: f64 = 0.906;
+
+/// One still window of an offline check (residuals NaN while the noise or gravity was being
+/// learned).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StillWindowCheck {
+    /// Start, s from the series' first sample.
+    pub start_s: f64,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Up in the sensor frame (the mean specific force's direction).
+    pub up: [f64; 3],
+    /// Mean temperature, deg C (NaN without readings).
+    pub temp_c: f64,
+    /// |f| - g, m/s^2.
+    pub accel_residual_m_s2: f64,
+    /// Its expected standard deviation, m/s^2.
+    pub accel_std_m_s2: f64,
+    /// Mean rate minus Earth's rate as far as it is known, rad/s.
+    pub gyro_residual_rad_s: [f64; 3],
+    /// Its expected standard deviation per axis, rad/s.
+    pub gyro_std_rad_s: [f64; 3],
+    /// |mean rate| - |Earth rate|, rad/s.
+    pub gyro_magnitude_residual_rad_s: f64,
+    /// Mean rate along up - Earth rate's vertical part, rad/s (NaN without a latitude).
+    pub gyro_vertical_residual_rad_s: f64,
+    /// The accel test's p-value (NaN: not tested).
+    pub accel_p: f64,
+    /// The gyro test's p-value.
+    pub gyro_p: f64,
+    /// The smaller of the two: a triad rejects below `false_alarm_p`.
+    pub p_value: f64,
+    /// The accel state after the window.
+    pub accel_state: &'static str,
+    /// The gyro state after the window.
+    pub gyro_state: &'static str,
+    /// The worse of the two.
+    pub state: &'static str,
+}
+
+/// The health check of a recording.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HealthCheck {
+    /// Where the series came from.
+    pub origin: String,
+    /// Samples checked.
+    pub samples: usize,
+    /// Every still window, in order.
+    pub windows: Vec<StillWindowCheck>,
+    /// Rate plateaus skipped (quiet, but turning).
+    pub plateaus: u64,
+    /// The accel offset from physics over all still windows, m/s^2 (NaN for an axis no window
+    /// observes).
+    pub accel_offset_m_s2: [f64; 3],
+    /// Its standard deviation per axis, m/s^2.
+    pub accel_offset_std_m_s2: [f64; 3],
+    /// The accel offset was estimated in 3-D (several orientations); false: along gravity only,
+    /// on the axis gravity lies along.
+    pub accel_offset_3d: bool,
+    /// The gyro offset from physics over all still windows, rad/s.
+    pub gyro_offset_rad_s: [f64; 3],
+    /// Its standard deviation per axis, rad/s.
+    pub gyro_offset_std_rad_s: [f64; 3],
+    /// The accel state at the end.
+    pub accel_state: &'static str,
+    /// The gyro state at the end.
+    pub gyro_state: &'static str,
+    /// The worse of the two (`unknown` when no window was tested).
+    pub state: &'static str,
+    /// Windows where a triad rejected the calibration.
+    pub rejections: u64,
+    /// Where the expected scatter came from at the end: `tables`, `estimated` or `none`.
+    pub noise_source: &'static str,
+    /// The gravity the windows were held against, m/s^2 (NaN if never learned).
+    pub gravity_m_s2: f64,
+    /// The gravity was learned from the first still windows (only changes are seen).
+    pub gravity_learned: bool,
+    /// The latitude given, deg.
+    pub latitude_deg: Option<f64>,
+    /// Total still time, s.
+    pub still_s: f64,
+    /// The longest continuous rest, s (still windows that follow each other without motion).
+    pub longest_still_s: f64,
+    /// Its start and end, s from the series' first sample (NaN without a still window).
+    pub longest_still_span_s: [f64; 2],
+}
+
+/// The worse of two states (stale, degraded, ok, unknown, uncalibrated in that order).
+fn worse(a: HealthState, b: HealthState) -> HealthState {
+    let rank = |s: HealthState| match s {
+        HealthState::Stale => 4,
+        HealthState::Degraded => 3,
+        HealthState::Ok => 2,
+        HealthState::Unknown => 1,
+        HealthState::Uncalibrated => 0,
+    };
+    if rank(a) >= rank(b) { a } else { b }
+}
+
+/// Checks `series` (the stream `calibration` corrected, or an uncalibrated stream) as the
+/// daemon's health monitor would have live, and estimates the offset of the stream from
+/// physics over all its still windows. `calibration`'s noise tables give the expected scatter
+/// (without them it is estimated from the first still windows). A series with no still window
+/// is a valid result: no windows, NaN offsets.
+pub fn check_series(
+    series: &ImuSeries,
+    calibration: Option<&Calibration>,
+    options: &CheckOptions,
+) -> HealthCheck {
+    let mut monitor = Monitor::new(options, calibration, true);
+    let mut temps = series.temp.clone();
+    temps.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut next_temp, mut temp_c) = (0, f64::NAN);
+    let mut checks = Vec::new();
+    for (i, &t_s) in series.t_s.iter().enumerate() {
+        // The daemon's sample carries the latest reading at or before it.
+        while next_temp < temps.len() && temps[next_temp].0 <= t_s {
+            temp_c = temps[next_temp].1;
+            next_temp += 1;
+        }
+        let t_ns = (t_s * 1e9).round().max(0.0) as u64;
+        checks.extend(monitor.push(t_ns, &series.accel_m_s2[i], &series.gyro_rad_s[i], temp_c));
+    }
+    let alpha = options.false_alarm_p;
+    let windows: Vec<StillWindowCheck> = checks.iter().map(window_check).collect();
+    let rejections = checks
+        .iter()
+        .filter_map(|c| c.test)
+        .filter(|t| t.accel_p < alpha || t.gyro_p < alpha)
+        .count() as u64;
+    let (accel_state, gyro_state) = monitor.states();
+    let (still_s, longest_still_s, longest_still_span_s) = rests(&checks, options.still.block_s);
+    let offsets = whole_offsets(&monitor, &checks, options.latitude_deg);
+    HealthCheck {
+        origin: series.origin.clone(),
+        samples: series.t_s.len(),
+        windows,
+        plateaus: monitor.plateaus,
+        accel_offset_m_s2: offsets.accel.0,
+        accel_offset_std_m_s2: offsets.accel.1,
+        accel_offset_3d: offsets.accel_3d,
+        gyro_offset_rad_s: offsets.gyro.0,
+        gyro_offset_std_rad_s: offsets.gyro.1,
+        accel_state: accel_state.name(),
+        gyro_state: gyro_state.name(),
+        state: worse(accel_state, gyro_state).name(),
+        rejections,
+        noise_source: monitor.noise_source().name(),
+        gravity_m_s2: monitor.gravity().map_or(f64::NAN, |g| g.0),
+        gravity_learned: matches!(monitor.gravity, GravityReference::Learned { .. }),
+        latitude_deg: options.latitude_deg,
+        still_s,
+        longest_still_s,
+        longest_still_span_s,
+    }
+}
+
+fn window_check(c: &WindowCheck) -> StillWindowCheck {
+    let w = &c.window;
+    let f = w.mean_accel();
+    let nan3 = [f64::NAN; 3];
+    let (up, accel_residual_m_s2, accel_std_m_s2, gyro_residual_rad_s, gyro_std_rad_s) =
+        match &c.residuals {
+            Some(r) => (
+                r.up.into(),
+                r.accel_residual_m_s2,
+                r.accel_var.sqrt(),
+                r.gyro_residual_rad_s.into(),
+                r.gyro_var.map(f64::sqrt),
+            ),
+            None => (
+                (f / f.norm().max(1e-12)).into(),
+                f64::NAN,
+                f64::NAN,
+                nan3,
+                nan3,
+            ),
+        };
+    let (accel_p, gyro_p) = c
+        .test
+        .map_or((f64::NAN, f64::NAN), |t| (t.accel_p, t.gyro_p));
+    let (gyro_magnitude_residual_rad_s, gyro_vertical_residual_rad_s) =
+        c.residuals.as_ref().map_or((f64::NAN, f64::NAN), |r| {
+            (
+                r.gyro_magnitude_residual_rad_s,
+                r.gyro_vertical_residual_rad_s,
+            )
+        });
+    StillWindowCheck {
+        start_s: w.start_ns as f64 * 1e-9,
+        duration_s: w.duration_s(),
+        up,
+        temp_c: w.temp_c,
+        accel_residual_m_s2,
+        accel_std_m_s2,
+        gyro_residual_rad_s,
+        gyro_std_rad_s,
+        gyro_magnitude_residual_rad_s,
+        gyro_vertical_residual_rad_s,
+        accel_p,
+        gyro_p,
+        p_value: accel_p.min(gyro_p),
+        accel_state: c.states.0.name(),
+        gyro_state: c.states.1.name(),
+        state: worse(c.states.0, c.states.1).name(),
+    }
+}
+
+/// Total still time, the longest continuous rest and its span, s: windows cut from one rest
+/// follow each other within a block.
+fn rests(checks: &[WindowCheck], block_s: f64) -> (f64, f64, [f64; 2]) {
+    let mut total = 0.0;
+    let mut best = (0.0, [f64::NAN; 2]);
+    let mut current: Option<(u64, u64)> = None;
+    for c in checks {
+        let w = &c.window;
+        total += w.duration_s();
+        current = match current {
+            Some((s, e)) if (w.start_ns.saturating_sub(e) as f64) * 1e-9 < 0.5 * block_s => {
+                Some((s, w.end_ns))
+            }
+            _ => Some((w.start_ns, w.end_ns)),
+        };
+        if let Some((s, e)) = current {
+            let len = e.saturating_sub(s) as f64 * 1e-9;
+            if len > best.0 {
+                best = (len, [s as f64 * 1e-9, e as f64 * 1e-9]);
+            }
+        }
+    }
+    (total, best.0, best.1)
+}
+
+/// The whole recording's offsets with their standard deviations per axis.
+struct Offsets {
+    accel: ([f64; 3], [f64; 3]),
+    accel_3d: bool,
+    gyro: ([f64; 3], [f64; 3]),
+}
+
+/// The offsets of the stream from physics over every still window (see the module's doc).
+fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option<f64>) -> Offsets {
+    let nan = ([f64::NAN; 3], [f64::NAN; 3]);
+    let (Some((accel, gyro)), Some((g, _)), Some(first), Some(last)) = (
+        monitor.noise(),
+        monitor.gravity(),
+        checks.first(),
+        checks.last(),
+    ) else {
+        return Offsets {
+            accel: nan,
+            accel_3d: false,
+            gyro: nan,
+        };
+    };
+    let since_ns = monitor.since_ns().unwrap_or(0);
+    let (mut accel_obs, mut gyro_obs) = (Vec::new(), Vec::new());
+    for c in checks {
+        let w = &c.window;
+        let elapsed_s = c.closed_ns.saturating_sub(since_ns) as f64 * 1e-9;
+        let r = reference::residuals(w, (g, 0.0), latitude_deg, (&accel, &gyro), elapsed_s);
+        let t_s = w.duration_s();
+        let white = |n: &TriadNoise, i: usize| n.model.white_density[i].powi(2) / t_s;
+        let accel_var = (0..3).map(|i| r.up[i].powi(2) * white(&accel, i)).sum();
+        accel_obs.push((r.up, r.accel_residual_m_s2, accel_var));
+        let gyro_var = std::array::from_fn(|i| {
+            white(&gyro, i) + unknown_heading_variance_rad2_s2(latitude_deg, r.up[i])
+        });
+        gyro_obs.push((r.gyro_residual_rad_s, gyro_var));
+    }
+    // What every window shares: the wander of the recording's mean bias.
+    let span_s = last.window.end_ns.saturating_sub(first.window.start_ns) as f64 * 1e-9;
+    let shared = |n: &TriadNoise| -> [f64; 3] {
+        std::array::from_fn(|i| {
+            let total = n.model.segment_mean_std(i, span_s, span_s).powi(2);
+            (total - n.model.white_density[i].powi(2) / span_s).max(0.0)
+        })
+    };
+    let (shared_a, shared_g) = (shared(&accel), shared(&gyro));
+    let a = accel_offset(&accel_obs);
+    let accel_out = if a.three_d {
+        (
+            a.offset.into(),
+            std::array::from_fn(|i| (a.covariance[(i, i)] + shared_a[i]).sqrt()),
+        )
+    } else {
+        // One orientation: the offset along up, on the axis up lies along.
+        let up = accel_obs
+            .iter()
+            .fold(Vec3::zeros(), |s, o| s + o.0)
+            .normalize();
+        let var_along =
+            a.covariance.trace() + (0..3).map(|i| up[i].powi(2) * shared_a[i]).sum::<f64>();
+        let mut out = nan;
+        for i in 0..3 {
+            if up[i].abs() >= OBSERVED_ALONG_UP {
+                out.0[i] = a.offset[i];
+                out.1[i] = up[i].abs() * var_along.sqrt();
+            }
+        }
+        out
+    };
+    let gy = gyro_offset(&gyro_obs);
+    Offsets {
+        accel: accel_out,
+        accel_3d: a.three_d,
+        gyro: (
+            gy.offset.into(),
+            std::array::from_fn(|i| (gy.covariance[(i, i)] + shared_g[i]).sqrt()),
+        ),
+    }
+}
