@@ -373,6 +373,13 @@ async fn run(args: Args) -> anyhow::Result<()> {
             "offline: {} samples and {} temperatures recorded",
             report.samples, report.temperatures
         );
+        if report.dropped > 0 {
+            info!(
+                "offline: {} samples lost in the scenario's link dropouts ({} counted lost from \
+                 the device clock; the truth has them all)",
+                report.dropped, report.samples_lost
+            );
+        }
         return Ok(());
     }
     if args.sim.is_some()

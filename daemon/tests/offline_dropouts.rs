@@ -1,7 +1,7 @@
 //! Link dropouts in an offline recording (`imud --sim --offline` with `[[dropout]]`): for
 //! every protocol, the recording holds exactly the truth's data samples outside the dropout
 //! windows, and the daemon's loss counter (the status's `samples_lost`) counts exactly the
-//! samples lost. (What the reader says of the same gaps, `missing_samples`:
+//! samples lost; and the recording names its unit (model, serial number). (What the reader says of the same gaps, `missing_samples`:
 //! python/tests/test_recording_info.py.)
 
 use imu_bus::recording::read_recording;
@@ -60,5 +60,9 @@ fn dropouts_lose_exactly_their_samples_and_the_daemon_counts_them() {
         let rec = read_recording(&report.files[0]).unwrap();
         assert_eq!(rec.raw.len() as u64, report.samples, "{protocol}");
         assert_eq!(rec.imu.len() as u64, report.samples, "{protocol}");
+        // The unit is named as the live daemon names it: model and serial number.
+        let device = &rec.metadata["imud.device"];
+        assert!(!device["model"].is_empty(), "{protocol}: {device:?}");
+        assert_eq!(device["serial-number"], "1001", "{protocol}");
     }
 }

@@ -44,7 +44,7 @@ def record(bins, tmp, name, text, *extra):
 
 def test_a_recording_names_its_unit_calibration_and_start(bins, tmp_path):
     rec = imud.read(record(bins, tmp_path, "u", scenario(4711), "--calibration", TRUTH_MODEL))
-    assert rec.device["serial-number"] == "4711"
+    assert rec.device["serial-number"] == "4711" and rec.device["model"] == "3DM-GX1"
     assert rec.info["device"] == rec.device and rec.device["path"] == "offline simulation"
     cal = rec.calibration_in_force
     assert isinstance(cal, imud.Calibration)

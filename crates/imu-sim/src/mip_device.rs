@@ -82,6 +82,9 @@ impl MipRequest {
     }
 }
 
+/// The model name the simulated unit reports in its device information.
+pub const MODEL_NAME: &str = "imu-sim MIP";
+
 /// The sans-IO MIP device.
 pub struct MipDevice {
     core: DeviceCore,
@@ -281,7 +284,7 @@ impl MipDevice {
         let d = &self.core.scenario().device;
         DeviceInfo {
             firmware_version: d.firmware,
-            model_name: "imu-sim MIP".into(),
+            model_name: MODEL_NAME.into(),
             model_number: "imu-sim".into(),
             serial_number: d.serial_number.to_string(),
             lot_number: String::new(),

@@ -3,7 +3,7 @@
 //! reconnect after unplug, garbage skipped and counted, a readable file after kill -9. The
 //! streaming tests run over every protocol (the simulated unit speaking 3DM-GX1, MIP, Xsens or
 //! VectorNav; imud probes which), the offline one too; `time_sync.rs` the time sources against a
-//! unit's GNSS time.
+//! unit's GNSS time; `dropouts.rs` a scenario's link dropouts, lost and counted.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -18,6 +18,7 @@ use imu_model::Calibration;
 use imu_proto::DeviceProtocol;
 use imu_sim::{Pacing, Scenario, SimOptions};
 
+mod dropouts;
 mod faults;
 mod passive;
 mod polled_and_offline;

@@ -34,6 +34,9 @@ use crate::pipeline::{
     Timebase,
 };
 
+/// The model name a 3DM-GX1 is recorded as (`imud.device` `model`): the unit does not say it.
+pub const MODEL: &str = "3DM-GX1";
+
 /// The protocol command of a configured sample command.
 pub fn sample_command(c: SampleCommand) -> Command {
     match c {
@@ -168,7 +171,7 @@ impl Gx1Driver {
         self.events
             .push_back(DriverEvent::Identified(Box::new(DeviceIdentity {
                 protocol: imu_proto::DeviceProtocol::Gx1.name(),
-                model: "3DM-GX1".into(),
+                model: MODEL.into(),
                 firmware: not_asked.clone(),
                 serial: not_asked,
                 details,
@@ -208,7 +211,7 @@ impl Gx1Driver {
                 details.extend(gains.metadata());
                 let identity = DeviceIdentity {
                     protocol: imu_proto::DeviceProtocol::Gx1.name(),
-                    model: "3DM-GX1".into(),
+                    model: MODEL.into(),
                     firmware,
                     serial,
                     details,

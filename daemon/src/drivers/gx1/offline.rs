@@ -93,10 +93,13 @@ impl OfflineUnit for Gx1Offline {
     }
 
     fn details(&self) -> Vec<(String, String)> {
-        let mut d = vec![(
-            "protocol".to_string(),
-            imu_proto::DeviceProtocol::Gx1.name().to_string(),
-        )];
+        let mut d = vec![
+            (
+                "protocol".to_string(),
+                imu_proto::DeviceProtocol::Gx1.name().to_string(),
+            ),
+            ("model".to_string(), super::MODEL.to_string()),
+        ];
         d.extend(self.gains.metadata());
         d
     }

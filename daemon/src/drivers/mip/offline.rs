@@ -71,10 +71,16 @@ impl OfflineUnit for MipOffline {
     }
 
     fn details(&self) -> Vec<(String, String)> {
-        vec![(
-            "protocol".to_string(),
-            imu_proto::DeviceProtocol::Mip.name().to_string(),
-        )]
+        vec![
+            (
+                "protocol".to_string(),
+                imu_proto::DeviceProtocol::Mip.name().to_string(),
+            ),
+            (
+                "model".to_string(),
+                imu_sim::mip_device::MODEL_NAME.to_string(),
+            ),
+        ]
     }
 
     fn step(&mut self, _k: u64, t_s: f64, bytes: &mut Vec<u8>, truths: &mut Vec<TruthSample>) {

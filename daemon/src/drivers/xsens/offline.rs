@@ -72,10 +72,16 @@ impl OfflineUnit for XsensOffline {
     }
 
     fn details(&self) -> Vec<(String, String)> {
-        vec![(
-            "protocol".to_string(),
-            imu_proto::DeviceProtocol::Xsens.name().to_string(),
-        )]
+        vec![
+            (
+                "protocol".to_string(),
+                imu_proto::DeviceProtocol::Xsens.name().to_string(),
+            ),
+            (
+                "model".to_string(),
+                imu_sim::xsens_device::PRODUCT_CODE.to_string(),
+            ),
+        ]
     }
 
     fn step(&mut self, _k: u64, t_s: f64, bytes: &mut Vec<u8>, truths: &mut Vec<TruthSample>) {
