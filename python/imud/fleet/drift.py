@@ -50,6 +50,8 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from scipy import optimize, stats
 
+from . import schema as _schema
+
 __all__ = [
     "Tolerances",
     "ParameterSpec",
@@ -146,16 +148,16 @@ class ParameterSpec:
 
 def _specs() -> list:
     specs = []
-    for sensor, unit, unit_text in (("accel", "m_s2", "m/s^2"), ("gyro", "rad_s", "rad/s")):
+    for sensor, unit_text in (("accel", "m/s^2"), ("gyro", "rad/s")):
         for axis in "xyz":
             specs.append(
                 ParameterSpec(
                     name=f"{sensor}_bias_{axis}",
                     kind=f"{sensor}-bias",
                     quantity_unit=unit_text,
-                    value_column=f"{sensor}_bias_{axis}_{unit}",
-                    std_column=f"{sensor}_bias_std_{axis}_{unit}",
-                    cal_column=f"cal_{sensor}_bias_{axis}_{unit}",
+                    value_column=_schema.bias(sensor, axis),
+                    std_column=_schema.bias_std(sensor, axis),
+                    cal_column=_schema.cal_bias(sensor, axis),
                     default_calibration=0.0,
                     required=True,
                     label=f"{sensor} bias {axis}",
@@ -168,8 +170,8 @@ def _specs() -> list:
                     name=f"{sensor}_scale_{axis}",
                     kind="scale",
                     quantity_unit="1",
-                    value_column=f"{sensor}_scale_{axis}",
-                    std_column=f"{sensor}_scale_std_{axis}",
+                    value_column=_schema.scale(sensor, axis),
+                    std_column=_schema.scale_std(sensor, axis),
                     # Schema 1's scale is the scale factor error (dimensionless, 0 when the
                     # calibration holds) and has no column for the calibration's own: the band
                     # sits around 0 (the column is read when a later schema adds it).
@@ -379,30 +381,8 @@ def spec_of(parameter: str) -> ParameterSpec:
     return _SPEC_BY_NAME[parameter]
 
 
-UNITS_SCHEMA = pa.schema(
-    [
-        ("unit", pa.string()),
-        ("parameter", pa.string()),
-        ("quantity_unit", pa.string()),
-        ("n", pa.int32()),
-        ("first_utc", _TIMESTAMP),
-        ("last_utc", _TIMESTAMP),
-        ("value_at_last", pa.float64()),
-        ("value_std_at_last", pa.float64()),
-        ("calibration_value", pa.float64()),
-        ("slope_per_day", pa.float64()),
-        ("slope_std_per_day", pa.float64()),
-        ("excess_std", pa.float64()),
-        ("t_stat", pa.float64()),
-        ("p_value", pa.float64()),
-        ("drifting", pa.bool_()),
-        ("tolerance", pa.float64()),
-        ("crossing_utc", _TIMESTAMP),
-        ("out_of_tolerance", pa.bool_()),
-        ("flagged", pa.bool_()),
-        ("reason", pa.string()),
-    ]
-)
+#: The units table's columns: schema version 1's, whose one home is :mod:`imud.fleet.schema`.
+UNITS_SCHEMA = _schema.UNITS
 
 
 # How a parameter is shown to people: (factor from the table's unit, unit text).
