@@ -69,6 +69,8 @@ def read_series(paths: Sequence[str], options: dict) -> Series: ...
 def noise_json(
     series: Series, kinds: Sequence[str], taus: str, edf: str, confidence: float
 ) -> str: ...
+def normal_gravity_m_s2(latitude_deg: float, height_m: float = 0.0) -> float:
+    """WGS-84 normal gravity at a latitude and a height above the ellipsoid, m/s^2."""
 def health_check_json(
     series: Series,
     calibration: Optional[Calibration],

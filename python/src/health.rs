@@ -34,3 +34,11 @@ pub fn health_check_json(
     })
     .py_err()
 }
+
+/// WGS-84 normal gravity at `latitude_deg` and `height_m` above the ellipsoid, m/s^2: the one
+/// formula (`imu_model::earth`) the health check, the calibration fits and the simulator use.
+#[pyfunction]
+#[pyo3(signature = (latitude_deg, height_m = 0.0))]
+pub fn normal_gravity_m_s2(latitude_deg: f64, height_m: f64) -> f64 {
+    imu_model::earth::normal_gravity_m_s2(latitude_deg, height_m)
+}

@@ -30,6 +30,7 @@ fn _imud(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(series::read_series, m)?)?;
     m.add_function(wrap_pyfunction!(noise::noise_json, m)?)?;
     m.add_function(wrap_pyfunction!(health::health_check_json, m)?)?;
+    m.add_function(wrap_pyfunction!(health::normal_gravity_m_s2, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate_json, m)?)?;
     m.add_function(wrap_pyfunction!(workbench::diagnose_json, m)?)?;
     m.add_function(wrap_pyfunction!(workbench::ladder_json, m)?)?;

@@ -104,3 +104,14 @@ def test_health_check_recovers_a_known_bias_offset(bins, tmp_path):
     assert np.all(np.abs(res.gyro_offset_rad_s + e) < 3 * res.gyro_offset_std_rad_s), (
         res.gyro_offset_rad_s, res.gyro_offset_std_rad_s)
     assert res.state == "stale"
+
+
+def test_normal_gravity_is_wgs84s():
+    """imud.normal_gravity_m_s2 is the WGS-84 normal gravity (NIMA TR8350.2: 9.7803253359 m/s^2
+    on the equator, 9.8321849378 at the poles, on the ellipsoid) and falls with height by the
+    free-air gradient, about 3.086e-6 s^-2."""
+    assert imud.normal_gravity_m_s2(0.0) == pytest.approx(9.7803253359, abs=1e-8)
+    assert imud.normal_gravity_m_s2(90.0) == pytest.approx(9.8321849378, abs=1e-8)
+    assert imud.normal_gravity_m_s2(-90.0) == pytest.approx(9.8321849378, abs=1e-8)
+    drop = imud.normal_gravity_m_s2(45.0) - imud.normal_gravity_m_s2(45.0, height_m=1000.0)
+    assert drop == pytest.approx(3.086e-3, rel=2e-3)

@@ -142,7 +142,7 @@ def _cell(row) -> dict:
     elif row["p_value"] is None:
         state, css = ("no data" if row["n"] == 0 else f"{row['n']} rec."), "few"
     else:
-        state, css = "stable", "ok"
+        state, css = "no drift", "ok"
     slope = None if row["slope_per_day"] is None else f"{row['slope_per_day'] * 30 * factor:+.2g}"
     p = None if row["p_value"] is None else drift._fmt_p(row["p_value"])
     return {"slope": slope, "p": p, "state": state, "css": css, "reason": row["reason"]}
@@ -235,7 +235,9 @@ def _plot(evidence: "drift.Evidence", row: dict, salt: str) -> str:
             ax.step(when(start_ns), y(cal), where="post", color="#888888", lw=1.0,
                     label="calibration per recording")
         if row["slope_per_day"] is not None:
-            fit = drift.fit_drift(start_ns / _NS_PER_DAY, v, s)
+            # The line the table's test drew: its scatter and degrees of freedom.
+            fit = drift.fit_drift(start_ns / _NS_PER_DAY, v, s, tau2=row["excess_std"] ** 2,
+                                  dof=row["dof"])
             value, std = fit.value_at(grid_ns / _NS_PER_DAY)
             half = fit.t_quantile(0.95) * std
             ax.fill_between(when(grid_ns), y(value - half), y(value + half), color="#1565c0",
@@ -259,9 +261,16 @@ def _plot(evidence: "drift.Evidence", row: dict, salt: str) -> str:
         if row["crossing_utc"] is not None:
             ax.axvline(when(row["crossing_utc"]), color="#c62828", lw=1.4, ls="-.")
             verb = "crossed" if row["crossing_utc"] <= start_ns[-1] else "crosses"
+            # The label on the side of the line with room for it: left of a crossing in the
+            # plot's right half, right of one in its left half (never over the axis).
+            x0, x1 = (float(v) for v in mdates.date2num([when(grid_ns[0]), when(grid_ns[-1])]))
+            left_half = float(mdates.date2num(when(row["crossing_utc"]))) < (x0 + x1) / 2
             ax.annotate(f"{verb} {_date(row['crossing_utc'])}", xy=(when(row["crossing_utc"]), 1.0),
-                        xycoords=("data", "axes fraction"), xytext=(-4, -4),
-                        textcoords="offset points", ha="right", va="top", color="#c62828")
+                        xycoords=("data", "axes fraction"), xytext=(4 if left_half else -4, -4),
+                        textcoords="offset points", ha="left" if left_half else "right",
+                        va="top", color="#c62828",
+                        bbox={"boxstyle": "square,pad=0.15", "fc": "white", "ec": "none",
+                              "alpha": 0.8})
         locator = mdates.AutoDateLocator(minticks=4, maxticks=9)
         ax.xaxis.set_major_locator(locator)
         ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
@@ -306,8 +315,8 @@ td.cell { white-space: nowrap; font-variant-numeric: tabular-nums; }
 {% for label, value in summary %}<dt>{{ label }}</dt><dd>{{ value }}</dd>
 {% endfor %}</dl>
 <p class="small">Drift test per unit and parameter: weighted straight line through the recordings'
-estimates, allowing for scatter between recordings beyond their own uncertainties (Paule-Mandel),
-t test of the slope. A slope is drifting when its p-value is below
+estimates, allowing for scatter between recordings beyond their own uncertainties (Paule-Mandel,
+shared by the units of one model unless a unit's own is larger), t test of the slope. A slope is drifting when its p-value is below
 {% if test.threshold %}{{ test.threshold }} (alpha {{ test.alpha }} shared over the fleet's
 {{ test.tests }} tests){% else %}alpha shared over the fleet's {{ test.tests }} tests{% endif %};
 a unit is flagged when a drifting line leaves the calibration's tolerance

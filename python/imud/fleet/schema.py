@@ -162,6 +162,7 @@ UNITS = pa.schema(
         pa.field("slope_per_day", pa.float64()),
         pa.field("slope_std_per_day", pa.float64()),
         pa.field("excess_std", pa.float64()),
+        pa.field("dof", pa.int32()),
         pa.field("t_stat", pa.float64()),
         pa.field("p_value", pa.float64()),
         pa.field("drifting", pa.bool_()),

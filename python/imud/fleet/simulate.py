@@ -40,6 +40,8 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
+from .._imud import normal_gravity_m_s2
+
 #: 1 mg, m/s^2; 1 deg/s, rad/s; the mean month, days.
 MG_M_S2 = 9.80665e-3
 DEG_S_RAD_S = np.pi / 180.0
@@ -62,13 +64,15 @@ LATITUDE_DEG = 40.0
 #: The scenarios' gravity: WGS-84 normal gravity at LATITUDE_DEG on the ellipsoid (what imud's
 #: health check and imu-calibrate take at that latitude; the simulator's default is standard
 #: gravity, 4.97e-3 m/s^2 more, which would read as a 0.5 mg bias error in every rest).
-GRAVITY_M_S2 = 9.80169686
+GRAVITY_M_S2 = normal_gravity_m_s2(LATITUDE_DEG)
 
 
 def _model_path() -> Path:
-    """The shipped example model: config/models/ of the workspace the package is built from."""
+    """The shipped example model: config/models/ of the workspace the package is built from, or
+    of the one the command runs in."""
     here = Path(__file__).resolve()
-    for parent in here.parents:
+    # The workspace the package was built from, else the one the command runs in.
+    for parent in [*here.parents, Path.cwd(), *Path.cwd().parents]:
         cand = parent / "config" / "models" / "example-3dm-gx1.toml"
         if cand.is_file():
             return cand

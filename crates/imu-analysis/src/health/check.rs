@@ -252,6 +252,11 @@ fn rests(checks: &[WindowCheck], block_s: f64) -> (f64, f64, [f64; 2]) {
     (total, best.0, best.1)
 }
 
+/// How well a recording's rests must span space for its whole-recording accel offset in 3-D
+/// (see [`super::LIVE_MIN_SPREAD`]): only numerical solvability, since the covariance carries
+/// the conditioning into each axis's std.
+const RECORDING_MIN_SPREAD: f64 = 1e-3;
+
 /// The whole recording's offsets with their standard deviations per axis.
 struct Offsets {
     accel: ([f64; 3], [f64; 3]),
@@ -298,7 +303,9 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
         })
     };
     let (shared_a, shared_g) = (shared(&accel), shared(&gyro));
-    let a = accel_offset(&accel_obs);
+    // Reported, never applied: a weakly observed direction (rests in nearly one plane, as a
+    // robot that mostly yaws) shows as a large std on the axes it reaches, not as no value.
+    let a = accel_offset(&accel_obs, RECORDING_MIN_SPREAD);
     let accel_out = if a.three_d {
         (
             a.offset.into(),

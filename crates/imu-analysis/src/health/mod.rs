@@ -304,9 +304,18 @@ pub struct OffsetEstimate {
     pub three_d: bool,
 }
 
+/// How well the live monitor's windows must span space before its accel offset is solved in
+/// 3-D (smallest over largest eigenvalue of the weighted sum of up up^T): the daemon may apply
+/// that offset to the stream (`track-bias`), so it waits for well-spread orientations.
+pub const LIVE_MIN_SPREAD: f64 = 0.05;
+
 /// The accel bias offset that explains `obs` (up, |f| - g, variance) by weighted least
-/// squares: in 3-D when the ups span space, else along their (weighted) mean direction.
-pub fn accel_offset<'a>(obs: impl IntoIterator<Item = &'a AccelObs>) -> OffsetEstimate {
+/// squares: in 3-D when the ups span space (the eigenvalue ratio of their weighted sum of
+/// up up^T at least `min_spread`), else along their (weighted) mean direction.
+pub fn accel_offset<'a>(
+    obs: impl IntoIterator<Item = &'a AccelObs>,
+    min_spread: f64,
+) -> OffsetEstimate {
     let (mut a, mut b, mut mean_up, mut sw, mut swr, mut n) = (
         Mat3::zeros(),
         Vec3::zeros(),
@@ -333,7 +342,7 @@ pub fn accel_offset<'a>(obs: impl IntoIterator<Item = &'a AccelObs>) -> OffsetEs
     }
     let eig = a.symmetric_eigen().eigenvalues;
     let (lo, hi) = (eig.min(), eig.max());
-    if lo > 0.05 * hi
+    if lo > min_spread * hi
         && let Some(inv) = a.try_inverse()
     {
         return OffsetEstimate {
@@ -593,7 +602,7 @@ impl Monitor {
         let accel_before =
             self.accel
                 .update(accel_p, alpha, (r.up, r.accel_residual_m_s2, r.accel_var));
-        let accel = accel_offset(&self.accel.obs);
+        let accel = accel_offset(&self.accel.obs, LIVE_MIN_SPREAD);
         let gyro_before = self
             .gyro
             .update(gyro_p, alpha, (r.gyro_residual_rad_s, r.gyro_var));
