@@ -22,7 +22,7 @@ import pyarrow as pa
 from . import schema
 from .drift import Tolerances
 from .engine import run
-from .inputs import find_recordings
+from .inputs import find_recordings, resolve
 from .job import DEFAULT_MIN_NOISE_SPAN_S, JobOptions
 
 __all__ = ["analyze", "FleetResult", "Tolerances", "schema"]
@@ -42,16 +42,8 @@ class FleetResult:
         directory, a URI any pyarrow filesystem opens, or a path on ``filesystem``. Each file
         carries the schema version in its metadata."""
         import pyarrow.parquet as pq
-        from pyarrow import fs as pafs
 
-        out = os.fspath(out)
-        if filesystem is not None:
-            fs, root = filesystem, out
-        elif "://" in out and not out.startswith("file://"):
-            fs, root = pafs.FileSystem.from_uri(out)
-        else:
-            fs = pafs.LocalFileSystem()
-            root = os.path.abspath(out.removeprefix("file://"))
+        fs, root, _ = resolve(os.fspath(out), filesystem)
         for name, table in (("recordings", self.recordings), ("units", self.units)):
             d = posixpath.join(root, name)
             fs.create_dir(d, recursive=True)

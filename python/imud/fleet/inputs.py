@@ -36,8 +36,10 @@ class RecordingSpec:
     directory: Optional[str] = None
 
 
-def _open(arg: str, filesystem: Any) -> Tuple[Any, str, bool]:
-    """(filesystem, path on it, remote?) of one argument."""
+def resolve(arg: str, filesystem: Any = None) -> Tuple[Any, str, bool]:
+    """(filesystem, path on it, remote?) of a path the fleet job reads or writes: a path on
+    ``filesystem`` when one is given, else a URI any pyarrow filesystem opens, else a local path
+    (``file://`` or plain, made absolute)."""
     from pyarrow import fs as pafs
 
     if filesystem is not None:
@@ -60,7 +62,7 @@ def find_recordings(args: Sequence[Any], filesystem: Any = None) -> List[Recordi
     out: List[RecordingSpec] = []
     for raw in args:
         arg = os.fspath(raw)
-        f, p, remote = _open(arg, filesystem)
+        f, p, remote = resolve(arg, filesystem)
         info = f.get_file_info(p)
         if info.type == pafs.FileType.NotFound:
             raise FileNotFoundError(f"no such recording or directory: {arg}")

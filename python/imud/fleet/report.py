@@ -20,6 +20,7 @@ from matplotlib import rc_context
 from matplotlib.figure import Figure
 
 from . import drift
+from .inputs import resolve
 
 __all__ = ["write_report", "render_report"]
 
@@ -38,17 +39,9 @@ def write_report(
     """Writes the report to ``path``: a local path, or a URI pyarrow opens (``s3://...``), or a
     path on ``filesystem`` (a ``pyarrow.fs.FileSystem``)."""
     html = render_report(recordings, units, flagged, title=title).encode("utf-8")
-    path = os.fspath(path)
-    if filesystem is None and "://" in path:
-        from pyarrow import fs
-
-        filesystem, path = fs.FileSystem.from_uri(path)
-    if filesystem is None:
-        with open(path, "wb") as out:
-            out.write(html)
-    else:
-        with filesystem.open_output_stream(path) as out:
-            out.write(html)
+    filesystem, path, _ = resolve(os.fspath(path), filesystem)
+    with filesystem.open_output_stream(path) as out:
+        out.write(html)
 
 
 def render_report(recordings: pa.Table, units: pa.Table, flagged: Sequence[str],
