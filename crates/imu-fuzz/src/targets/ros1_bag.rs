@@ -90,4 +90,46 @@ mod tests {
         }
         assert_eq!(complete, bags.len());
     }
+
+    #[test]
+    fn a_bag_cut_in_any_record_s_length_fields_keeps_a_prefix() {
+        // Each cut lands in a top-level record's header-length or data-length field (where a
+        // reader once handed the previous chunk over again, found by libFuzzer), or every 61st
+        // byte; every cut reads as a prefix of the whole bag, and one past the bag header record
+        // is reported unfinished.
+        let bags = crate::corpus::load(&TARGET.corpus_dir()).unwrap();
+        for bag in &bags {
+            let (_, file) = split_cut(bag).unwrap();
+            let whole = read(file);
+            let le = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().unwrap()) as usize;
+            let mut cuts: Vec<usize> = (0..file.len()).step_by(61).collect();
+            let mut at = imu_rec::ros1::bag::ROSBAG_V2.len();
+            let mut bag_header_end = None;
+            while at + 4 <= file.len() {
+                let data_len_at = at + 4 + le(at);
+                cuts.extend((at + 1..at + 4).chain(data_len_at + 1..data_len_at + 4));
+                at = data_len_at + 4 + le(data_len_at);
+                bag_header_end.get_or_insert(at);
+            }
+            assert_eq!(at, file.len(), "the walk ends at the file's end");
+            for cut in cuts {
+                let part = read(&file[..cut]);
+                assert!(
+                    whole.messages.starts_with(&part.messages),
+                    "cut at {cut} of {}: {} messages, not the first of the whole's {}",
+                    file.len(),
+                    part.messages.len(),
+                    whole.messages.len()
+                );
+                // Cut before its bag header record ends, a file is no bag (an error, no messages).
+                if bag_header_end.is_some_and(|end| cut >= end) {
+                    assert!(
+                        matches!(part.outcome, Ok(Some(_))),
+                        "cut at {cut}: {:?}",
+                        part.outcome
+                    );
+                }
+            }
+        }
+    }
 }

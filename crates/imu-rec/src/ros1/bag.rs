@@ -253,6 +253,10 @@ impl<'p> Pass<'p> {
     /// Reads the next top-level record into `header` and `data`.
     fn next_record(&mut self) -> std::io::Result<Next> {
         let mut len = [0u8; 4];
+        // What `header` and `data` hold is this record's from here on: a record cut in its
+        // length field has neither (the previous record's would be handed over again).
+        self.header.clear();
+        self.data.clear();
         match read_full(&mut self.reader, &mut len)? {
             0 => return Ok(Next::End),
             4 => {}
