@@ -18,7 +18,7 @@ use imud::session::{CalibrationSource, Daemon, DeviceIdentity, Signals};
 
 /// The default `--sim` scenario and truth model, built in so `imud --sim` works from anywhere.
 const DEMO_SCENARIO: &str = include_str!("../../config/scenarios/demo.toml");
-const DEMO_TRUTH: &str = include_str!("../../config/models/example-3dm-gx1.toml");
+const DEMO_TRUTH: &str = imu_model::EXAMPLE_GX1_MODEL_TOML;
 
 /// imud: MEMS IMU acquisition daemon (MicroStrain 3DM-GX1).
 ///

@@ -15,7 +15,7 @@ that client's ``--json``:
 Errors are raised as :class:`ImudError` with the client's message (file, line, what to do).
 """
 
-from ._imud import ImudError, Calibration, normal_gravity_m_s2, __version__
+from ._imud import ImudError, Calibration, normal_gravity_m_s2, example_model_toml, __version__
 from ._recording import Recording, read
 from ._analyses import noise, health_check, calibrate, diagnose, ladder
 from ._results import (
@@ -39,6 +39,7 @@ __all__ = [
     "noise",
     "health_check",
     "normal_gravity_m_s2",
+    "example_model_toml",
     "calibrate",
     "diagnose",
     "ladder",

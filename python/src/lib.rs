@@ -21,6 +21,14 @@ mod workbench;
 
 use pyo3::prelude::*;
 
+/// The shipped example error model of a 3DM-GX1-class unit, as TOML text
+/// (`imu_model::EXAMPLE_GX1_MODEL_TOML`): `imud --sim`'s truth, and the default units of
+/// `imud.fleet.simulate`, so neither needs the source tree.
+#[pyfunction]
+fn example_model_toml() -> &'static str {
+    imu_model::EXAMPLE_GX1_MODEL_TOML
+}
+
 /// The compiled module: registered under `imud._imud`.
 #[pymodule]
 fn _imud(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -31,6 +39,7 @@ fn _imud(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(noise::noise_json, m)?)?;
     m.add_function(wrap_pyfunction!(health::health_check_json, m)?)?;
     m.add_function(wrap_pyfunction!(health::normal_gravity_m_s2, m)?)?;
+    m.add_function(wrap_pyfunction!(example_model_toml, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate_json, m)?)?;
     m.add_function(wrap_pyfunction!(workbench::diagnose_json, m)?)?;
     m.add_function(wrap_pyfunction!(workbench::ladder_json, m)?)?;

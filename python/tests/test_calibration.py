@@ -57,3 +57,16 @@ def test_arrays_are_read_in_place_and_checked():
     ident = imud.Calibration()
     same, _, _ = ident.correct(a, g)
     np.testing.assert_array_equal(same, a)
+
+
+def test_the_built_in_example_model_is_the_shipped_file():
+    # imud.example_model_toml() (imud --sim's truth, the simulated fleet's default units) is the
+    # file in config/models/, compiled in, and loads as a calibration with the file's values.
+    import tomllib
+
+    text = imud.example_model_toml()
+    assert text == TRUTH_MODEL.read_text()
+    cal = imud.Calibration.from_toml(text, "built-in")
+    names, values = cal.param_names("accel"), cal.params("accel")
+    bias = [v for n, v in zip(names, values) if n.startswith("bias")]
+    assert bias == tomllib.loads(text)["accel"]["bias"]["value"], (names, values)

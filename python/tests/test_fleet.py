@@ -53,7 +53,7 @@ def fleet(imud_bin, tmp_path_factory):
     d = tmp_path_factory.mktemp("fleet")
     truth = simulate(
         d, units=UNITS, recordings=PER_UNIT, months=MONTHS, drifting=2,
-        imud=str(imud_bin), seed=1, model=REPO / "config" / "models" / "example-3dm-gx1.toml",
+        imud=str(imud_bin), seed=1,
     )
     return d, truth
 

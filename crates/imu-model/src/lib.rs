@@ -117,6 +117,12 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 /// A 3x3 matrix of f64.
 pub type Mat3 = nalgebra::Matrix3<f64>;
 
+/// The shipped example error model of a 3DM-GX1-class unit (`config/models/example-3dm-gx1.toml`),
+/// built in: the truth of `imud --sim`'s simulated device, and the default units of the Python
+/// package's simulated fleet (`imud.example_model_toml()`), wherever they run.
+pub const EXAMPLE_GX1_MODEL_TOML: &str =
+    include_str!("../../../config/models/example-3dm-gx1.toml");
+
 pub mod earth;
 mod param;
 pub mod units;

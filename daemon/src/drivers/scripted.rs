@@ -14,7 +14,7 @@ use super::{DeviceIdentity, Driver, DriverEvent, FrameSlot};
 use crate::pipeline::{DeviceReading, Pipeline, SessionSpec, Sinks, log_rejected};
 
 const SCENARIO: &str = include_str!("../../../config/scenarios/demo.toml");
-const TRUTH: &str = include_str!("../../../config/models/example-3dm-gx1.toml");
+const TRUTH: &str = imu_model::EXAMPLE_GX1_MODEL_TOML;
 
 /// What happens to one answer of the peer.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,8 +1,9 @@
 """A simulated fleet: ``python -m imud.fleet.simulate OUTDIR --units 8 --recordings 5 --months 6
 --drifting 2 --imud PATH_TO_imud``.
 
-Each unit is a 3DM-GX1-class MEMS IMU (``config/models/example-3dm-gx1.toml``: its error model
-and noise tables) with biases of its own and a serial number. Its calibration in force is its
+Each unit is a 3DM-GX1-class MEMS IMU (the built-in example model,
+:func:`imud.example_model_toml`, ``config/models/example-3dm-gx1.toml``: its error model and noise
+tables) with biases of its own and a serial number. Its calibration in force is its
 truth at day 0, written once (``calibrations/UNIT.toml``) and given to every recording
 (``imud --calibration``). Each recording is a few minutes at 100 Hz made by imud's offline
 pipeline (``imud --sim SCEN --offline``), dated by the scenario's UTC of time 0 (``[device]
@@ -40,7 +41,7 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from .._imud import normal_gravity_m_s2
+from .._imud import example_model_toml, normal_gravity_m_s2
 
 #: 1 mg, m/s^2; 1 deg/s, rad/s; the mean month, days.
 MG_M_S2 = 9.80665e-3
@@ -65,21 +66,6 @@ LATITUDE_DEG = 40.0
 #: health check and imu-calibrate take at that latitude; the simulator's default is standard
 #: gravity, 4.97e-3 m/s^2 more, which would read as a 0.5 mg bias error in every rest).
 GRAVITY_M_S2 = normal_gravity_m_s2(LATITUDE_DEG)
-
-
-def _model_path() -> Path:
-    """The shipped example model: config/models/ of the workspace the package is built from, or
-    of the one the command runs in."""
-    here = Path(__file__).resolve()
-    # The workspace the package was built from, else the one the command runs in.
-    for parent in [*here.parents, Path.cwd(), *Path.cwd().parents]:
-        cand = parent / "config" / "models" / "example-3dm-gx1.toml"
-        if cand.is_file():
-            return cand
-    raise FileNotFoundError(
-        "config/models/example-3dm-gx1.toml not found above the package: give its path "
-        "(model=, --model)"
-    )
 
 
 def _with_biases(text: str, ident: str, accel: np.ndarray, gyro: np.ndarray) -> str:
@@ -189,7 +175,7 @@ def simulate(
     rec_dir, cal_dir, truth_dir = out / "recordings", out / "calibrations", out / "truth"
     for d in (rec_dir, cal_dir, truth_dir):
         d.mkdir(parents=True, exist_ok=True)
-    model_text = Path(model or _model_path()).read_text()
+    model_text = Path(model).read_text() if model else example_model_toml()
     base_accel, base_gyro = _base(model_text, "accel"), _base(model_text, "gyro")
     rng = np.random.default_rng(seed)
     span_days = months * MONTH_DAYS
@@ -312,7 +298,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--jobs", type=int, help="imud processes at once (default: CPUs)")
     p.add_argument("--no-dropouts", action="store_true", help="no lost replies")
-    p.add_argument("--model", help="the units' error model (default: the workspace's "
+    p.add_argument("--model", help="the units' error model (default: the built-in example, "
                    "config/models/example-3dm-gx1.toml)")
     a = p.parse_args(argv)
     doc = simulate(
