@@ -280,6 +280,41 @@ class StillWindowCheck(_Doc):
 
 
 @dataclass(repr=False)
+class AccelScaleFit(_Doc):
+    """The accelerometer's scale error fitted jointly with the bias offset to every still
+    window's ``|f| - g`` (``HealthCheck.accel_scale_fit``, present where the rests calibrate the
+    scale: 7 or more, each axis seen up and down): ``scale_error`` (3,) with
+    ``scale_error_std`` (dimensionless; the calibrated stream reads ``1 + scale_error`` times
+    physics), ``offset_m_s2`` with ``offset_std_m_s2``, the ``windows`` fitted and the fit's
+    ``reduced_chi2``."""
+
+    scale_error: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    scale_error_std: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    offset_m_s2: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    offset_std_m_s2: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    windows: int = 0
+    reduced_chi2: float = float("nan")
+    extra: Dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return f"AccelScaleFit({self.windows} rests, scale error {self.scale_error})"
+
+    @classmethod
+    def _from(cls, d: Optional[dict]) -> "Optional[AccelScaleFit]":
+        if d is None:
+            return None
+        return _build(
+            cls,
+            d,
+            scale_error=_floats(d.get("scale_error")),
+            scale_error_std=_floats(d.get("scale_error_std")),
+            offset_m_s2=_floats(d.get("offset_m_s2")),
+            offset_std_m_s2=_floats(d.get("offset_std_m_s2")),
+            reduced_chi2=_float(d.get("reduced_chi2")),
+        )
+
+
+@dataclass(repr=False)
 class HealthCheck(_Doc):
     """A recording's calibration health (``imu-analyze health --json``): every still window
     (:class:`StillWindowCheck`), the final ``state``, ``rejections`` (windows where a triad
@@ -288,7 +323,9 @@ class HealthCheck(_Doc):
     windows (weighted least squares): ``accel_offset_m_s2`` (3,) with ``accel_offset_std_m_s2``
     (NaN for an axis no window observes; ``accel_offset_3d`` when several orientations were
     seen, else along gravity only), ``gyro_offset_rad_s`` with ``gyro_offset_std_rad_s``. For
-    a linear model the true bias is the calibration's bias plus the offset. ``still_s`` is the
+    a linear model the true bias is the calibration's bias plus the offset;
+    ``accel_scale_fit`` (:class:`AccelScaleFit` or None) the scale error where the rests
+    calibrate it. ``still_s`` is the
     total still time; ``longest_still_s`` and ``longest_still_span_s`` (start, end) the longest
     continuous rest (for noise terms)."""
 
@@ -296,6 +333,7 @@ class HealthCheck(_Doc):
     accel_offset_m_s2: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     accel_offset_std_m_s2: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     accel_offset_3d: bool = False
+    accel_scale_fit: Optional[AccelScaleFit] = None
     gyro_offset_rad_s: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     gyro_offset_std_rad_s: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     state: str = ""
@@ -320,6 +358,7 @@ def health_check_result(doc: dict) -> HealthCheck:
         windows=[StillWindowCheck._from(w) for w in doc.get("windows", [])],
         accel_offset_m_s2=_floats(doc.get("accel_offset_m_s2")),
         accel_offset_std_m_s2=_floats(doc.get("accel_offset_std_m_s2")),
+        accel_scale_fit=AccelScaleFit._from(doc.get("accel_scale_fit")),
         gyro_offset_rad_s=_floats(doc.get("gyro_offset_rad_s")),
         gyro_offset_std_rad_s=_floats(doc.get("gyro_offset_std_rad_s")),
         gravity_m_s2=_float(doc.get("gravity_m_s2")),

@@ -182,6 +182,27 @@ def test_each_recording_sees_its_true_bias_error(fleet, ray_result):
     assert checked >= 40 * 6
 
 
+def test_accel_scale_where_the_rests_calibrate_it(ray_result):
+    """The units' calibrations in force hold their true scales (the truth at day 0; scales do
+    not drift here): where a recording's rests calibrate the accel scale (7 or more, each axis
+    up and down), its scale error is 0 within 4 reported sigmas, and no unit's scale is called
+    drifting. The gyro scale is never calibrated by rests."""
+    rec, units = ray_result
+    rows = [r for r in _rows(rec) if r["error"] is None]
+    with_scale = [r for r in rows if r[schema.scale("accel", "x")] is not None]
+    # Random poses see every axis both ways in about half the recordings.
+    assert len(with_scale) >= len(rows) // 4, (len(with_scale), len(rows))
+    for r in with_scale:
+        for a in schema.AXES:
+            v, s = r[schema.scale("accel", a)], r[schema.scale_std("accel", a)]
+            assert s is not None and 0 < s < 1e-3, (r["path"], a, s)
+            assert abs(v) <= 4 * s, (r["path"], a, v, s)
+    assert all(r[schema.scale("gyro", a)] is None for r in rows for a in schema.AXES)
+    scale_rows = [u for u in _rows(units) if "_scale_" in u["parameter"]]
+    assert scale_rows, "the drift test sees the scale columns"
+    assert not any(u["drifting"] or u["flagged"] for u in scale_rows), scale_rows
+
+
 def test_ray_result_equals_local(ray_result, local_result):
     rec, units = ray_result
     a = schema.without_timings(rec)

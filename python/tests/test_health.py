@@ -104,6 +104,13 @@ def test_health_check_recovers_a_known_bias_offset(bins, tmp_path):
     assert np.all(np.abs(res.gyro_offset_rad_s + e) < 3 * res.gyro_offset_std_rad_s), (
         res.gyro_offset_rad_s, res.gyro_offset_std_rad_s)
     assert res.state == "stale"
+    # The rests see every axis up and down: the scale is calibrated too, and holds (the
+    # calibration's scale is the truth's), with the same bias offset.
+    fit = res.accel_scale_fit
+    assert isinstance(fit, imud.AccelScaleFit) and fit.windows == len(ORIENTATIONS)
+    assert np.all(np.abs(fit.scale_error) < 3 * fit.scale_error_std), fit
+    assert np.all(np.abs(fit.offset_m_s2 + d) < 3 * fit.offset_std_m_s2), fit
+    assert fit.to_dict() == res.to_dict()["accel_scale_fit"]
 
 
 def test_normal_gravity_is_wgs84s():

@@ -438,6 +438,23 @@ fn health_text(r: &HealthCheck) -> String {
         },
         axes(&r.accel_offset_m_s2, &r.accel_offset_std_m_s2)
     ));
+    match &r.accel_scale_fit {
+        Some(f) => {
+            text.push_str(&format!(
+                "accel scale error (fitted with the offset over {} rests, reduced chi^2 {:.2}): {}\n",
+                f.windows,
+                f.reduced_chi2,
+                axes(&f.scale_error, &f.scale_error_std),
+            ));
+            text.push_str(&format!(
+                "  with accel offset, m/s^2: {}\n",
+                axes(&f.offset_m_s2, &f.offset_std_m_s2)
+            ));
+        }
+        None => text.push_str(
+            "accel scale: not calibrated by these rests (7 or more, each axis up and down)\n",
+        ),
+    }
     text.push_str(&format!(
         "gyro offset, rad/s: {}\n",
         axes(&r.gyro_offset_rad_s, &r.gyro_offset_std_rad_s)

@@ -1,8 +1,8 @@
 //! The offline health check against the daemon and against the truth: the check of a recording's
 //! corrected stream gives exactly the still windows, residuals, p-values and states the daemon
-//! reported live on it (`/imud/health`), and a calibration whose biases are off by known vectors
-//! is found off by them, within the uncertainty the check reports, which matches the scatter
-//! over seeds.
+//! reported live on it (`/imud/health`), and a calibration whose biases (or accel scales) are
+//! off by known vectors is found off by them, within the uncertainty the check reports, which
+//! matches the scatter over seeds.
 
 use std::path::{Path, PathBuf};
 
@@ -137,8 +137,9 @@ fn shifted(text: &str, table: &str, by: [f64; 3]) -> String {
     format!("{}{}{}", &text[..at], new, &text[end + 1..])
 }
 
-#[test]
-fn a_calibrations_bias_errors_are_recovered_within_the_reported_uncertainty() {
+/// The offline check of SCENARIO's rests over ORIENTATIONS, simulated from the example model
+/// and corrected with `calibration_text`, for seeds 1..=10.
+fn checks_over_seeds(calibration_text: &str) -> Vec<imu_analysis::health::HealthCheck> {
     let dir = tempfile::tempdir().unwrap();
     let mut scenario = SCENARIO.to_string();
     for (r, p, y) in ORIENTATIONS {
@@ -147,67 +148,125 @@ fn a_calibrations_bias_errors_are_recovered_within_the_reported_uncertainty() {
         ));
     }
     let truth = std::fs::read_to_string(repo("config/models/example-3dm-gx1.toml")).unwrap();
-    let d = [0.02, -0.015, 0.01];
-    let e = [2.0e-3, -1.0e-3, 1.5e-3];
-    let off = shifted(&shifted(&truth, "accel.bias", d), "gyro.bias", e);
     let cal_path = dir.path().join("off.toml");
-    std::fs::write(&cal_path, &off).unwrap();
+    std::fs::write(&cal_path, calibration_text).unwrap();
     let calibration = Calibration::load(&cal_path).unwrap();
     let options = CheckOptions::at(Some(40.0), 0.0, Some(STANDARD_GRAVITY_M_S2), 1e-4);
-    let (mut accel, mut gyro) = (Vec::new(), Vec::new());
-    for seed in 1..=10u64 {
-        let session = imud::offline::record_session_text(
-            dir.path(),
-            &format!("s{seed}"),
-            &scenario,
-            Some(&truth),
-            seed,
-            Some(&cal_path),
-        )
-        .unwrap();
-        let series = read_any(
-            &session.recording,
-            Source::Corrected,
-            &CsvOptions::default(),
-        )
-        .unwrap();
-        let c = check_series(&series, Some(&calibration), &options);
-        assert!(c.accel_offset_3d, "seed {seed}: not 3-D");
-        // Every rest but the last, which the recording ends before motion closes it (as live).
-        assert_eq!(c.windows.len(), ORIENTATIONS.len(), "seed {seed}");
+    (1..=10u64)
+        .map(|seed| {
+            let session = imud::offline::record_session_text(
+                dir.path(),
+                &format!("s{seed}"),
+                &scenario,
+                Some(&truth),
+                seed,
+                Some(&cal_path),
+            )
+            .unwrap();
+            let series = read_any(
+                &session.recording,
+                Source::Corrected,
+                &CsvOptions::default(),
+            )
+            .unwrap();
+            let c = check_series(&series, Some(&calibration), &options);
+            // Every rest but the last, which the recording ends before motion closes it (as
+            // live).
+            assert_eq!(c.windows.len(), ORIENTATIONS.len(), "seed {seed}");
+            std::fs::remove_dir_all(session.recording.parent().unwrap()).unwrap();
+            c
+        })
+        .collect()
+}
+
+/// Asserts that each run's estimates `(value, std)` of `truth` lie within 3 of their standard
+/// deviations, and that the reported standard deviation is the scatter over the runs within a
+/// factor of 2.
+fn assert_recovered(name: &str, runs: &[([f64; 3], [f64; 3])], truth: [f64; 3]) {
+    for (seed, (v, s)) in runs.iter().enumerate() {
         for i in 0..3 {
-            // The calibration's bias is the truth's + d: the stream reads d too little.
-            let (a, sa) = (c.accel_offset_m_s2[i], c.accel_offset_std_m_s2[i]);
             assert!(
-                (a + d[i]).abs() < 3.0 * sa,
-                "seed {seed} accel {i}: {a} +/- {sa}"
-            );
-            let (g, sg) = (c.gyro_offset_rad_s[i], c.gyro_offset_std_rad_s[i]);
-            assert!(
-                (g + e[i]).abs() < 3.0 * sg,
-                "seed {seed} gyro {i}: {g} +/- {sg}"
-            );
-        }
-        accel.push((c.accel_offset_m_s2, c.accel_offset_std_m_s2));
-        gyro.push((c.gyro_offset_rad_s, c.gyro_offset_std_rad_s));
-        std::fs::remove_dir_all(session.recording.parent().unwrap()).unwrap();
-    }
-    // The reported standard deviation is the scatter over seeds, within a factor of 2.
-    for (name, runs, truth) in [("accel", &accel, d), ("gyro", &gyro, e)] {
-        for i in 0..3 {
-            let n = runs.len() as f64;
-            let rms_error = (runs
-                .iter()
-                .map(|(v, _)| (v[i] + truth[i]).powi(2))
-                .sum::<f64>()
-                / n)
-                .sqrt();
-            let reported = (runs.iter().map(|(_, s)| s[i] * s[i]).sum::<f64>() / n).sqrt();
-            let ratio = reported / rms_error;
-            assert!(
-                (0.5..2.0).contains(&ratio),
-                "{name} {i}: reported {reported:.3e}, scatter {rms_error:.3e}"
+                (v[i] - truth[i]).abs() < 3.0 * s[i],
+                "run {seed} {name} {i}: {} +/- {}, truth {}",
+                v[i],
+                s[i],
+                truth[i]
             );
         }
     }
+    for i in 0..3 {
+        let n = runs.len() as f64;
+        let rms_error = (runs
+            .iter()
+            .map(|(v, _)| (v[i] - truth[i]).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let reported = (runs.iter().map(|(_, s)| s[i] * s[i]).sum::<f64>() / n).sqrt();
+        let ratio = reported / rms_error;
+        assert!(
+            (0.5..2.0).contains(&ratio),
+            "{name} {i}: reported {reported:.3e}, scatter {rms_error:.3e}"
+        );
+    }
+}
+
+#[test]
+fn a_calibrations_bias_errors_are_recovered_within_the_reported_uncertainty() {
+    let truth = std::fs::read_to_string(repo("config/models/example-3dm-gx1.toml")).unwrap();
+    let d = [0.02, -0.015, 0.01];
+    let e = [2.0e-3, -1.0e-3, 1.5e-3];
+    let checks = checks_over_seeds(&shifted(&shifted(&truth, "accel.bias", d), "gyro.bias", e));
+    for c in &checks {
+        assert!(c.accel_offset_3d, "not 3-D");
+    }
+    // The calibration's bias is the truth's + d: the stream reads d too little.
+    let accel: Vec<_> = checks
+        .iter()
+        .map(|c| (c.accel_offset_m_s2, c.accel_offset_std_m_s2))
+        .collect();
+    assert_recovered("accel offset", &accel, d.map(|v| -v));
+    let gyro: Vec<_> = checks
+        .iter()
+        .map(|c| (c.gyro_offset_rad_s, c.gyro_offset_std_rad_s))
+        .collect();
+    assert_recovered("gyro offset", &gyro, e.map(|v| -v));
+}
+
+#[test]
+fn a_calibrations_accel_scale_errors_are_recovered_by_rests_spanning_both_ways() {
+    // Scale and bias both off: the joint fit finds each (the calibrated stream reads
+    // 1 - delta times physics, and d too little), within the uncertainty it reports.
+    let truth = std::fs::read_to_string(repo("config/models/example-3dm-gx1.toml")).unwrap();
+    let delta = [2.0e-3, -1.5e-3, 1.0e-3];
+    let d = [0.02, -0.015, 0.01];
+    let checks = checks_over_seeds(&shifted(
+        &shifted(&truth, "accel.scale", delta),
+        "accel.bias",
+        d,
+    ));
+    let fits: Vec<_> = checks
+        .iter()
+        .map(|c| {
+            c.accel_scale_fit
+                .clone()
+                .expect("11 rests, each axis up and down")
+        })
+        .collect();
+    for f in &fits {
+        assert_eq!(f.windows, ORIENTATIONS.len());
+        // The first-order model holds: the residual scatter is the noise tables' (chi^2 with
+        // 5 degrees of freedom lies below 4 with probability 0.995).
+        assert!(f.reduced_chi2 < 4.0, "{f:?}");
+    }
+    let scale: Vec<_> = fits
+        .iter()
+        .map(|f| (f.scale_error, f.scale_error_std))
+        .collect();
+    assert_recovered("accel scale error", &scale, delta.map(|v| -v));
+    let offset: Vec<_> = fits
+        .iter()
+        .map(|f| (f.offset_m_s2, f.offset_std_m_s2))
+        .collect();
+    assert_recovered("accel offset with the scale", &offset, d.map(|v| -v));
 }

@@ -95,6 +95,60 @@ impl NoiseModel {
         (white + bank + walk).sqrt()
     }
 
+    /// Covariance of one axis's noise averaged over two windows `(start_s, end_s)` of one
+    /// recording (times from the recording's start, when the random walk starts; the same
+    /// window gives the variance): white noise within a window only, each Gauss-Markov process
+    /// of the bias-instability bank (`flicker_bank(dt_s)`) by its correlation over the windows'
+    /// separation, and the random walk `K^2 min(t, s)` averaged over both. What a fit over
+    /// window means (a multi-position fit against gravity) needs to weight them: the bias wander
+    /// makes nearby windows agree and distant ones drift apart.
+    pub fn window_means_covariance(
+        &self,
+        axis: usize,
+        a: (f64, f64),
+        b: (f64, f64),
+        dt_s: f64,
+    ) -> f64 {
+        let (a, b) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+        let (ta, tb) = ((a.1 - a.0).max(dt_s), (b.1 - b.0).max(dt_s));
+        let same = a == b;
+        let white = if same {
+            self.white_density[axis].powi(2) / ta
+        } else {
+            0.0
+        };
+        let bank: f64 = if self.bias_instability[axis] == 0.0 {
+            0.0
+        } else {
+            self.flicker_bank(dt_s)
+                .iter()
+                .map(|&(tau, unit)| {
+                    // (1/(T_a T_b)) times the double integral of exp(-|t - s| / tau).
+                    let g = if same {
+                        let x = ta / tau;
+                        2.0 * (x + (-x).exp_m1()) / (x * x)
+                    } else {
+                        let gap = (b.0 - a.1).max(0.0);
+                        tau * tau
+                            * (-(-ta / tau).exp_m1())
+                            * (-(-tb / tau).exp_m1())
+                            * (-gap / tau).exp()
+                            / (ta * tb)
+                    };
+                    self.bias_instability[axis].powi(2) * unit * g
+                })
+                .sum()
+        };
+        // (1/(T_a T_b)) times the double integral of min(t, s): a's mean time when a ends
+        // before b starts, start + T/3 for one window.
+        let walk_time = if same {
+            a.0 + ta / 3.0
+        } else {
+            0.5 * (a.0 + a.1)
+        };
+        white + bank + self.random_walk[axis].powi(2) * walk_time.max(0.0)
+    }
+
     /// The bank of first-order Gauss-Markov processes that stands for the bias instability at
     /// sample period `dt_s`, as `(correlation time s, variance per unit B^2)` per process: what
     /// [`NoiseGenerator`] draws (each process with variance `B^2` times its unit variance), and
@@ -319,6 +373,56 @@ impl NoiseGenerator {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn window_means_covariance_is_the_generator_s() {
+        // Monte Carlo over seeds of the generator: variance of one window's mean and covariance
+        // between windows near and far, against the formula, within 4 standard errors of the
+        // estimate (var(x y) ~ var x var y + cov^2 over runs).
+        let model = NoiseModel {
+            white_density: [0.3, 0.0, 0.0],
+            bias_instability: [0.5, 0.0, 0.0],
+            bias_instability_tau_max_s: 100.0,
+            random_walk: [0.05, 0.0, 0.0],
+            quantization_lsb: [0.0; 3],
+        };
+        let (rate_hz, span_s, runs) = (10.0, 200.0, 3000);
+        let dt = 1.0 / rate_hz;
+        let windows = [(10.0, 25.0), (30.0, 50.0), (150.0, 190.0)];
+        let mut means = vec![[0.0; 3]; runs];
+        for (run, m) in means.iter_mut().enumerate() {
+            let mut g = NoiseGenerator::new(&model, rate_hz, run as u64);
+            let mut sums = [(0.0, 0usize); 3];
+            for k in 0..(span_s * rate_hz) as usize {
+                let t = k as f64 * dt;
+                let x = g.next()[0];
+                for (w, s) in windows.iter().zip(sums.iter_mut()) {
+                    if t >= w.0 && t < w.1 {
+                        *s = (s.0 + x, s.1 + 1);
+                    }
+                }
+            }
+            *m = sums.map(|(s, n)| s / n as f64);
+        }
+        let n = runs as f64;
+        for i in 0..3 {
+            for j in i..3 {
+                let mean = |k: usize| means.iter().map(|m| m[k]).sum::<f64>() / n;
+                let (mi, mj) = (mean(i), mean(j));
+                let cov = means.iter().map(|m| (m[i] - mi) * (m[j] - mj)).sum::<f64>() / (n - 1.0);
+                let want = model.window_means_covariance(0, windows[i], windows[j], dt);
+                let (vi, vj) = (
+                    model.window_means_covariance(0, windows[i], windows[i], dt),
+                    model.window_means_covariance(0, windows[j], windows[j], dt),
+                );
+                let se = ((vi * vj + want * want) / n).sqrt();
+                assert!(
+                    (cov - want).abs() < 4.0 * se,
+                    "windows {i}, {j}: {cov:.4e} vs {want:.4e} (se {se:.1e})"
+                );
+            }
+        }
+    }
 
     #[test]
     fn bank_is_two_per_decade_from_one_sample_to_tau_max() {

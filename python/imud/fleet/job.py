@@ -8,15 +8,14 @@ offsets from gravity and Earth rate), and the noise terms (:func:`imud.noise`) o
 still span when it is long enough. A recording that gives no evidence is a row with ``error``
 saying why; the job goes on.
 
-Scale columns stay null in this version. A scale error is seen only against a reference or
-across many orientations: ``imud.calibrate(raw, reference_free=True)`` needs at least 10 still
-poses (30 advised), which a fleet's working recordings rarely hold (the simulated ones have 7);
-it reads the raw stream a second time and takes ~9 s per 36-pose recording (debug build); and
-its default model (bias, scale, misalignment with a gauge: accel misalignment xy, xz, yz held
-at 0) absorbs what it lacks: on the shipped multi-pose scenario accel scale x comes out
-1.9e-3 +- 8e-5 against 1.2e-3 in the truth model. A scale comparable with the calibration in
-force needs a fit with that calibration's own effects and gauge. The schema keeps the columns (null) so a version that
-fills them needs no new schema.
+Accel scale columns are filled where the recording's rests calibrate the scale: the health
+check's joint fit of the bias offset and a scale error per axis to every still window's
+``|f| - g`` (:class:`imud.AccelScaleFit`: 7 or more rests, each axis seen up and down), so the
+column is the scale error against the calibration in force, 0 while it holds. Elsewhere they
+are null, as the gyro scale columns always are: Earth's rate is too small to calibrate a gyro
+scale from rests; that needs a turntable or a reference. The bias columns stay the bias-only
+offset (what the daemon's live check estimates, and what every recording with a rest gives),
+so a unit's biases are compared on one footing across all its recordings.
 """
 
 from __future__ import annotations
@@ -242,6 +241,13 @@ def _check_columns(check: Any, row: Dict[str, Any]) -> None:
             cal = row[schema.cal_bias(t, a)]
             row[schema.bias(t, a)] = None if o is None else cal + o
             row[schema.bias_std(t, a)] = s
+    # Where the rests calibrate the accelerometer's scale: its error against the calibration
+    # in force (schema 1's scale column; 0 while the calibration holds).
+    fit = check.accel_scale_fit
+    if fit is not None:
+        for i, a in enumerate(schema.AXES):
+            row[schema.scale("accel", a)] = _f(fit.scale_error[i])
+            row[schema.scale_std("accel", a)] = _f(fit.scale_error_std[i])
 
 
 def _noise(rec: Any, check: Any, options: JobOptions, row: Dict[str, Any]) -> None:

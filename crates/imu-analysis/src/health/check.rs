@@ -11,12 +11,23 @@
 //! its covariance. The calibration's own bias error is what is estimated, so it is not noise
 //! here. Sign: the offset is what the calibrated stream reads minus physics, so for a linear
 //! model the true bias is the calibration's bias plus the offset.
+//!
+//! Where the rests span enough orientations (at least [`SCALE_FIT_MIN_WINDOWS`] windows, each
+//! axis seen both ways along gravity), the same windows also calibrate the accelerometer's
+//! scale: [`AccelScaleFit`], a joint fit of the bias offset and a scale error per axis to
+//! `|f| - g` (a multi-position calibration against gravity's magnitude, first order:
+//! `|f| - g = u . b + g sum_k u_k^2 s_k` for a window whose up is `u`), by generalised least
+//! squares with the windows' covariance from the noise tables (the bias wander correlates
+//! them). It is reported beside the bias-only offset above, which stays what the daemon's live
+//! check estimates.
 
 use serde::Serialize;
 
 use super::*;
 use crate::ImuSeries;
+use imu_model::NoiseModel;
 use imu_model::earth::unknown_heading_variance_rad2_s2;
+use imu_model::nalgebra::{DMatrix, DVector};
 
 /// An axis is observed along gravity by a single orientation when up lies within 25 deg of it.
 const OBSERVED_ALONG_UP: f64 = 0.906;
@@ -78,6 +89,9 @@ pub struct HealthCheck {
     /// The accel offset was estimated in 3-D (several orientations); false: along gravity only,
     /// on the axis gravity lies along.
     pub accel_offset_3d: bool,
+    /// The accelerometer's scale error with the bias offset, fitted together where the rests
+    /// calibrate the scale (`None` otherwise).
+    pub accel_scale_fit: Option<AccelScaleFit>,
     /// The gyro offset from physics over all still windows, rad/s.
     pub gyro_offset_rad_s: [f64; 3],
     /// Its standard deviation per axis, rad/s.
@@ -104,6 +118,27 @@ pub struct HealthCheck {
     pub longest_still_s: f64,
     /// Its start and end, s from the series' first sample (NaN without a still window).
     pub longest_still_span_s: [f64; 2],
+}
+
+/// The joint fit of the accel bias offset and scale error to the still windows' `|f| - g`
+/// (see the module's doc). Same sign as the offset: the scale error is what the calibrated
+/// stream reads over physics minus 1, so for a linear model the true scale is the
+/// calibration's plus the error (to first order).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AccelScaleFit {
+    /// Scale error per axis (dimensionless).
+    pub scale_error: [f64; 3],
+    /// Its standard deviation per axis.
+    pub scale_error_std: [f64; 3],
+    /// The bias offset fitted with it, m/s^2.
+    pub offset_m_s2: [f64; 3],
+    /// Its standard deviation per axis, m/s^2 (with the bias wander the windows share).
+    pub offset_std_m_s2: [f64; 3],
+    /// Still windows fitted.
+    pub windows: usize,
+    /// Their weighted residual sum of squares over its degrees of freedom (about 1 when the
+    /// first-order model and the noise tables hold).
+    pub reduced_chi2: f64,
 }
 
 /// The worse of two states (stale, degraded, ok, unknown, uncalibrated in that order).
@@ -160,6 +195,7 @@ pub fn check_series(
         accel_offset_m_s2: offsets.accel.0,
         accel_offset_std_m_s2: offsets.accel.1,
         accel_offset_3d: offsets.accel_3d,
+        accel_scale_fit: offsets.accel_scale,
         gyro_offset_rad_s: offsets.gyro.0,
         gyro_offset_std_rad_s: offsets.gyro.1,
         accel_state: accel_state.name(),
@@ -261,7 +297,98 @@ const RECORDING_MIN_SPREAD: f64 = 1e-3;
 struct Offsets {
     accel: ([f64; 3], [f64; 3]),
     accel_3d: bool,
+    accel_scale: Option<AccelScaleFit>,
     gyro: ([f64; 3], [f64; 3]),
+}
+
+/// The fewest still windows the joint bias and scale fit takes: its six parameters and a degree
+/// of freedom for its residual.
+pub const SCALE_FIT_MIN_WINDOWS: usize = 7;
+
+/// An axis counts as seen along gravity one way when up lies within 60 deg of it
+/// (`|u_k| >= 0.5`): the scale needs each axis seen both ways, else it and the bias along that
+/// axis are told apart only by how far from the axis the rests lie.
+const SCALE_AXIS_SEEN: f64 = 0.5;
+
+/// One still window for the joint bias and scale fit: up, `|f| - g` (m/s^2), and the window's
+/// span (s from the first window's start).
+struct ScaleObs {
+    up: Vec3,
+    residual_m_s2: f64,
+    span_s: (f64, f64),
+}
+
+/// The joint bias and scale fit to `obs` against gravity `g_m_s2` (see the module's doc), by
+/// generalised least squares: the windows' residuals are correlated through the bias wander
+/// (nearby windows share it), so their covariance comes from the noise tables
+/// ([`NoiseModel::window_means_covariance`] along each window's up; samples `dt_s` apart),
+/// the rows are whitened by its Cholesky factor and solved by the one least-squares engine.
+/// `None` when the windows are too few, an axis is not seen both ways along gravity, or the
+/// normal matrix (unit diagonal) has an eigenvalue ratio under [`RECORDING_MIN_SPREAD`].
+fn accel_scale_fit(
+    obs: &[ScaleObs],
+    noise: &NoiseModel,
+    dt_s: f64,
+    g_m_s2: f64,
+) -> Option<AccelScaleFit> {
+    let n = obs.len();
+    if n < SCALE_FIT_MIN_WINDOWS {
+        return None;
+    }
+    let both_ways = |k: usize| {
+        [1.0, -1.0]
+            .iter()
+            .all(|sign| obs.iter().any(|o| sign * o.up[k] >= SCALE_AXIS_SEEN))
+    };
+    if !(0..3).all(both_ways) {
+        return None;
+    }
+    let cov = DMatrix::from_fn(n, n, |i, j| {
+        (0..3)
+            .map(|k| {
+                obs[i].up[k]
+                    * obs[j].up[k]
+                    * noise.window_means_covariance(k, obs[i].span_s, obs[j].span_s, dt_s)
+            })
+            .sum::<f64>()
+    });
+    let l = cov.cholesky()?.l();
+    let x = DMatrix::from_fn(n, 6, |i, c| {
+        let u = obs[i].up;
+        if c < 3 {
+            u[c]
+        } else {
+            g_m_s2 * u[c - 3] * u[c - 3]
+        }
+    });
+    let r = DVector::from_iterator(n, obs.iter().map(|o| o.residual_m_s2));
+    let (xw, rw) = (l.solve_lower_triangular(&x)?, l.solve_lower_triangular(&r)?);
+    let rows: Vec<Vec<f64>> = xw
+        .row_iter()
+        .map(|row| row.iter().copied().collect())
+        .collect();
+    let (c, inv) = imu_stats::linear::ordinary_least_squares(&rows, rw.as_slice())?;
+    // Solvable in the sense of RECORDING_MIN_SPREAD, on the normal matrix with unit diagonal.
+    let normal = xw.transpose() * &xw;
+    let d = normal.diagonal().map(|v| 1.0 / v.max(1e-300).sqrt());
+    let eig = normal
+        .component_mul(&(&d * d.transpose()))
+        .symmetric_eigen()
+        .eigenvalues;
+    let spans_space = eig.min() > RECORDING_MIN_SPREAD * eig.max(); // false on NaN too
+    if !spans_space {
+        return None;
+    }
+    let fitted = &xw * DVector::from_column_slice(&c);
+    let chi2 = (rw - fitted).norm_squared();
+    Some(AccelScaleFit {
+        scale_error: std::array::from_fn(|k| c[3 + k]),
+        scale_error_std: std::array::from_fn(|k| inv[(3 + k, 3 + k)].sqrt()),
+        offset_m_s2: std::array::from_fn(|k| c[k]),
+        offset_std_m_s2: std::array::from_fn(|k| inv[(k, k)].sqrt()),
+        windows: n,
+        reduced_chi2: chi2 / (n - 6) as f64,
+    })
 }
 
 /// The offsets of the stream from physics over every still window (see the module's doc).
@@ -276,11 +403,13 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
         return Offsets {
             accel: nan,
             accel_3d: false,
+            accel_scale: None,
             gyro: nan,
         };
     };
     let since_ns = monitor.since_ns().unwrap_or(0);
-    let (mut accel_obs, mut gyro_obs) = (Vec::new(), Vec::new());
+    let (mut accel_obs, mut gyro_obs, mut scale_obs) = (Vec::new(), Vec::new(), Vec::new());
+    let rel_s = |ns: u64| ns.saturating_sub(first.window.start_ns) as f64 * 1e-9;
     for c in checks {
         let w = &c.window;
         let elapsed_s = c.closed_ns.saturating_sub(since_ns) as f64 * 1e-9;
@@ -289,6 +418,11 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
         let white = |n: &TriadNoise, i: usize| n.model.white_density[i].powi(2) / t_s;
         let accel_var = (0..3).map(|i| r.up[i].powi(2) * white(&accel, i)).sum();
         accel_obs.push((r.up, r.accel_residual_m_s2, accel_var));
+        scale_obs.push(ScaleObs {
+            up: r.up,
+            residual_m_s2: r.accel_residual_m_s2,
+            span_s: (rel_s(w.start_ns), rel_s(w.end_ns)),
+        });
         let gyro_var = std::array::from_fn(|i| {
             white(&gyro, i) + unknown_heading_variance_rad2_s2(latitude_deg, r.up[i])
         });
@@ -332,6 +466,7 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
     Offsets {
         accel: accel_out,
         accel_3d: a.three_d,
+        accel_scale: accel_scale_fit(&scale_obs, &accel.model, 1.0 / first.window.rate_hz(), g),
         gyro: (
             gy.offset.into(),
             std::array::from_fn(|i| (gy.covariance[(i, i)] + shared_g[i]).sqrt()),
