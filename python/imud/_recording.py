@@ -74,7 +74,8 @@ class Recording:
         info: origin, files, topic, gaps between files, sample rate, unfinished file, and
             what the recording says about itself: ``started_utc`` (ISO 8601 UTC of the first
             sample, None when unknown), ``missing_samples`` (samples lost, judged by the time
-            gaps against the sample interval, gaps between a session's files included),
+            gaps against the sample interval, gaps between a session's files included; the
+            ``input["non_finite_samples"]`` skipped for a NaN or infinite value among them),
             ``device`` (an imud recording's ``imud.device`` metadata: ``model``,
             ``serial-number``, firmware, gains...; ``{}`` without) and
             ``calibration_in_force`` (``{"id", "toml", "file"}`` of the ``imud.calibration``

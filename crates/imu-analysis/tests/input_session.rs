@@ -1,7 +1,7 @@
 //! Recordings of several files read as one: imud's rotated files of a session (and a restart
 //! later, a gap that is reported), and a rosbag2 directory written by Python `rosbags` (an
 //! independent writer) with two IMU topics: an error listing both without a topic, the right
-//! values with one.
+//! values with one. Samples holding NaN or infinity are skipped and counted.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -115,6 +115,93 @@ fn rotated_imud_files_are_one_recording_with_the_gap_reported() {
     let e = read_input(&twice, &options, &mut |_, _| {}).unwrap_err();
     assert!(
         matches!(e, InputError::Session { .. }) && e.to_string().contains("overlap"),
+        "{e}"
+    );
+}
+
+#[test]
+fn samples_holding_nan_or_infinity_are_skipped_and_counted() {
+    // A unit that sends NaN for a reading it lacks, and an infinity: over rotated files of one
+    // session, every finite sample is read exactly, the others skipped, counted and missing.
+    let dir = tempfile::tempdir().unwrap();
+    let config = RecordingConfig {
+        dir: dir.path().to_path_buf(),
+        prefix: "imud".into(),
+        rotate_size_bytes: 24 * 1024,
+        rotate_interval_s: 0.0,
+        ..RecordingConfig::default()
+    };
+    let bad = |k: u64| k % 97 == 5 || k % 101 == 7;
+    let rec = Recorder::start(config, Vec::new()).unwrap();
+    for k in 0..600u64 {
+        let (mut a, mut g) = truth(k);
+        if k % 97 == 5 {
+            a[(k % 3) as usize] = f64::NAN;
+        }
+        if k % 101 == 7 {
+            g[(k % 3) as usize] = f64::NEG_INFINITY;
+        }
+        let t = T0_NS + k * DT_NS;
+        assert!(rec.log(LogRecord::Corrected(CorrectedSample {
+            seq: k,
+            t_sample_ns: t,
+            t_wall_ns: t,
+            accel_m_s2: a,
+            gyro_rad_s: g,
+            ..CorrectedSample::default()
+        })));
+    }
+    rec.finish().unwrap();
+    assert!(list_recordings(dir.path(), "imud").unwrap().len() >= 3);
+    let s = read_input(
+        &[dir.path().to_path_buf()],
+        &InputOptions::default(),
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let kept: Vec<u64> = (0..600).filter(|&k| !bad(k)).collect();
+    let skipped = 600 - kept.len() as u64;
+    assert_eq!(skipped, 13);
+    assert_eq!(s.input.non_finite_samples, skipped);
+    assert_eq!(s.len(), kept.len());
+    for (i, &k) in kept.iter().enumerate() {
+        assert_eq!((s.accel_m_s2[i], s.gyro_rad_s[i]), truth(k), "sample {k}");
+        assert!(
+            (s.t_s[i] - (k * DT_NS) as f64 * 1e-9).abs() < 1e-9,
+            "t of {k}"
+        );
+    }
+    // Each one skipped leaves one sample interval without a sample.
+    assert_eq!(s.missing_samples(), skipped);
+    // A recording with nothing finite is an error that says so.
+    let dir2 = tempfile::tempdir().unwrap();
+    let rec = Recorder::start(
+        RecordingConfig {
+            dir: dir2.path().to_path_buf(),
+            prefix: "imud".into(),
+            ..RecordingConfig::default()
+        },
+        Vec::new(),
+    )
+    .unwrap();
+    for k in 0..5u64 {
+        assert!(rec.log(LogRecord::Corrected(CorrectedSample {
+            seq: k,
+            t_sample_ns: T0_NS + k * DT_NS,
+            t_wall_ns: T0_NS + k * DT_NS,
+            accel_m_s2: [f64::NAN; 3],
+            ..CorrectedSample::default()
+        })));
+    }
+    rec.finish().unwrap();
+    let e = read_input(
+        &[dir2.path().to_path_buf()],
+        &InputOptions::default(),
+        &mut |_, _| {},
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("all 5 IMU samples hold a NaN"),
         "{e}"
     );
 }

@@ -1,14 +1,17 @@
 //! What every offline client says about the recording it read (feature `analysis`): a file read
-//! without its footer (the one-line warning of `unfinished`), and each time gap between the
-//! files of a session, on stderr; the same facts for `--json` are the series' `input` (files,
+//! without its footer (the one-line warning of `unfinished`), each time gap between the
+//! files of a session, and samples skipped for a NaN or infinite value, on stderr; the same facts for `--json` are the series' `input` (files,
 //! topic, gaps) and the unfinished note this returns.
 
 use imu_analysis::ImuSeries;
 
-/// Warns on stderr as `tool: warning: ...` about an unfinished file and every gap between
-/// files; returns the unfinished file's JSON note (`None` for a complete input).
+/// Warns on stderr as `tool: warning: ...` about an unfinished file, every gap between
+/// files and skipped non-finite samples; returns the unfinished file's JSON note (`None` for a complete input).
 pub fn warn(tool: &str, series: &ImuSeries) -> Option<serde_json::Value> {
     for line in gap_warnings(series) {
+        eprintln!("{tool}: warning: {line}");
+    }
+    if let Some(line) = non_finite_warning(series) {
         eprintln!("{tool}: warning: {line}");
     }
     let path = series
@@ -38,6 +41,17 @@ pub fn gap_warnings(series: &ImuSeries) -> Vec<String> {
             )
         })
         .collect()
+}
+
+/// The samples skipped for a NaN or infinite value, if any.
+pub fn non_finite_warning(series: &ImuSeries) -> Option<String> {
+    let n = series.input.non_finite_samples;
+    (n > 0).then(|| {
+        format!(
+            "{n} samples skipped: a value was NaN or infinite (the unit or the writer had no \
+             reading); they count among the samples missing"
+        )
+    })
 }
 
 #[cfg(test)]
@@ -71,5 +85,17 @@ mod tests {
             w[0]
         );
         assert_eq!(warn("t", &s), None);
+        assert_eq!(non_finite_warning(&s), None);
+        let skipped = ImuSeries {
+            input: InputInfo {
+                non_finite_samples: 3,
+                ..InputInfo::default()
+            },
+            ..ImuSeries::default()
+        };
+        assert!(
+            non_finite_warning(&skipped)
+                .is_some_and(|w| w.starts_with("3 samples skipped: a value was NaN or infinite")),
+        );
     }
 }

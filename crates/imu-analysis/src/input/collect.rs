@@ -270,15 +270,38 @@ impl Collector {
         end: ReadEnd,
     ) -> Result<ImuSeries, InputError> {
         let mut series = self.series;
-        let Some(&t0) = self.abs_ns.first() else {
+        let mut abs_ns = self.abs_ns;
+        let finite = |a: &[f64; 3], g: &[f64; 3]| a.iter().chain(g).all(|v| v.is_finite());
+        let non_finite_samples = series
+            .accel_m_s2
+            .iter()
+            .zip(&series.gyro_rad_s)
+            .filter(|(a, g)| !finite(a, g))
+            .count() as u64;
+        if non_finite_samples > 0 {
+            let rows: Vec<_> = abs_ns
+                .into_iter()
+                .zip(series.accel_m_s2)
+                .zip(series.gyro_rad_s)
+                .filter(|((_, a), g)| finite(a, g))
+                .collect();
+            abs_ns = rows.iter().map(|((t, _), _)| *t).collect();
+            series.accel_m_s2 = rows.iter().map(|((_, a), _)| *a).collect();
+            series.gyro_rad_s = rows.iter().map(|(_, g)| *g).collect();
+        }
+        let Some(&t0) = abs_ns.first() else {
             return Err(InputError::NoData {
                 path: path.to_path_buf(),
-                message: format!("no {IMU_SCHEMA} messages (is this an IMU recording?)"),
+                message: if non_finite_samples > 0 {
+                    format!("all {non_finite_samples} IMU samples hold a NaN or infinite value")
+                } else {
+                    format!("no {IMU_SCHEMA} messages (is this an IMU recording?)")
+                },
             });
         };
         let rel_s = |t: u64| (t as i128 - t0 as i128) as f64 * 1e-9;
         series.t0_ns = t0;
-        series.t_s = self.abs_ns.iter().map(|&t| rel_s(t)).collect();
+        series.t_s = abs_ns.iter().map(|&t| rel_s(t)).collect();
         series.temp = self.temps_ns.iter().map(|&(t, c)| (rel_s(t), c)).collect();
         let topic = self.chosen.unwrap_or_default();
         series.origin = format!("{} ({topic})", path.display());
@@ -288,6 +311,7 @@ impl Collector {
             files: vec![path.to_path_buf()],
             topic: Some(topic),
             gaps: Vec::new(),
+            non_finite_samples,
             unfinished_file: series.unfinished.as_ref().map(|_| path.to_path_buf()),
             imud_file: end.imud_file,
             device: device.cloned().unwrap_or_default(),

@@ -175,6 +175,10 @@ pub struct InputInfo {
     pub topic: Option<String>,
     /// Time gaps between consecutive files.
     pub gaps: Vec<SessionGap>,
+    /// Samples skipped because a value was not finite (NaN or infinite: what a unit sends for
+    /// a reading it does not have, or a writer for a failed one). They leave a time gap, so
+    /// they count among the series' missing samples too.
+    pub non_finite_samples: u64,
     /// The file read without its footer, if one was (the series' `unfinished` is its report).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unfinished_file: Option<PathBuf>,

@@ -285,6 +285,7 @@ fn join(mut parts: Vec<ImuSeries>) -> Result<ImuSeries, InputError> {
             }
         }
         out.t_s.extend(part.t_s.iter().map(|t| t + offset_s));
+        out.input.non_finite_samples += part.input.non_finite_samples;
         out.accel_m_s2.extend(part.accel_m_s2);
         out.gyro_rad_s.extend(part.gyro_rad_s);
         out.temp
