@@ -478,6 +478,66 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
 mod tests {
     use super::*;
 
+    /// A still series with a NaN or infinite value in every 37th sample gives the windows of the
+    /// same series without them: those samples are skipped, not read as motion.
+    #[test]
+    fn samples_holding_nan_are_skipped_not_read_as_motion() {
+        let n = 120 * 100;
+        // Deterministic noise of about the tables' white density at 100 Hz.
+        let wobble = |k: usize, axis: usize| {
+            let x = ((k * 7919 + axis * 104_729) % 1000) as f64 / 1000.0 - 0.5;
+            x * 0.03
+        };
+        let still = ImuSeries {
+            t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
+            accel_m_s2: (0..n)
+                .map(|k| [wobble(k, 0), wobble(k, 1), 9.80665 + wobble(k, 2)])
+                .collect(),
+            gyro_rad_s: (0..n)
+                .map(|k| {
+                    [
+                        1e-3 * wobble(k, 3),
+                        1e-3 * wobble(k, 4),
+                        1e-3 * wobble(k, 5),
+                    ]
+                })
+                .collect(),
+            origin: "still".into(),
+            ..ImuSeries::default()
+        };
+        let mut holed = still.clone();
+        for k in (5..n).step_by(37) {
+            if k % 2 == 0 {
+                holed.accel_m_s2[k][k % 3] = f64::NAN;
+            } else {
+                holed.gyro_rad_s[k][k % 3] = f64::INFINITY;
+            }
+        }
+        let tables = Calibration::from_toml_str(
+            "format = \"imud-calibration/1\"\n\
+             [accel.noise]\nwhite-density = [1e-3, 1e-3, 1e-3]\n\
+             [gyro.noise]\nwhite-density = [3e-5, 3e-5, 3e-5]\n",
+            "tables",
+        )
+        .unwrap();
+        let options = CheckOptions::default();
+        let (a, b) = (
+            check_series(&still, Some(&tables), &options),
+            check_series(&holed, Some(&tables), &options),
+        );
+        // The same rest, cut into windows at the longest window's length: as many windows, as
+        // much still time within a 1 s block per window (where a long rest is cut depends on
+        // where the blocks fall). Read as motion, the NaN would leave no window at all.
+        assert!(a.windows.len() >= 3, "{:?}", a.windows);
+        assert_eq!(a.windows.len(), b.windows.len());
+        assert!(
+            (a.still_s - b.still_s).abs() <= a.windows.len() as f64 * options.still.block_s,
+            "{} vs {}",
+            a.still_s,
+            b.still_s
+        );
+    }
+
     /// A recording that never rests (always shaking, far above what the noise tables allow a
     /// still unit) is a valid result: no window, NaN offsets, nothing tested; and an empty one
     /// too.

@@ -530,7 +530,9 @@ impl Monitor {
         self.since_ns
     }
 
-    /// One corrected sample; a report when a still window closed.
+    /// One corrected sample; a report when a still window closed. A sample holding a NaN or
+    /// infinite value (a unit's missing reading) is skipped, as a lost one: it would make its
+    /// whole block look like motion.
     pub fn push(
         &mut self,
         t_sample_ns: u64,
@@ -538,6 +540,9 @@ impl Monitor {
         gyro_rad_s: &[f64; 3],
         temp_c: f64,
     ) -> Option<WindowCheck> {
+        if !accel_m_s2.iter().chain(gyro_rad_s).all(|v| v.is_finite()) {
+            return None;
+        }
         self.since_ns.get_or_insert(t_sample_ns);
         match self
             .detector
