@@ -17,6 +17,8 @@ pub mod loss;
 pub mod readers;
 mod reading;
 mod sinks;
+#[cfg(test)]
+mod tests;
 
 use std::sync::Arc;
 
@@ -484,7 +486,11 @@ impl Pipeline {
                     flags |= corrected_flags::NOT_CONVERGED;
                     self.counters.not_converged += 1;
                 }
-                self.last_gyro = [self.last_gyro[1], Some((t_sample_ns, c.gyro_rad_s))];
+                // A rate the unit did not have (NaN) would make the next two samples' lever-arm
+                // term NaN too: the difference skips it.
+                if c.gyro_rad_s.iter().all(|v| v.is_finite()) {
+                    self.last_gyro = [self.last_gyro[1], Some((t_sample_ns, c.gyro_rad_s))];
+                }
                 (c.accel_m_s2, c.gyro_rad_s, c.mag_gauss, cal.id)
             }
             None => {
