@@ -441,13 +441,13 @@ fn health_text(r: &HealthCheck) -> String {
     match &r.accel_scale_fit {
         Some(f) => {
             text.push_str(&format!(
-                "accel scale error (fitted with the offset over {} rests, reduced chi^2 {:.2}): {}\n",
+                "accel scale error ({} rests, reduced chi^2 {:.2}): {}\n",
                 f.windows,
                 f.reduced_chi2,
                 axes(&f.scale_error, &f.scale_error_std),
             ));
             text.push_str(&format!(
-                "  with accel offset, m/s^2: {}\n",
+                "  fitted with accel offset, m/s^2: {}\n",
                 axes(&f.offset_m_s2, &f.offset_std_m_s2)
             ));
         }

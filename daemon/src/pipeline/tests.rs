@@ -4,9 +4,9 @@ use std::sync::Arc;
 
 use imu_model::{Calibration, Measured, Vec3};
 
-use super::{ActiveCalibration, Gains, Pipeline};
-use crate::config::DeviceConfig;
-use crate::drivers::gx1;
+use super::{
+    Acquisition, ActiveCalibration, Gains, Pipeline, SessionSpec, TickKind, TickLength, Timebase,
+};
 
 /// A unit that sends NaN for one angular rate: that sample is NaN, and the samples after it
 /// are corrected as if it had not come (the lever-arm term's angular acceleration is the
@@ -21,7 +21,17 @@ fn a_nan_rate_spoils_its_own_sample_only() {
     )
     .unwrap();
     let active = Some(Arc::new(ActiveCalibration::new(cal)));
-    let session = gx1::session(&DeviceConfig::default(), Gains::NOT_APPLICABLE);
+    // A streaming unit with a 1 us clock (the pipeline knows no protocol).
+    let session = SessionSpec {
+        gains: Gains::NOT_APPLICABLE,
+        timebase: Timebase {
+            tick: TickLength::WholeNs(1_000),
+            kind: TickKind::Fine,
+        },
+        acquisition: Acquisition::Streaming,
+        status_protocol: 0,
+        configuration_verified: false,
+    };
     let sample = |k: u64| Measured {
         accel_m_s2: Vec3::new(0.1 * k as f64, -0.2, 9.8),
         gyro_rad_s: Vec3::new(0.01 * k as f64, 0.02, -0.5 + 0.03 * k as f64),
