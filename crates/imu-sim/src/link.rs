@@ -482,6 +482,13 @@ impl Loop<'_> {
         stop: &Arc<AtomicBool>,
     ) -> std::io::Result<()> {
         let fresh = Pty::open().map_err(std::io::Error::other)?;
+        // The stable path goes first, as udev removes a device's link when it is unplugged: left
+        // pointing at the old pty's number, it would lead a host retrying the path into
+        // whichever pty reuses that number meanwhile (another simulator's), and its commands
+        // onto that device's line.
+        if let Some(link) = &self.options.link {
+            let _ = std::fs::remove_file(link);
+        }
         // Dropping the old pair closes both ends: the host's reads fail from here on.
         let old = std::mem::replace(pty, fresh);
         drop(old);
