@@ -95,32 +95,34 @@ impl NoiseModel {
         (white + bank + walk).sqrt()
     }
 
-    /// Covariance of one axis's noise averaged over two windows `(start_s, end_s)` of one
-    /// recording (times from the recording's start, when the random walk starts; the same
-    /// window gives the variance): white noise within a window only, each Gauss-Markov process
-    /// of the bias-instability bank (`flicker_bank(dt_s)`) by its correlation over the windows'
-    /// separation, and the random walk `K^2 min(t, s)` averaged over both. What a fit over
-    /// window means (a multi-position fit against gravity) needs to weight them: the bias wander
-    /// makes nearby windows agree and distant ones drift apart.
+    /// Covariances of one axis's noise averaged over each of `windows` `(start_s, end_s)` of one
+    /// recording (times from the recording's start, when the random walk starts; windows that do
+    /// not overlap), as an `n x n` matrix: white noise within a window only, each Gauss-Markov
+    /// process of the bias-instability bank (`flicker_bank(dt_s)`, samples `dt_s` apart) by its
+    /// correlation over the windows' separation, and the random walk `K^2 min(t, s)` averaged
+    /// over both. What a fit over window means (a multi-position fit against gravity) needs to
+    /// weight them: the bias wander makes nearby windows agree and distant ones drift apart.
     pub fn window_means_covariance(
         &self,
         axis: usize,
-        a: (f64, f64),
-        b: (f64, f64),
+        windows: &[(f64, f64)],
         dt_s: f64,
-    ) -> f64 {
-        let (a, b) = if a.0 <= b.0 { (a, b) } else { (b, a) };
-        let (ta, tb) = ((a.1 - a.0).max(dt_s), (b.1 - b.0).max(dt_s));
-        let same = a == b;
-        let white = if same {
-            self.white_density[axis].powi(2) / ta
-        } else {
-            0.0
-        };
-        let bank: f64 = if self.bias_instability[axis] == 0.0 {
-            0.0
+    ) -> nalgebra::DMatrix<f64> {
+        let bank = if self.bias_instability[axis] == 0.0 {
+            Vec::new()
         } else {
             self.flicker_bank(dt_s)
+        };
+        let b2 = self.bias_instability[axis].powi(2);
+        let one = |a: (f64, f64), b: (f64, f64), same: bool| {
+            let (a, b) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+            let (ta, tb) = ((a.1 - a.0).max(dt_s), (b.1 - b.0).max(dt_s));
+            let white = if same {
+                self.white_density[axis].powi(2) / ta
+            } else {
+                0.0
+            };
+            let wander: f64 = bank
                 .iter()
                 .map(|&(tau, unit)| {
                     // (1/(T_a T_b)) times the double integral of exp(-|t - s| / tau).
@@ -135,18 +137,28 @@ impl NoiseModel {
                             * (-gap / tau).exp()
                             / (ta * tb)
                     };
-                    self.bias_instability[axis].powi(2) * unit * g
+                    b2 * unit * g
                 })
-                .sum()
+                .sum();
+            // (1/(T_a T_b)) times the double integral of min(t, s): a's mean time when a ends
+            // before b starts, start + T/3 for one window.
+            let walk_time = if same {
+                a.0 + ta / 3.0
+            } else {
+                0.5 * (a.0 + a.1)
+            };
+            white + wander + self.random_walk[axis].powi(2) * walk_time.max(0.0)
         };
-        // (1/(T_a T_b)) times the double integral of min(t, s): a's mean time when a ends
-        // before b starts, start + T/3 for one window.
-        let walk_time = if same {
-            a.0 + ta / 3.0
-        } else {
-            0.5 * (a.0 + a.1)
-        };
-        white + bank + self.random_walk[axis].powi(2) * walk_time.max(0.0)
+        let n = windows.len();
+        let mut out = nalgebra::DMatrix::zeros(n, n);
+        for i in 0..n {
+            for j in i..n {
+                let c = one(windows[i], windows[j], i == j);
+                out[(i, j)] = c;
+                out[(j, i)] = c;
+            }
+        }
+        out
     }
 
     /// The bank of first-order Gauss-Markov processes that stands for the bias instability at
@@ -405,16 +417,14 @@ mod tests {
             *m = sums.map(|(s, n)| s / n as f64);
         }
         let n = runs as f64;
+        let model_cov = model.window_means_covariance(0, &windows, dt);
         for i in 0..3 {
             for j in i..3 {
                 let mean = |k: usize| means.iter().map(|m| m[k]).sum::<f64>() / n;
                 let (mi, mj) = (mean(i), mean(j));
                 let cov = means.iter().map(|m| (m[i] - mi) * (m[j] - mj)).sum::<f64>() / (n - 1.0);
-                let want = model.window_means_covariance(0, windows[i], windows[j], dt);
-                let (vi, vj) = (
-                    model.window_means_covariance(0, windows[i], windows[i], dt),
-                    model.window_means_covariance(0, windows[j], windows[j], dt),
-                );
+                let want = model_cov[(i, j)];
+                let (vi, vj) = (model_cov[(i, i)], model_cov[(j, j)]);
                 let se = ((vi * vj + want * want) / n).sqrt();
                 assert!(
                     (cov - want).abs() < 4.0 * se,

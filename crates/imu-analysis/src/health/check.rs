@@ -343,13 +343,13 @@ fn accel_scale_fit(
     if !(0..3).all(both_ways) {
         return None;
     }
+    let spans: Vec<(f64, f64)> = obs.iter().map(|o| o.span_s).collect();
+    let per_axis: Vec<DMatrix<f64>> = (0..3)
+        .map(|k| noise.window_means_covariance(k, &spans, dt_s))
+        .collect();
     let cov = DMatrix::from_fn(n, n, |i, j| {
         (0..3)
-            .map(|k| {
-                obs[i].up[k]
-                    * obs[j].up[k]
-                    * noise.window_means_covariance(k, obs[i].span_s, obs[j].span_s, dt_s)
-            })
+            .map(|k| obs[i].up[k] * obs[j].up[k] * per_axis[k][(i, j)])
             .sum::<f64>()
     });
     let l = cov.cholesky()?.l();
