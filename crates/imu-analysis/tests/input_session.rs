@@ -23,9 +23,8 @@ fn truth(k: u64) -> ([f64; 3], [f64; 3]) {
     )
 }
 
-/// One daemon run of unit 4242 with calibration `cal_id` in force: samples `ks` on the
-/// corrected stream, rotated into files of ~24 KiB.
-fn record_run(dir: &Path, ks: std::ops::Range<u64>, cal_id: &str) {
+/// A recorder of imud's corrected stream into `dir`, rotating files at ~24 KiB.
+fn rotating_recorder(dir: &Path, metadata: Vec<(String, BTreeMap<String, String>)>) -> Recorder {
     let config = RecordingConfig {
         dir: dir.to_path_buf(),
         prefix: "imud".into(),
@@ -33,8 +32,27 @@ fn record_run(dir: &Path, ks: std::ops::Range<u64>, cal_id: &str) {
         rotate_interval_s: 0.0,
         ..RecordingConfig::default()
     };
+    Recorder::start(config, metadata).unwrap()
+}
+
+/// Logs corrected sample `k` (time `T0_NS + k DT_NS`) with accel `a` and gyro `g`.
+fn log_sample(rec: &Recorder, k: u64, a: [f64; 3], g: [f64; 3]) {
+    let t = T0_NS + k * DT_NS;
+    assert!(rec.log(LogRecord::Corrected(CorrectedSample {
+        seq: k,
+        t_sample_ns: t,
+        t_wall_ns: t,
+        accel_m_s2: a,
+        gyro_rad_s: g,
+        ..CorrectedSample::default()
+    })));
+}
+
+/// One daemon run of unit 4242 with calibration `cal_id` in force: samples `ks` on the
+/// corrected stream, rotated into files of ~24 KiB.
+fn record_run(dir: &Path, ks: std::ops::Range<u64>, cal_id: &str) {
     let device = BTreeMap::from([("serial-number".to_string(), "4242".to_string())]);
-    let rec = Recorder::start(config, vec![("imud.device".into(), device)]).unwrap();
+    let rec = rotating_recorder(dir, vec![("imud.device".into(), device)]);
     assert!(rec.log(LogRecord::Calibration {
         t_wall_ns: T0_NS + ks.start * DT_NS,
         id: cal_id.into(),
@@ -43,15 +61,7 @@ fn record_run(dir: &Path, ks: std::ops::Range<u64>, cal_id: &str) {
     }));
     for k in ks {
         let (a, g) = truth(k);
-        let t = T0_NS + k * DT_NS;
-        assert!(rec.log(LogRecord::Corrected(CorrectedSample {
-            seq: k,
-            t_sample_ns: t,
-            t_wall_ns: t,
-            accel_m_s2: a,
-            gyro_rad_s: g,
-            ..CorrectedSample::default()
-        })));
+        log_sample(&rec, k, a, g);
     }
     rec.finish().unwrap();
 }
@@ -124,15 +134,8 @@ fn samples_holding_nan_or_infinity_are_skipped_and_counted() {
     // A unit that sends NaN for a reading it lacks, and an infinity: over rotated files of one
     // session, every finite sample is read exactly, the others skipped, counted and missing.
     let dir = tempfile::tempdir().unwrap();
-    let config = RecordingConfig {
-        dir: dir.path().to_path_buf(),
-        prefix: "imud".into(),
-        rotate_size_bytes: 24 * 1024,
-        rotate_interval_s: 0.0,
-        ..RecordingConfig::default()
-    };
     let bad = |k: u64| k % 97 == 5 || k % 101 == 7;
-    let rec = Recorder::start(config, Vec::new()).unwrap();
+    let rec = rotating_recorder(dir.path(), Vec::new());
     for k in 0..600u64 {
         let (mut a, mut g) = truth(k);
         if k % 97 == 5 {
@@ -141,15 +144,7 @@ fn samples_holding_nan_or_infinity_are_skipped_and_counted() {
         if k % 101 == 7 {
             g[(k % 3) as usize] = f64::NEG_INFINITY;
         }
-        let t = T0_NS + k * DT_NS;
-        assert!(rec.log(LogRecord::Corrected(CorrectedSample {
-            seq: k,
-            t_sample_ns: t,
-            t_wall_ns: t,
-            accel_m_s2: a,
-            gyro_rad_s: g,
-            ..CorrectedSample::default()
-        })));
+        log_sample(&rec, k, a, g);
     }
     rec.finish().unwrap();
     assert!(list_recordings(dir.path(), "imud").unwrap().len() >= 3);
@@ -175,23 +170,9 @@ fn samples_holding_nan_or_infinity_are_skipped_and_counted() {
     assert_eq!(s.missing_samples(), skipped);
     // A recording with nothing finite is an error that says so.
     let dir2 = tempfile::tempdir().unwrap();
-    let rec = Recorder::start(
-        RecordingConfig {
-            dir: dir2.path().to_path_buf(),
-            prefix: "imud".into(),
-            ..RecordingConfig::default()
-        },
-        Vec::new(),
-    )
-    .unwrap();
+    let rec = rotating_recorder(dir2.path(), Vec::new());
     for k in 0..5u64 {
-        assert!(rec.log(LogRecord::Corrected(CorrectedSample {
-            seq: k,
-            t_sample_ns: T0_NS + k * DT_NS,
-            t_wall_ns: T0_NS + k * DT_NS,
-            accel_m_s2: [f64::NAN; 3],
-            ..CorrectedSample::default()
-        })));
+        log_sample(&rec, k, [f64::NAN; 3], [0.0; 3]);
     }
     rec.finish().unwrap();
     let e = read_input(

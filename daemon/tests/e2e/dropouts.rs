@@ -25,21 +25,7 @@ fn dropouts_on_the_pty_lose_their_samples_and_imud_counts_them() {
     let imud = Imud::start(dir.path(), &name, &dir.path().join("imu0"), &cal_path);
     let mut sub = Subscription::<CorrectedSample>::open(&name, Duration::from_secs(10))
         .unwrap_or_else(|e| panic!("{e}: {}", imud.stderr()));
-    let sim = imu_sim::spawn(opts).unwrap();
-    let mut got = Vec::new();
-    drain(
-        &mut sub,
-        &mut got,
-        Instant::now() + Duration::from_secs(60),
-        |_| sim.is_finished(),
-    );
-    let report = sim.join().unwrap();
-    drain(
-        &mut sub,
-        &mut got,
-        Instant::now() + Duration::from_secs(1),
-        |_| false,
-    );
+    let (got, report) = collect_run(&mut sub, opts);
     let log = imud.terminate();
     assert!(report.completed);
 

@@ -247,6 +247,26 @@ fn drain(
     }
 }
 
+/// Runs the simulator `opts` to its end while `sub` collects every sample imud publishes (up
+/// to 60 s), then a last second of them: what the subscriber got and what the device did.
+fn collect_run(
+    sub: &mut Subscription<CorrectedSample>,
+    opts: imu_sim::SimOptions,
+) -> (Vec<CorrectedSample>, imu_sim::LinkReport) {
+    let sim = imu_sim::spawn(opts).unwrap();
+    let mut got = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    drain(sub, &mut got, deadline, |_| sim.is_finished());
+    let report = sim.join().unwrap();
+    drain(
+        sub,
+        &mut got,
+        Instant::now() + Duration::from_secs(1),
+        |_| false,
+    );
+    (got, report)
+}
+
 #[test]
 fn every_frame_reaches_log_and_subscriber_and_matches_truth() {
     every_frame_reaches_log_and_subscriber(DeviceProtocol::Gx1);
@@ -278,17 +298,7 @@ fn every_frame_reaches_log_and_subscriber(protocol: DeviceProtocol) {
     let imud = Imud::start(dir.path(), &name, &dir.path().join("imu0"), &cal_path);
     let mut sub = Subscription::<CorrectedSample>::open(&name, Duration::from_secs(10))
         .unwrap_or_else(|e| panic!("{e}: {}", imud.stderr()));
-    let sim = imu_sim::spawn(opts).unwrap();
-    let mut got = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(60);
-    drain(&mut sub, &mut got, deadline, |_| sim.is_finished());
-    let report = sim.join().unwrap();
-    drain(
-        &mut sub,
-        &mut got,
-        Instant::now() + Duration::from_secs(1),
-        |_| false,
-    );
+    let (got, report) = collect_run(&mut sub, opts);
     let log = imud.terminate();
 
     let truth = read_truth(&dir.path().join("truth.mcap")).unwrap();

@@ -45,17 +45,7 @@ fn a_passive_unit_is_recorded_sample_for_sample(protocol: DeviceProtocol) {
     );
     let mut sub = Subscription::<CorrectedSample>::open(&name, Duration::from_secs(10))
         .unwrap_or_else(|e| panic!("{e}: {}", imud.stderr()));
-    let sim = imu_sim::spawn(opts).unwrap();
-    let mut got = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(60);
-    drain(&mut sub, &mut got, deadline, |_| sim.is_finished());
-    let report = sim.join().unwrap();
-    drain(
-        &mut sub,
-        &mut got,
-        Instant::now() + Duration::from_secs(1),
-        |_| false,
-    );
+    let (got, report) = collect_run(&mut sub, opts);
     let log = imud.terminate();
 
     assert!(report.completed);

@@ -482,6 +482,20 @@ fn whole_offsets(monitor: &Monitor, checks: &[WindowCheck], latitude_deg: Option
 mod tests {
     use super::*;
 
+    /// A calibration with only noise tables: white noise densities of the accel (m/s^2/sqrt(Hz))
+    /// and gyro (rad/s/sqrt(Hz)) on every axis.
+    fn white_noise_tables(accel: f64, gyro: f64) -> Calibration {
+        Calibration::from_toml_str(
+            &format!(
+                "format = \"imud-calibration/1\"\n\
+                 [accel.noise]\nwhite-density = [{accel:e}, {accel:e}, {accel:e}]\n\
+                 [gyro.noise]\nwhite-density = [{gyro:e}, {gyro:e}, {gyro:e}]\n"
+            ),
+            "tables",
+        )
+        .unwrap()
+    }
+
     /// Coverage of the joint bias and scale fit's reported uncertainty over 300 synthetic
     /// recordings (14 rests each way along every axis and the diagonals), with window noise at
     /// the tables' level and 5 times it: the truth lies within 2 reported standard deviations
@@ -580,13 +594,7 @@ mod tests {
                 holed.gyro_rad_s[k][k % 3] = f64::INFINITY;
             }
         }
-        let tables = Calibration::from_toml_str(
-            "format = \"imud-calibration/1\"\n\
-             [accel.noise]\nwhite-density = [1e-3, 1e-3, 1e-3]\n\
-             [gyro.noise]\nwhite-density = [3e-5, 3e-5, 3e-5]\n",
-            "tables",
-        )
-        .unwrap();
+        let tables = white_noise_tables(1e-3, 3e-5);
         let options = CheckOptions::default();
         let (a, b) = (
             check_series(&still, Some(&tables), &options),
@@ -619,13 +627,7 @@ mod tests {
             origin: "shaking".into(),
             ..ImuSeries::default()
         };
-        let tables = Calibration::from_toml_str(
-            "format = \"imud-calibration/1\"\n\
-             [accel.noise]\nwhite-density = [1e-3, 1e-3, 1e-3]\n\
-             [gyro.noise]\nwhite-density = [1e-4, 1e-4, 1e-4]\n",
-            "tables",
-        )
-        .unwrap();
+        let tables = white_noise_tables(1e-3, 1e-4);
         for s in [&series, &ImuSeries::default()] {
             let c = check_series(s, Some(&tables), &CheckOptions::default());
             assert!(c.windows.is_empty(), "{:?}", c.windows);

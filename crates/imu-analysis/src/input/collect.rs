@@ -271,24 +271,22 @@ impl Collector {
     ) -> Result<ImuSeries, InputError> {
         let mut series = self.series;
         let mut abs_ns = self.abs_ns;
-        let finite = |a: &[f64; 3], g: &[f64; 3]| a.iter().chain(g).all(|v| v.is_finite());
-        let non_finite_samples = series
-            .accel_m_s2
-            .iter()
-            .zip(&series.gyro_rad_s)
-            .filter(|(a, g)| !finite(a, g))
-            .count() as u64;
-        if non_finite_samples > 0 {
-            let rows: Vec<_> = abs_ns
-                .into_iter()
-                .zip(series.accel_m_s2)
-                .zip(series.gyro_rad_s)
-                .filter(|((_, a), g)| finite(a, g))
-                .collect();
-            abs_ns = rows.iter().map(|((t, _), _)| *t).collect();
-            series.accel_m_s2 = rows.iter().map(|((_, a), _)| *a).collect();
-            series.gyro_rad_s = rows.iter().map(|(_, g)| *g).collect();
+        // Samples holding a NaN or infinity are skipped, in one pass that keeps the others in
+        // place.
+        let mut kept = 0;
+        for i in 0..abs_ns.len() {
+            let (a, g) = (series.accel_m_s2[i], series.gyro_rad_s[i]);
+            if a.iter().chain(&g).all(|v| v.is_finite()) {
+                abs_ns[kept] = abs_ns[i];
+                series.accel_m_s2[kept] = a;
+                series.gyro_rad_s[kept] = g;
+                kept += 1;
+            }
         }
+        let non_finite_samples = (abs_ns.len() - kept) as u64;
+        abs_ns.truncate(kept);
+        series.accel_m_s2.truncate(kept);
+        series.gyro_rad_s.truncate(kept);
         let Some(&t0) = abs_ns.first() else {
             return Err(InputError::NoData {
                 path: path.to_path_buf(),

@@ -8,29 +8,23 @@ pub fn utc_stamp(t: SystemTime) -> String {
         .duration_since(UNIX_EPOCH)
         .map(|d| d.as_secs())
         .unwrap_or(0);
-    let (y, m, d) = civil_from_days((secs / 86_400) as i64);
-    let s = secs % 86_400;
-    format!(
-        "{y:04}{m:02}{d:02}T{:02}{:02}{:02}Z",
-        s / 3600,
-        s % 3600 / 60,
-        s % 60
-    )
+    let (y, m, d, hh, mm, ss) = civil_time(secs);
+    format!("{y:04}{m:02}{d:02}T{hh:02}{mm:02}{ss:02}Z")
 }
 
 /// ISO 8601 `YYYY-MM-DDTHH:MM:SS.nnnnnnnnnZ` of a Unix-epoch time in ns, UTC (what a
 /// recording's start is said as to programs: Python's `datetime.fromisoformat` reads it).
 pub fn utc_iso8601_ns(t_ns: u64) -> String {
-    let secs = t_ns / 1_000_000_000;
+    let (y, m, d, hh, mm, ss) = civil_time(t_ns / 1_000_000_000);
+    let ns = t_ns % 1_000_000_000;
+    format!("{y:04}-{m:02}-{d:02}T{hh:02}:{mm:02}:{ss:02}.{ns:09}Z")
+}
+
+/// Date and time of day (year, month, day, hour, minute, second) of Unix-epoch seconds, UTC.
+fn civil_time(secs: u64) -> (i64, u32, u32, u64, u64, u64) {
     let (y, m, d) = civil_from_days((secs / 86_400) as i64);
     let s = secs % 86_400;
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:09}Z",
-        s / 3600,
-        s % 3600 / 60,
-        s % 60,
-        t_ns % 1_000_000_000
-    )
+    (y, m, d, s / 3600, s % 3600 / 60, s % 60)
 }
 
 /// Proleptic Gregorian date of a day count since 1970-01-01 (H. Hinnant's algorithm).
